@@ -1,0 +1,1 @@
+"""Real device drivers (air cannon, light gates, pivot clamp) over serial."""

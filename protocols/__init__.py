@@ -1,0 +1,1 @@
+"""Certification procedures (NCAA BESR, BBCOR, BBS) run by a small runner."""

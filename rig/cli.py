@@ -1,0 +1,252 @@
+"""The `rig` command line: a thin client over the controller's functions.
+
+Every command has --help. Errors print one line naming the cause and exit with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from rig.core.errors import ParameterError, RigError
+
+Handler = Callable[[argparse.Namespace], int]
+
+
+def _param_override(text: str) -> tuple[str, float]:
+    name, sep, value = text.partition("=")
+    if not sep:
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE, got {text!r}")
+    try:
+        return name.strip(), float(value)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{name.strip()}: {value!r} is not a number") from None
+
+
+def _model_parent() -> argparse.ArgumentParser:
+    parent = argparse.ArgumentParser(add_help=False)
+    parent.add_argument(
+        "--set",
+        dest="overrides",
+        metavar="NAME=VALUE",
+        type=_param_override,
+        action="append",
+        default=[],
+        help="override a model constant (m1, k1, c1, a, b, m2, c2), e.g. --set m2=0.1",
+    )
+    parent.add_argument("--rtol", type=float, default=None, help="solver relative tolerance")
+    parent.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    return parent
+
+
+def _params(args: argparse.Namespace) -> Any:
+    from rig.physics.params import CollisionParams
+
+    return CollisionParams.build(**dict(args.overrides))
+
+
+def _emit(args: argparse.Namespace, payload: dict[str, Any], title: str) -> None:
+    if args.json:
+        json.dump(payload, sys.stdout, indent=2, allow_nan=False)
+        sys.stdout.write("\n")
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=title, show_header=True)
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    for key, value in payload.items():
+        if isinstance(value, list):
+            value = f"[{len(value)} values]"
+        elif isinstance(value, float):
+            value = f"{value:.6g}"
+        table.add_row(key, str(value))
+    Console().print(table)
+
+
+def _rtol(args: argparse.Namespace, default: float) -> float:
+    return default if args.rtol is None else args.rtol
+
+
+def cmd_cor(args: argparse.Namespace) -> int:
+    """rig model cor: COR of one ball-barrel collision."""
+    from rig.physics import fast
+    from rig.physics.curve import rigid_cor
+    from rig.physics.equations import Impact
+
+    params = _params(args)
+    rtol = _rtol(args, fast.DEFAULT_RTOL)
+    hoop = None if args.rigid else args.hoop
+    res = fast.solve(Impact(params, args.speed, hoop), rtol=rtol)
+    e_rigid = res.cor if hoop is None else rigid_cor(params, args.speed)
+    payload = {
+        "speed_m_s": args.speed,
+        "hoop_hz": hoop,
+        "model": "rigid" if hoop is None else "barrel",
+        "cor": res.cor,
+        "cor_rigid": e_rigid,
+        "efficiency": res.cor / e_rigid,
+        "contact_time_s": res.contact_time_s,
+        "rtol": rtol,
+        "nfev": res.nfev,
+        "params": params.model_dump(),
+    }
+    _emit(args, payload, "Ball-barrel collision")
+    return 0
+
+
+def cmd_curve(args: argparse.Namespace) -> int:
+    """rig model curve: normalized collision efficiency against hoop frequency."""
+    from rig.physics import fast
+    from rig.physics.curve import efficiency_curve
+
+    params = _params(args)
+    curve = efficiency_curve(
+        params, args.speed, args.hoop_min, args.hoop_max, args.points, rtol=_rtol(args, fast.DEFAULT_RTOL)
+    )
+    if args.plot:
+        from rig.report.model_plots import plot_efficiency_curve
+
+        for path in plot_efficiency_curve(curve, args.plot):
+            print(f"wrote {path}", file=sys.stderr)
+    payload = {
+        "speed_m_s": curve.speed,
+        "cor_rigid": curve.cor_rigid,
+        "optimum_hz": curve.optimum_hz,
+        "optimum_efficiency": curve.optimum_efficiency,
+        "optimum_interior": curve.optimum_interior,
+        "rtol": curve.rtol,
+        "hoop_hz": curve.hoop_hz.tolist(),
+        "efficiency": curve.efficiency.tolist(),
+        "cor": curve.cor.tolist(),
+        "contact_time_s": curve.contact_time_s.tolist(),
+    }
+    _emit(args, payload, f"Collision efficiency at {curve.speed:g} m/s")
+    return 0
+
+
+def cmd_bat(args: argparse.Namespace) -> int:
+    """rig model bat: e_A and BBCOR predicted for a bat on the pivot."""
+    from rig.physics import fast
+    from rig.physics.bat import PivotedBat, predict_bat
+
+    params = _params(args)
+    bat = PivotedBat.build(moi_kgm2=args.moi, impact_from_pivot_m=args.impact_from_pivot)
+    hoop = None if args.rigid else args.hoop
+    pred = predict_bat(params, args.speed, hoop, bat, rtol=_rtol(args, fast.DEFAULT_RTOL))
+    payload = {
+        "speed_m_s": pred.speed,
+        "hoop_hz": pred.hoop_hz,
+        "moi_kgm2": bat.moi_kgm2,
+        "impact_from_pivot_m": bat.impact_from_pivot_m,
+        "e_a": pred.e_a,
+        "bbcor": pred.bbcor,
+        "besr": pred.besr,
+        "k": pred.k,
+        "effective_mass_kg": pred.effective_mass_kg,
+        "contact_time_s": pred.contact_time_s,
+        "definitions": {
+            "e_a": "rebound speed / inbound speed, bat initially at rest",
+            "bbcor": "e_a (1 + k) + k, k = m_ball Q^2 / I (founding paper Eq. 5)",
+            "besr": "e_a + 1/2",
+        },
+    }
+    _emit(args, payload, "Pivoted-bat prediction")
+    return 0
+
+
+def cmd_accuracy(args: argparse.Namespace) -> int:
+    """rig model accuracy: the work-precision study of the collision solvers."""
+    from rig.physics.precision import work_precision
+
+    study = work_precision(quick=args.quick, repeats=args.repeats)
+    if args.plot:
+        from rig.report.precision_plots import plot_work_precision
+
+        for path in plot_work_precision(study, args.plot):
+            print(f"wrote {path}", file=sys.stderr)
+    if args.json:
+        json.dump([row.as_dict() for row in study.rows], sys.stdout, indent=2, allow_nan=False)
+        sys.stdout.write("\n")
+    else:
+        from rich.console import Console
+
+        from rig.report.precision_plots import precision_table
+
+        Console().print(precision_table(study))
+    return 0
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} must be at least 1")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The whole command tree."""
+    parser = argparse.ArgumentParser(prog="rig", description="Bat-certification rig controller.")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    model = sub.add_parser("model", help="the ball-barrel collision model", description=__doc__)
+    msub = model.add_subparsers(dest="model_command", required=True, metavar="MODEL_COMMAND")
+    parent = _model_parent()
+
+    p = msub.add_parser("cor", parents=[parent], help="COR of one collision")
+    p.add_argument("--speed", type=float, required=True, help="inbound ball speed, m/s")
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--hoop", type=float, help="hoop frequency of the barrel, Hz")
+    g.add_argument("--rigid", action="store_true", help="a rigid barrel (f_hoop -> infinity)")
+    p.set_defaults(handler=cmd_cor)
+
+    p = msub.add_parser("curve", parents=[parent], help="efficiency eta(f) = COR(f)/COR_rigid")
+    p.add_argument("--speed", type=float, required=True, help="inbound ball speed, m/s")
+    p.add_argument("--hoop-min", type=float, required=True, help="lowest hoop frequency, Hz")
+    p.add_argument("--hoop-max", type=float, required=True, help="highest hoop frequency, Hz")
+    p.add_argument("--points", type=_positive_int, default=200, help="grid points, evenly spaced")
+    p.add_argument("--plot", metavar="FILE", help="write a plot (PNG and SVG beside it)")
+    p.set_defaults(handler=cmd_curve)
+
+    p = msub.add_parser("bat", parents=[parent], help="e_A and BBCOR of a bat on the pivot")
+    p.add_argument("--speed", type=float, required=True, help="inbound ball speed, m/s")
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--hoop", type=float, help="hoop frequency of the barrel, Hz")
+    g.add_argument("--rigid", action="store_true", help="a rigid barrel (a wood bat)")
+    p.add_argument("--moi", type=float, required=True, help="MOI about the pivot, kg m^2")
+    p.add_argument("--impact-from-pivot", type=float, required=True, help="pivot-to-impact distance Q, m")
+    p.set_defaults(handler=cmd_bat)
+
+    p = msub.add_parser("accuracy", help="work-precision study: error against cost of each solver")
+    p.add_argument("--plot", metavar="FILE", help="write the plots (PNG and SVG)")
+    p.add_argument("--json", action="store_true", help="print the rows as JSON")
+    p.add_argument("--quick", action="store_true", help="fewer tolerances and methods (a smoke run)")
+    p.add_argument("--repeats", type=_positive_int, default=5, help="timed repeats (best of N)")
+    p.set_defaults(handler=cmd_accuracy)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the `rig` console script."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    handler: Handler = args.handler
+    try:
+        return handler(args)
+    except ParameterError as exc:
+        print(f"rig: invalid parameter: {exc}", file=sys.stderr)
+    except RigError as exc:
+        print(f"rig: {exc}", file=sys.stderr)
+    except OSError as exc:
+        print(f"rig: {exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

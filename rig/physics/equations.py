@@ -1,0 +1,169 @@
+"""Equations of motion of the collision model as pure functions (the scipy style).
+
+Bodies, all moving along the ball's line of flight (positive towards the bat):
+- ball, mass m1, position x1, inbound speed v0 at t = 0;
+- barrel hoop mode, mass m2, position x2, on a spring k2 and damper c2 to its base;
+- base: clamped (the paper's model) or the rigid bat body on the pivot, effective mass I/Q^2.
+
+A rigid barrel (f_hoop -> infinity) is its own model: the barrel moves with its base.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from rig.physics.params import CollisionParams, check_hoop, check_speed
+
+
+@dataclass(frozen=True)
+class Impact:
+    """One collision to solve: model constants, inbound speed, hoop frequency, base."""
+
+    params: CollisionParams
+    speed: float
+    hoop_hz: float | None = None  # None: rigid barrel
+    body_mass: float | None = None  # None: clamped base; else the bat body's effective mass, kg
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "speed", check_speed(self.speed))
+        if self.hoop_hz is not None:
+            object.__setattr__(self, "hoop_hz", check_hoop(self.hoop_hz))
+        if self.body_mass is not None and not (math.isfinite(self.body_mass) and self.body_mass > 0):
+            from rig.core.errors import ParameterError
+
+            raise ParameterError("body_mass", self.body_mass, "must be finite and > 0 kg")
+
+    @property
+    def rigid(self) -> bool:
+        """True for the rigid-barrel model."""
+        return self.hoop_hz is None
+
+    @property
+    def k2(self) -> float:
+        """Barrel spring constant (infinite for the rigid barrel)."""
+        return math.inf if self.hoop_hz is None else self.params.k2(self.hoop_hz)
+
+    @property
+    def n_states(self) -> int:
+        """Number of mechanical states of the reduced system."""
+        bodies = 1 + (0 if self.rigid else 1) + (0 if self.body_mass is None else 1)
+        return 2 * bodies
+
+    def scales(self) -> np.ndarray:
+        """Per-state magnitudes (compression scale for positions, v0 for speeds)."""
+        length = self.params.compression_scale(self.speed)
+        return np.tile([length, self.speed], self.n_states // 2)
+
+    def time_scale(self) -> float:
+        """Characteristic contact time: compression scale over inbound speed."""
+        return self.params.compression_scale(self.speed) / self.speed
+
+
+def contact_force(d: float, dd: float, p: CollisionParams) -> float:
+    """Contact force F = k1 d|d|^a + c1 d'|d|^b of the ball on the barrel (Eqs. 1-2)."""
+    ad = abs(d)
+    return p.k1 * d * ad**p.a + p.c1 * dd * ad**p.b
+
+
+def separation_function(d: float, dd: float, p: CollisionParams) -> float:
+    """g = F/|d|^b = k1 d|d|^(a-b) + c1 d': same sign as F for d > 0, smooth, c1 v0 at t = 0.
+
+    Contact ends where g falls through zero (the ball cannot pull on the barrel). Using F itself
+    would give an event at t = 0, where F = 0.
+    """
+    ad = abs(d)
+    spring = 0.0 if ad == 0.0 else p.k1 * d * ad ** (p.a - p.b)
+    return spring + p.c1 * dd
+
+
+def make_rhs(imp: Impact, energy: bool = False) -> Callable[[float, np.ndarray], list[float]]:
+    """Right-hand side for solve_ivp over the reduced states of `imp`.
+
+    States: ball (x1, v1), then barrel (x2, v2) unless rigid, then body (x3, v3) if free. With
+    `energy`, two quadratures follow: work dissipated in the ball and in the barrel damper.
+    """
+    p = imp.params
+    m1, k1, c1, a, b, m2, c2 = p.m1, p.k1, p.c1, p.a, p.b, p.m2, p.c2
+    k2 = imp.k2
+    body = imp.body_mass
+    if imp.rigid:
+        inv_base = 0.0 if body is None else 1.0 / (m2 + body)
+
+        def rhs_rigid(t: float, y: np.ndarray) -> list[float]:
+            s = y.tolist()
+            x1, v1 = s[0], s[1]
+            x2, v2 = (s[2], s[3]) if body is not None else (0.0, 0.0)
+            d, dd = x1 - x2, v1 - v2
+            ad = abs(d)
+            fd = c1 * dd * ad**b
+            f = k1 * d * ad**a + fd
+            out = [v1, -f / m1]
+            if body is not None:
+                out += [v2, f * inv_base]
+            if energy:
+                out += [fd * dd, 0.0]
+            return out
+
+        return rhs_rigid
+
+    inv_body = 0.0 if body is None else 1.0 / body
+
+    def rhs_barrel(t: float, y: np.ndarray) -> list[float]:
+        s = y.tolist()
+        x1, v1, x2, v2 = s[0], s[1], s[2], s[3]
+        x3, v3 = (s[4], s[5]) if body is not None else (0.0, 0.0)
+        d, dd = x1 - x2, v1 - v2
+        ad = abs(d)
+        fd = c1 * dd * ad**b
+        f = k1 * d * ad**a + fd
+        rv = v2 - v3
+        fs = k2 * (x2 - x3) + c2 * rv
+        out = [v1, -f / m1, v2, (f - fs) / m2]
+        if body is not None:
+            out += [v3, fs * inv_body]
+        if energy:
+            out += [fd * dd, c2 * rv * rv]
+        return out
+
+    return rhs_barrel
+
+
+def initial_state(imp: Impact, energy: bool = False) -> np.ndarray:
+    """Ball at the barrel surface moving at v0; everything else at rest."""
+    y0 = np.zeros(imp.n_states + (2 if energy else 0))
+    y0[1] = imp.speed
+    return y0
+
+
+def relative_motion(imp: Impact, y: np.ndarray) -> tuple[float, float]:
+    """Compression d = x1 - x2 and its rate from a state vector."""
+    if imp.rigid and imp.body_mass is None:
+        return float(y[0]), float(y[1])
+    return float(y[0] - y[2]), float(y[1] - y[3])
+
+
+def mechanical_energy(imp: Impact, y: np.ndarray) -> dict[str, float]:
+    """Kinetic and stored energies of a state, J (the ball's stored energy is k1 |d|^(2+a)/(2+a))."""
+    p = imp.params
+    d, _ = relative_motion(imp, y)
+    out = {
+        "ball_kinetic": 0.5 * p.m1 * float(y[1]) ** 2,
+        "ball_stored": p.k1 * abs(d) ** (2.0 + p.a) / (2.0 + p.a),
+        "barrel_kinetic": 0.0,
+        "barrel_stored": 0.0,
+        "body_kinetic": 0.0,
+    }
+    if imp.rigid:
+        if imp.body_mass is not None:
+            out["body_kinetic"] = 0.5 * (p.m2 + imp.body_mass) * float(y[3]) ** 2
+        return out
+    x3, v3 = (float(y[4]), float(y[5])) if imp.body_mass is not None else (0.0, 0.0)
+    out["barrel_kinetic"] = 0.5 * p.m2 * float(y[3]) ** 2
+    out["barrel_stored"] = 0.5 * imp.k2 * (float(y[2]) - x3) ** 2
+    if imp.body_mass is not None:
+        out["body_kinetic"] = 0.5 * imp.body_mass * v3**2
+    return out

@@ -1,0 +1,1 @@
+"""Reports and plots: thin clients of the results the rest of the controller computes."""

@@ -1,0 +1,1 @@
+"""Simulated hardware that speaks the devices' wire formats, driven by a physics scene."""
