@@ -11,6 +11,8 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
+import numpy as np
+
 from rig.core.errors import ParameterError, RigError
 
 Handler = Callable[[argparse.Namespace], int]
@@ -125,8 +127,38 @@ def cmd_curve(args: argparse.Namespace) -> int:
         "cor": curve.cor.tolist(),
         "contact_time_s": curve.contact_time_s.tolist(),
     }
-    _emit(args, payload, f"Collision efficiency at {curve.speed:g} m/s")
+    if args.json:
+        _emit(args, payload, "")
+    else:
+        _print_curve(curve)
     return 0
+
+
+def _print_curve(curve: Any, rows: int = 16) -> None:
+    """A readable digest of the curve: a sample of the grid with a bar per point, and the optimum."""
+    from rich.console import Console
+    from rich.table import Table
+
+    idx = sorted(
+        set(np.linspace(0, curve.hoop_hz.size - 1, min(rows, curve.hoop_hz.size)).round().astype(int))
+    )
+    lo, hi = float(curve.efficiency.min()), float(curve.efficiency.max())
+    table = Table(
+        title=f"Normalized collision efficiency at {curve.speed:g} m/s (COR_rigid = {curve.cor_rigid:.4f})"
+    )
+    for col in ("hoop Hz", "COR", "eta", ""):
+        table.add_column(col, justify="right" if col else "left")
+    for i in idx:
+        eta = float(curve.efficiency[i])
+        bar = "#" * (1 + int(30 * (eta - lo) / (hi - lo or 1.0)))
+        table.add_row(f"{curve.hoop_hz[i]:.0f}", f"{curve.cor[i]:.4f}", f"{eta:.4f}", bar)
+    console = Console()
+    console.print(table)
+    where = "between grid points" if curve.optimum_interior else "at the end of the grid"
+    console.print(
+        f"optimum: {curve.optimum_hz:.1f} Hz, eta = {curve.optimum_efficiency:.4f} ({where}); "
+        f"{curve.hoop_hz.size} points, rtol {curve.rtol:g}"
+    )
 
 
 def cmd_bat(args: argparse.Namespace) -> int:

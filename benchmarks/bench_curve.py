@@ -1,0 +1,158 @@
+"""Benchmark: the 1000-point efficiency curve, compiled kernel against a solve_ivp loop.
+
+Both sides are measured in the same run at the same *measured* accuracy (max |COR error| against
+a reference that two unrelated methods agree on), and the figures are printed side by side.
+Run with `make bench`. Targets (issue 2): ratio >= 100x, curve <= 0.1 s, one solve <= 100 us.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+import scipy
+
+from rig.physics import fast
+from rig.physics.curve import cor_grid
+from rig.physics.equations import Impact
+from rig.physics.params import DEFAULT_PARAMS
+from rig.physics.reference import solve_reference
+
+SPEED = 60.8
+HOOP_MIN, HOOP_MAX, POINTS = 300.0, 20000.0, 1000
+TARGET_ERROR = 1e-8
+CANDIDATE_RTOLS = (1e-6, 3e-7, 1e-7, 3e-8, 1e-8, 3e-9, 1e-9, 3e-10, 1e-10, 3e-11, 1e-11)
+
+
+def best_of(fn, repeats: int) -> float:
+    """Best wall time of `repeats` calls after one warm-up call."""
+    fn()
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def scipy_loop(hoops: np.ndarray, rtol: float) -> np.ndarray:
+    """COR at each hoop frequency by one solve_ivp(DOP853) call per point."""
+    return np.array(
+        [solve_reference(Impact(DEFAULT_PARAMS, SPEED, float(f)), "DOP853", rtol).cor for f in hoops]
+    )
+
+
+def cross_check_reference(hoops: np.ndarray, ref: np.ndarray, n: int) -> dict[str, float]:
+    """Agreement of the kernel reference with scipy DOP853 and Radau on a spread of points."""
+    idx = np.linspace(0, hoops.size - 1, n).round().astype(int)
+    dop = scipy_loop(hoops[idx], 1e-13)
+    radau = np.array(
+        [solve_reference(Impact(DEFAULT_PARAMS, SPEED, float(hoops[i])), "Radau", 1e-12).cor for i in idx]
+    )
+    return {
+        "points_checked": int(n),
+        "max_diff_vs_scipy_dop853_1e-13": float(np.max(np.abs(dop - ref[idx]))),
+        "max_diff_vs_scipy_radau_1e-12": float(np.max(np.abs(radau - ref[idx]))),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--repeats", type=int, default=7, help="timed repeats (best of N)")
+    parser.add_argument("--check-points", type=int, default=8, help="points cross-checked by Radau")
+    parser.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
+    args = parser.parse_args(argv)
+
+    t0 = time.perf_counter()
+    fast.warm_up()
+    first_call = time.perf_counter() - t0
+    hoops = np.linspace(HOOP_MIN, HOOP_MAX, POINTS)
+
+    ref, _ = cor_grid(DEFAULT_PARAMS, SPEED, hoops, rtol=1e-13)
+    agreement = cross_check_reference(hoops, ref, args.check_points)
+
+    # Loosest kernel tolerance that meets the accuracy target on all 1000 points.
+    kernel_rtol, kernel_err = None, None
+    for rtol in CANDIDATE_RTOLS:
+        cor, _ = cor_grid(DEFAULT_PARAMS, SPEED, hoops, rtol=rtol)
+        err = float(np.max(np.abs(cor - ref)))
+        if err <= TARGET_ERROR:
+            kernel_rtol, kernel_err = rtol, err
+            break
+    if kernel_rtol is None:
+        print("kernel never reached the accuracy target", file=sys.stderr)
+        return 1
+    curve_time = best_of(lambda: cor_grid(DEFAULT_PARAMS, SPEED, hoops, rtol=kernel_rtol), args.repeats)
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    curve_time_1t = best_of(lambda: cor_grid(DEFAULT_PARAMS, SPEED, hoops, rtol=kernel_rtol), args.repeats)
+    numba.set_num_threads(threads)
+
+    imp = Impact(DEFAULT_PARAMS, SPEED, 1250.0)
+    reps = 200
+    one_solve = best_of(lambda: [fast.solve(imp, kernel_rtol) for _ in range(reps)], args.repeats) / reps
+
+    # Loosest solve_ivp tolerance that meets the same target: calibrate on every 20th point,
+    # then time and verify the whole 1000-point loop.
+    sub = slice(0, POINTS, 20)
+    scipy_rtol, scipy_err, scipy_cor = None, None, None
+    for rtol in CANDIDATE_RTOLS:
+        if float(np.max(np.abs(scipy_loop(hoops[sub], rtol) - ref[sub]))) > TARGET_ERROR:
+            continue
+        t1 = time.perf_counter()
+        scipy_cor = scipy_loop(hoops, rtol)
+        scipy_time = time.perf_counter() - t1
+        scipy_err = float(np.max(np.abs(scipy_cor - ref)))
+        if scipy_err <= TARGET_ERROR:
+            scipy_rtol = rtol
+            break
+    if scipy_rtol is None:
+        print("solve_ivp never reached the accuracy target", file=sys.stderr)
+        return 1
+
+    figures = {
+        "machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
+        "cores_used_by_kernel": threads,
+        "versions": {"python": platform.python_version(), "numpy": np.__version__,
+                     "scipy": scipy.__version__, "numba": numba.__version__},
+        "curve": f"{POINTS} points, {HOOP_MIN:g}-{HOOP_MAX:g} Hz, {SPEED} m/s",
+        "reference": "compiled DOP853 at rtol 1e-13",
+        "reference_agreement": agreement,
+        "first_call_s (load or compile)": first_call,
+        "kernel_rtol": kernel_rtol,
+        "kernel_max_cor_error": kernel_err,
+        "kernel_curve_s": curve_time,
+        "kernel_curve_1_thread_s": curve_time_1t,
+        "one_solve_us (1250 Hz)": one_solve * 1e6,
+        "scipy_rtol": scipy_rtol,
+        "scipy_max_cor_error": scipy_err,
+        "scipy_loop_s": scipy_time,
+        "ratio": scipy_time / curve_time,
+        "ratio_1_thread": scipy_time / curve_time_1t,
+    }
+    targets = [
+        ("ratio >= 100x", figures["ratio"] >= 100.0),
+        ("curve <= 0.1 s", curve_time <= 0.1),
+        ("one solve <= 100 us", one_solve <= 100e-6),
+        ("max COR error <= 1e-8 (both)", kernel_err <= TARGET_ERROR and scipy_err <= TARGET_ERROR),
+    ]
+    width = max(len(k) for k in figures)
+    for key, value in figures.items():
+        text = f"{value:.4g}" if isinstance(value, float) else str(value)
+        print(f"{key:<{width}}  {text}")
+    for name, ok in targets:
+        print(f"target {name:<32} {'met' if ok else 'NOT MET'}")
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps({"figures": figures, "targets": dict(targets)}, indent=2))
+    return 0 if all(ok for _, ok in targets) else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
