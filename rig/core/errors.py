@@ -29,3 +29,39 @@ class ParameterError(RigError, ValueError):
 
 class SolverError(RigError, RuntimeError):
     """A numerical solve failed; the message says where and why."""
+
+
+class DeviceError(RigError):
+    """A device failed to do what was asked; `device` names it."""
+
+    def __init__(self, device: str, message: str) -> None:
+        self.device = device
+        super().__init__(f"{device}: {message}")
+
+
+class DeviceTimeout(DeviceError):
+    """No (complete) reply within the time allowed."""
+
+
+class DeviceRefused(DeviceError):
+    """The device answered with an error reply."""
+
+    def __init__(self, device: str, command: str, code: str, text: str) -> None:
+        self.command, self.code, self.text = command, code, text
+        super().__init__(device, f"refused {command}: {code} {text}".rstrip())
+
+
+class GarbledReply(DeviceError):
+    """A line that failed its CRC, framing or grammar, or a reply missing a field."""
+
+
+class UnexpectedMessage(DeviceError):
+    """A well-formed message that makes no sense now (e.g. an unknown event)."""
+
+
+class DeviceGone(DeviceError):
+    """The port vanished or could not be opened (unplugged, wrong path, simulator stopped)."""
+
+
+class SafetyRefusal(DeviceError):
+    """The controller refused to arm or fire: an interlock or the state table says no."""

@@ -1,0 +1,1 @@
+"""The air cannon: pressure, arm, fire, vent, interlocks."""

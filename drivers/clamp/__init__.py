@@ -1,0 +1,1 @@
+"""The pivot clamp: grip, impact-point stage, pivot angle encoder."""

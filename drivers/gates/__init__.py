@@ -1,0 +1,1 @@
+"""The three light gates and their counter-timer."""

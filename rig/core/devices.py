@@ -1,0 +1,149 @@
+"""Device records and interfaces: what procedures and the UI know about the rig's devices.
+
+Procedures receive devices through these interfaces (typing.Protocol), never a concrete driver,
+so a real driver, a driver on a simulated port or a test fake all fit.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import Protocol, runtime_checkable
+
+
+class CannonState(StrEnum):
+    """SAFE -> ARMED -> FIRED -> SAFE; FAULT until RESET."""
+
+    SAFE = "SAFE"
+    ARMED = "ARMED"
+    FIRED = "FIRED"
+    FAULT = "FAULT"
+
+
+@dataclass(frozen=True)
+class Interlocks:
+    """Interlock loop: True means closed (safe to fire)."""
+
+    door: bool
+    clamp: bool
+    estop: bool
+
+    @property
+    def all_closed(self) -> bool:
+        """True only when every interlock is closed."""
+        return self.door and self.clamp and self.estop
+
+    def open_names(self) -> list[str]:
+        """Names of the open interlocks."""
+        pairs = (("door", self.door), ("clamp", self.clamp), ("estop", self.estop))
+        return [name for name, closed in pairs if not closed]
+
+
+@dataclass(frozen=True)
+class CannonStatus:
+    """What the cannon reports of itself."""
+
+    state: CannonState
+    pressure_kpa: float
+    setpoint_kpa: float
+    interlocks: Interlocks
+    shots: int
+
+
+@dataclass(frozen=True)
+class Environment:
+    """Lab temperature and relative humidity."""
+
+    temperature_c: float
+    humidity_pct: float
+
+
+@dataclass(frozen=True)
+class GateConfig:
+    """The gates' counter: number of gates, tick and counter width."""
+
+    gates: int
+    tick_ns: float
+    bits: int
+
+    @property
+    def tick_s(self) -> float:
+        """One counter tick in seconds."""
+        return self.tick_ns * 1e-9
+
+    @property
+    def modulus(self) -> int:
+        """The counter wraps at this many ticks."""
+        return 1 << self.bits
+
+
+@dataclass(frozen=True)
+class GateCrossing:
+    """A beam break: gate (1-based), counter value, and the host's receive time (monotonic s)."""
+
+    gate: int
+    tick: int
+    host_time_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class ClampStatus:
+    """What the pivot clamp reports of itself."""
+
+    locked: bool
+    position_mm: float
+    moving: bool
+    angle_deg: float
+
+
+@dataclass(frozen=True)
+class PendulumPeriod:
+    """Mean pendulum period over `cycles` swings from amplitude `amplitude_deg`."""
+
+    period_s: float
+    amplitude_deg: float
+    cycles: int
+
+
+@dataclass(frozen=True)
+class Recoil:
+    """The bat's peak angular speed about the pivot just after an impact, rad/s."""
+
+    omega_rad_s: float
+
+
+@runtime_checkable
+class Cannon(Protocol):
+    """An air cannon that fires only when armed with every interlock closed."""
+
+    def status(self) -> CannonStatus: ...
+    def set_pressure(self, kpa: float, wait_ready: bool = True) -> None: ...
+    def arm(self) -> None: ...
+    def fire(self) -> int: ...
+    def vent(self) -> None: ...
+    def reset(self) -> None: ...
+    def environment(self) -> Environment: ...
+
+
+@runtime_checkable
+class Gates(Protocol):
+    """Light gates streaming timestamped beam breaks."""
+
+    def config(self) -> GateConfig: ...
+    def arm(self) -> None: ...
+    def disarm(self) -> None: ...
+    def self_test(self) -> None: ...
+    def crossings(self, timeout_s: float) -> Iterator[GateCrossing]: ...
+
+
+@runtime_checkable
+class Clamp(Protocol):
+    """Pivot clamp with impact-point stage and angle encoder."""
+
+    def status(self) -> ClampStatus: ...
+    def clamp(self) -> None: ...
+    def release(self) -> None: ...
+    def move_to(self, mm: float) -> None: ...
+    def measure_period(self, cycles: int) -> PendulumPeriod: ...
+    def next_recoil(self, timeout_s: float) -> Recoil | None: ...
