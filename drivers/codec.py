@@ -7,6 +7,7 @@ replies and events. Neither does any I/O.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
@@ -89,6 +90,8 @@ def _fmt(value: object) -> str:
     if isinstance(value, bool):
         return "1" if value else "0"
     if isinstance(value, float):
+        if not math.isfinite(value):
+            return repr(value)  # 'nan', 'inf': the argument checks then refuse it with a ValueError
         return repr(value) if value != int(value) or abs(value) >= 1e15 else f"{value:.1f}"
     return str(value)
 

@@ -65,3 +65,11 @@ class DeviceGone(DeviceError):
 
 class SafetyRefusal(DeviceError):
     """The controller refused to arm or fire: an interlock or the state table says no."""
+
+
+class ConfigError(RigError, ValueError):
+    """A configuration file or value is refused; the message names the file and the field."""
+
+    def __init__(self, reason: str, source: str = "", field: str = "") -> None:
+        self.reason, self.source, self.field = reason, source, field
+        super().__init__(": ".join(part for part in (source, field, reason) if part))

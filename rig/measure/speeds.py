@@ -98,16 +98,22 @@ class ShotSpeeds:
     inbound_near: float | None  # gates 2 -> 3
     rebound_near: float | None  # gates 3 -> 2
     rebound_far: float | None  # gates 2 -> 1
+    inbound_span: float | None = None  # gates 1 -> 3, used only when gate 2 missed the ball
+    rebound_span: float | None = None  # gates 3 -> 1, likewise
 
     @property
     def inbound(self) -> float | None:
-        """Inbound speed at the bat: the pair nearest the impact."""
-        return self.inbound_near if self.inbound_near is not None else self.inbound_far
+        """Inbound speed at the bat: the pair nearest the impact, else the widest pair left."""
+        return _first(self.inbound_near, self.inbound_span, self.inbound_far)
 
     @property
     def rebound(self) -> float | None:
-        """Rebound speed off the bat: the pair nearest the impact."""
-        return self.rebound_near if self.rebound_near is not None else self.rebound_far
+        """Rebound speed off the bat: the pair nearest the impact, else the widest pair left."""
+        return _first(self.rebound_near, self.rebound_span, self.rebound_far)
+
+
+def _first(*values: float | None) -> float | None:
+    return next((v for v in values if v is not None), None)
 
 
 def shot_speeds(passes: GatePasses, positions_m: Sequence[float], cfg: GateConfig) -> ShotSpeeds:
@@ -126,4 +132,6 @@ def shot_speeds(passes: GatePasses, positions_m: Sequence[float], cfg: GateConfi
         inbound_near=speed(passes.inbound, 2, 3, x2 - x3),
         rebound_near=speed(passes.rebound, 3, 2, x2 - x3),
         rebound_far=speed(passes.rebound, 2, 1, x1 - x2),
+        inbound_span=speed(passes.inbound, 1, 3, x1 - x3) if 2 not in passes.inbound else None,
+        rebound_span=speed(passes.rebound, 3, 1, x1 - x3) if 2 not in passes.rebound else None,
     )

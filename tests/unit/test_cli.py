@@ -43,8 +43,17 @@ def test_cor_accepts_model_overrides(capsys: pytest.CaptureFixture[str]) -> None
 
 def test_curve_grid_is_even_and_optimum_near_paper(capsys: pytest.CaptureFixture[str]) -> None:
     out = run_json(
-        capsys, "model", "curve", "--speed", "60.8", "--hoop-min", "300", "--hoop-max", "5000",
-        "--points", "1000",
+        capsys,
+        "model",
+        "curve",
+        "--speed",
+        "60.8",
+        "--hoop-min",
+        "300",
+        "--hoop-max",
+        "5000",
+        "--points",
+        "1000",
     )
     hz = np.array(out["hoop_hz"])
     assert hz.size == len(out["efficiency"]) == 1000
@@ -58,16 +67,42 @@ def test_curve_grid_is_even_and_optimum_near_paper(capsys: pytest.CaptureFixture
 
 def test_curve_plot_writes_png_and_svg(tmp_path, capsys: pytest.CaptureFixture[str]) -> None:
     target = tmp_path / "eta.png"
-    assert main(["model", "curve", "--speed", "60.8", "--hoop-min", "500", "--hoop-max", "3000",
-                 "--points", "20", "--plot", str(target)]) == 0
+    assert (
+        main(
+            [
+                "model",
+                "curve",
+                "--speed",
+                "60.8",
+                "--hoop-min",
+                "500",
+                "--hoop-max",
+                "3000",
+                "--points",
+                "20",
+                "--plot",
+                str(target),
+            ]
+        )
+        == 0
+    )
     assert target.stat().st_size > 1000
     assert (tmp_path / "eta.svg").read_text().lstrip().startswith("<?xml")
 
 
 def test_bat_json_obeys_eq5(capsys: pytest.CaptureFixture[str]) -> None:
     out = run_json(
-        capsys, "model", "bat", "--speed", "60.8", "--hoop", "1800", "--moi", "0.20",
-        "--impact-from-pivot", "0.58",
+        capsys,
+        "model",
+        "bat",
+        "--speed",
+        "60.8",
+        "--hoop",
+        "1800",
+        "--moi",
+        "0.20",
+        "--impact-from-pivot",
+        "0.58",
     )
     k = 0.145 * 0.58**2 / 0.20
     assert out["k"] == pytest.approx(k, rel=1e-12)
@@ -86,8 +121,10 @@ def test_bat_json_obeys_eq5(capsys: pytest.CaptureFixture[str]) -> None:
         (["model", "cor", "--speed", "60", "--rigid", "--set", "bogus=1"], "bogus"),
         (["model", "cor", "--speed", "60", "--rigid", "--rtol", "0.5"], "rtol"),
         (["model", "curve", "--speed", "60", "--hoop-min", "900", "--hoop-max", "800"], "hoop_max"),
-        (["model", "bat", "--speed", "60", "--rigid", "--moi", "0.01", "--impact-from-pivot", "0.6"],
-         "moi_kgm2"),
+        (
+            ["model", "bat", "--speed", "60", "--rigid", "--moi", "0.01", "--impact-from-pivot", "0.6"],
+            "moi_kgm2",
+        ),
     ],
 )
 def test_bad_input_is_one_line_naming_the_parameter(
@@ -121,7 +158,10 @@ def test_every_command_has_help(capsys: pytest.CaptureFixture[str], argv: list[s
 def test_module_entry_point_runs_in_a_fresh_process() -> None:
     proc = subprocess.run(
         [sys.executable, "-m", "rig.cli", "model", "cor", "--speed", "30", "--rigid", "--json"],
-        capture_output=True, text=True, timeout=120, check=False,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
     )
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout)["cor"] > 0.5

@@ -66,13 +66,22 @@ def test_doubled_trigger_is_set_aside() -> None:
     assert shot_speeds(passes, POS, CFG).inbound == pytest.approx(60.8, rel=5e-5)
 
 
-def test_missed_gate_leaves_a_hole_not_a_wrong_speed() -> None:
+def test_missed_middle_gate_falls_back_to_the_outer_pair() -> None:
     crossings = shot_ticks(60.8, 14.0)
     del crossings[4]  # rebound never seen at gate 2
     sp = shot_speeds(split_passes(crossings, CFG), POS, CFG)
     assert sp.rebound_near is None and sp.rebound_far is None
-    assert sp.rebound is None
+    assert sp.rebound == sp.rebound_span == pytest.approx(14.0, rel=1e-5)
     assert sp.inbound == pytest.approx(60.8, rel=5e-5)
+    assert sp.inbound_span is None  # gate 2 saw the inbound ball: no fallback needed
+
+
+def test_missed_outer_gate_leaves_a_hole_not_a_wrong_speed() -> None:
+    crossings = shot_ticks(60.8, 14.0)
+    del crossings[5]  # rebound never reached gate 1
+    del crossings[4]  # nor gate 2
+    sp = shot_speeds(split_passes(crossings, CFG), POS, CFG)
+    assert sp.rebound is None
 
 
 def test_slow_rebound_that_never_reaches_the_far_gate() -> None:

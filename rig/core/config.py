@@ -1,0 +1,106 @@
+"""The rig's configuration (pydantic, loadable from TOML): ports, geometry, aiming, timeouts."""
+
+from __future__ import annotations
+
+import tomllib
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from rig.core.errors import ConfigError
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+
+class Ports(_Model):
+    """Port URL of each device: a device path, socket://host:port, sim://..., spy://..."""
+
+    cannon: str
+    gates: str
+    clamp: str
+
+
+class GateGeometry(_Model):
+    """Gate distances from the impact point along the ball path, farthest (gate 1) first, m."""
+
+    positions_m: tuple[float, float, float] = (0.75, 0.50, 0.25)
+    position_uncertainty_m: Annotated[float, Field(ge=0.0)] = 0.000127  # +-0.005 in
+
+    @field_validator("positions_m")
+    @classmethod
+    def _farthest_first(cls, v: tuple[float, float, float]) -> tuple[float, float, float]:
+        if not v[0] > v[1] > v[2] >= 0.0:
+            raise ValueError("gate positions must be decreasing (gate 1 farthest) and >= 0")
+        return v
+
+
+class AimCalibration(_Model):
+    """Exit speed against tank pressure, from calibration shots; aiming inverts it."""
+
+    pressure_kpa: tuple[float, ...] = (100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 800.0)
+    speed_m_s: tuple[float, ...] = (37.4, 49.6, 56.9, 61.3, 64.2, 66.0, 68.0)
+
+    @model_validator(mode="after")
+    def _monotone(self) -> AimCalibration:
+        p, v = np.asarray(self.pressure_kpa), np.asarray(self.speed_m_s)
+        if p.size != v.size or p.size < 2:
+            raise ValueError("pressure_kpa and speed_m_s need the same length, at least 2")
+        if np.any(np.diff(p) <= 0) or np.any(np.diff(v) <= 0):
+            raise ValueError("pressure and speed must both increase strictly")
+        return self
+
+    def pressure_for(self, speed_m_s: float) -> float:
+        """Pressure expected to give `speed_m_s` (linear interpolation; refuses extrapolation)."""
+        if not self.speed_m_s[0] <= speed_m_s <= self.speed_m_s[-1]:
+            raise ConfigError(
+                f"speed {speed_m_s:g} m/s is outside the aim calibration "
+                f"({self.speed_m_s[0]:g}-{self.speed_m_s[-1]:g} m/s)"
+            )
+        return float(np.interp(speed_m_s, self.speed_m_s, self.pressure_kpa))
+
+
+class Timeouts(_Model):
+    """How long the controller waits, s. Every wait has a deadline."""
+
+    reply_s: Annotated[float, Field(gt=0.0)] = 1.0
+    pressure_ready_s: Annotated[float, Field(gt=0.0)] = 120.0
+    stage_s: Annotated[float, Field(gt=0.0)] = 30.0
+    shot_window_s: Annotated[float, Field(gt=0.0)] = 0.5  # silence that ends a shot's gate events
+    recoil_s: Annotated[float, Field(gt=0.0)] = 0.1  # the encoder reports within ms of the impact
+
+
+class RigConfig(_Model):
+    """Everything the controller must know about one rig."""
+
+    name: str = "rig"
+    ports: Ports
+    gates: GateGeometry = GateGeometry()
+    aim: AimCalibration = AimCalibration()
+    timeouts: Timeouts = Timeouts()
+    impact_from_pivot_m: Annotated[float, Field(gt=0.1, lt=0.9)] = 0.56
+
+    @classmethod
+    def load(cls, path: str | Path) -> RigConfig:
+        """Read and validate a TOML file; errors name the file and the field."""
+        path = Path(path)
+        try:
+            data = tomllib.loads(path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise ConfigError("no such file", source=str(path)) from None
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"not valid TOML: {exc}", source=str(path)) from None
+        return cls.from_dict(data, source=str(path))
+
+    @classmethod
+    def from_dict(cls, data: dict, source: str = "config") -> RigConfig:
+        """Validate a mapping; errors name the source and the field."""
+        try:
+            return cls.model_validate(data)
+        except ValidationError as exc:
+            first = exc.errors()[0]
+            where = ".".join(str(p) for p in first["loc"]) or "(top level)"
+            raise ConfigError(first["msg"], source=source, field=where) from None

@@ -1,0 +1,93 @@
+"""Composition root: a rig config becomes open devices; the CLI and the UI drive a session.
+
+Simulation is chosen by the port URLs alone (`sim://...`): the same drivers run either way.
+This is the one place that knows both the drivers and the simulators exist.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import uuid
+from dataclasses import dataclass, field
+from urllib.parse import quote
+
+from drivers.cannon.driver import CannonDriver
+from drivers.clamp.driver import ClampDriver
+from drivers.gates.driver import GatesDriver
+from drivers.transport import TrafficRecord
+from rig.core.config import RigConfig
+
+DEVICES = ("cannon", "gates", "clamp")
+
+
+def sim_config(scene: str = "ideal", rig_name: str | None = None) -> RigConfig:
+    """A rig config whose ports are simulated devices of `scene` (a built-in name or a TOML path).
+
+    The gate positions and the aim table come from the scene, as a lab would measure them on
+    its own rig; everything else is the controller's default.
+    """
+    from simulators.scene import Scene
+    from simulators.urlhandler import register
+
+    register()
+    loaded = Scene.load(scene)
+    rig = rig_name or f"session-{uuid.uuid4().hex[:8]}"
+    ports = {dev: f"sim://{dev}?scene={quote(scene, safe='')}&rig={rig}" for dev in DEVICES}
+    data = {"name": f"simulated rig ({loaded.name})", "ports": ports, **loaded.rig_config_fragment()}
+    return RigConfig.from_dict(data, source=f"scene {scene}")
+
+
+@dataclass
+class RigSession:
+    """The open devices of one rig and the raw traffic they have exchanged."""
+
+    config: RigConfig
+    cannon: CannonDriver
+    gates: GatesDriver
+    clamp: ClampDriver
+    traffic: list[tuple[str, TrafficRecord]] = field(default_factory=list)
+
+    @classmethod
+    def open(cls, config: RigConfig) -> RigSession:
+        """Open every device named in the config; a failure closes what was opened and re-raises."""
+        if any(url.startswith("sim://") for url in config.ports.model_dump().values()):
+            from simulators.urlhandler import register
+
+            register()
+        traffic: list[tuple[str, TrafficRecord]] = []
+        opened: list[CannonDriver | GatesDriver | ClampDriver] = []
+        reply_s = config.timeouts.reply_s
+
+        def log(name: str):
+            return lambda rec: traffic.append((name, rec))
+
+        try:
+            cannon = CannonDriver(
+                config.ports.cannon,
+                reply_timeout_s=reply_s,
+                ready_timeout_s=config.timeouts.pressure_ready_s,
+                on_traffic=log("cannon"),
+            )
+            opened.append(cannon)
+            gates = GatesDriver(config.ports.gates, reply_timeout_s=reply_s, on_traffic=log("gates"))
+            opened.append(gates)
+            clamp = ClampDriver(config.ports.clamp, reply_timeout_s=reply_s, on_traffic=log("clamp"))
+        except BaseException:
+            for dev in opened:
+                dev.close()
+            raise
+        return cls(config, cannon, gates, clamp, traffic)
+
+    def close(self) -> None:
+        """Leave the cannon safe (vent), then close every port."""
+        # Closing must go on even when the cannon's port is already gone.
+        with contextlib.suppress(Exception):
+            self.cannon.vent()
+        for dev in (self.cannon, self.gates, self.clamp):
+            dev.close()
+
+    def __enter__(self) -> RigSession:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

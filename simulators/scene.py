@@ -1,0 +1,193 @@
+"""A scene: the simulated rig's true geometry, bat, ball and cannon, and the effects it turns on.
+
+Scenes are TOML files; `Scene.load("lab")` reads a built-in from simulators/scenes/, any other
+argument is a path. Every field has a default, so a file lists only what differs from the ideal
+rig. A refused file raises ConfigError naming the file and the first bad field.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import tomllib
+from pathlib import Path
+from typing import Annotated, Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from rig.core.errors import ConfigError
+from rig.core.units import INCH
+from rig.physics import CollisionParams
+from simulators.effects import EffectSpec
+
+SCENES_DIR = Path(__file__).with_name("scenes")
+AIM_PRESSURES_KPA = (100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 800.0)
+_FROZEN = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+Positive = Annotated[float, Field(gt=0.0)]
+
+
+class RigGeometry(BaseModel):
+    """The rig as built: gate positions, counter, pivot, stage, cannon muzzle."""
+
+    model_config = _FROZEN
+
+    gate_positions_m: tuple[Positive, ...] = Field(
+        (0.75, 0.50, 0.25), min_length=2, description="gate 1, 2, ... distance from the impact point, m"
+    )
+    muzzle_m: Positive = Field(1.5, description="muzzle to impact point, m")
+    beam_half_height_m: Positive = Field(
+        0.05, description="a rebounding ball that has dropped more than this passes under the beam"
+    )
+    tick_ns: Positive = Field(100.0, description="counter tick, ns")
+    counter_bits: int = Field(32, ge=8, le=64)
+    counter_start: int = Field(0, ge=0, description="counter value when the world starts")
+    pivot_from_knob_m: Positive = Field(6 * INCH, description="pivot axis from the knob end, m")
+    stage_start_mm: float = Field(500.0, ge=100.0, le=900.0, description="stage position at power-up")
+    stage_speed_mm_s: Positive = Field(100.0, description="stage travel speed")
+    lock_time_s: Positive = Field(0.3, description="grip close to lock sensor confirming")
+    swing_amplitude_deg: float = Field(5.0, gt=0.0, le=30.0, description="SWING release amplitude")
+
+    @model_validator(mode="after")
+    def _check(self) -> RigGeometry:
+        gates = self.gate_positions_m
+        if any(a <= b for a, b in itertools.pairwise(gates)):
+            raise ValueError("gate_positions_m must fall strictly from gate 1 (farthest) to the last")
+        if self.muzzle_m <= gates[0]:
+            raise ValueError(f"muzzle_m {self.muzzle_m} must exceed the farthest gate {gates[0]}")
+        if self.counter_start >= 1 << self.counter_bits:
+            raise ValueError(f"counter_start must be below 2^{self.counter_bits}")
+        return self
+
+
+class SimBat(BaseModel):
+    """The simulated bat's true properties (a 33 in, 30 oz BBCOR-style aluminium bat)."""
+
+    model_config = _FROZEN
+
+    length_m: Positive = Field(33 * INCH, description="knob end to tip, m")
+    mass_kg: Positive = Field(0.85, description="kg")
+    moi_kgm2: Positive = Field(0.19, description="moment of inertia about the pivot, kg m^2")
+    balance_point_m: Positive = Field(0.56, description="centre of mass from the knob end, m")
+    hoop_hz: Positive = Field(1800.0, description="lowest hoop-mode frequency (trampoline effect)")
+
+
+class CannonModel(BaseModel):
+    """The cannon's physics: muzzle speed v(P) = v_max sqrt(1 - exp(-P/P0)), filling and valves."""
+
+    model_config = _FROZEN
+
+    # Defaults fit the controller's default aim calibration (rig.core.config.AimCalibration) to
+    # within 0.6 m/s: 60.8 m/s at about 395 kPa.
+    v_max_m_s: Positive = Field(70.8, description="muzzle speed approached at high pressure, m/s")
+    p0_kpa: Positive = Field(295.0, description="pressure scale of the curve, kPa")
+    fill_rate_kpa_s: Positive = Field(150.0, description="compressor fill (and regulator) rate")
+    settle_s: float = Field(0.5, ge=0.0, description="pressure settling after the fill, before READY")
+    launch_delay_s: float = Field(0.03, ge=0.0, description="FIRE to the ball leaving the muzzle")
+    valve_close_s: float = Field(0.05, gt=0.0, description="FIRE to the valve closing (FIRED -> SAFE)")
+
+    def muzzle_speed(self, pressure_kpa: float) -> float:
+        """Ball speed at the muzzle for a tank pressure, m/s."""
+        return self.v_max_m_s * math.sqrt(-math.expm1(-max(pressure_kpa, 0.0) / self.p0_kpa))
+
+    def pressure_for(self, speed: float) -> float:
+        """The tank pressure giving `speed` m/s (inverse of muzzle_speed), kPa."""
+        ratio = speed / self.v_max_m_s
+        if not 0.0 < ratio < 1.0:
+            raise ValueError(f"speed {speed} m/s outside the curve's range (0, {self.v_max_m_s})")
+        return -self.p0_kpa * math.log1p(-ratio * ratio)
+
+
+class Scene(BaseModel):
+    """Everything the simulated rig is, and which effects are on."""
+
+    model_config = _FROZEN
+
+    name: str = "custom"
+    description: str = ""
+    seed: int = Field(0, ge=0)
+    rig: RigGeometry = RigGeometry()
+    bat: SimBat = SimBat()
+    ball: CollisionParams = CollisionParams()
+    cannon: CannonModel = CannonModel()
+    effects: tuple[EffectSpec, ...] = ()
+
+    @model_validator(mode="after")
+    def _check(self) -> Scene:
+        bat, rig = self.bat, self.rig
+        lever = bat.balance_point_m - rig.pivot_from_knob_m
+        if not 0.0 < lever < bat.length_m - rig.pivot_from_knob_m:
+            raise ValueError("bat.balance_point_m must lie between the pivot and the tip")
+        if bat.moi_kgm2 < bat.mass_kg * lever**2:
+            raise ValueError(
+                f"bat.moi_kgm2 {bat.moi_kgm2} is below m d^2 = {bat.mass_kg * lever**2:.4f}: "
+                "no bat has a negative MOI about its centre of mass"
+            )
+        filled: dict[str, str] = {}
+        for spec in self.active_effects():
+            slot = spec.slot
+            if slot is not None and slot in filled:
+                raise ValueError(f"effects {filled[slot]!r} and {spec.kind!r} both replace the {slot} model")
+            if slot is not None:
+                filled[slot] = spec.kind
+        return self
+
+    def active_effects(self) -> list[Any]:
+        """The effect configurations that are enabled, in scene order."""
+        return [e for e in self.effects if e.enabled]
+
+    def rig_config_fragment(self, pressures_kpa: tuple[float, ...] = AIM_PRESSURES_KPA) -> dict[str, Any]:
+        """The part of the controller's rig config this scene fixes: gate positions and aim table.
+
+        Shaped like rig.core.config.RigConfig (`gates.positions_m`, `aim.pressure_kpa/speed_m_s`);
+        the counter's tick and width come over the wire (gates CFG).
+        """
+        speeds = tuple(round(self.cannon.muzzle_speed(p), 3) for p in pressures_kpa)
+        return {
+            "gates": {"positions_m": tuple(self.rig.gate_positions_m)},
+            "aim": {"pressure_kpa": tuple(pressures_kpa), "speed_m_s": speeds},
+        }
+
+    @classmethod
+    def builtin_names(cls) -> list[str]:
+        """Names of the scenes shipped in simulators/scenes/."""
+        return sorted(p.stem for p in SCENES_DIR.glob("*.toml"))
+
+    @classmethod
+    def load(cls, name_or_path: str | Path) -> Scene:
+        """A built-in scene by name, or a scene file by path; ConfigError if refused."""
+        path = Path(name_or_path)
+        if str(name_or_path) in cls.builtin_names():
+            path = SCENES_DIR / f"{name_or_path}.toml"
+        elif not path.is_file():
+            known = ", ".join(cls.builtin_names())
+            raise ConfigError(f"no such scene file; built-in scenes: {known}", str(name_or_path))
+        try:
+            text = path.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ConfigError(f"cannot read: {exc}", str(path)) from None
+        return cls.from_toml(text, source=str(path), default_name=path.stem)
+
+    @classmethod
+    def from_toml(cls, text: str, source: str = "<scene>", default_name: str = "custom") -> Scene:
+        """Parse and validate scene TOML; `source` names the file in errors."""
+        try:
+            data = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"invalid TOML: {exc}", source) from None
+        data.setdefault("name", default_name)
+        try:
+            return cls.model_validate(data)
+        except ValidationError as exc:
+            raise _config_error(source, exc) from None
+
+
+def _config_error(source: str, exc: ValidationError) -> ConfigError:
+    errors = exc.errors()
+    first = errors[0]
+    field = ".".join(str(p) for p in first["loc"]) or "(scene)"
+    reason = first["msg"]
+    if first["loc"] and "input" in first and not isinstance(first["input"], dict):
+        reason += f" (got {first['input']!r})"
+    if len(errors) > 1:
+        reason += f"; and {len(errors) - 1} more error(s)"
+    return ConfigError(reason, source, field)

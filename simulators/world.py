@@ -1,0 +1,241 @@
+"""SimWorld: one simulated rig - virtual clock, shared physical state, the three devices, a shot.
+
+Built from a Scene. The effects the scene turns on are inspected once here: their chained hooks
+go into `hooks`, and slot-filling effects replace the default flight, collision, counter, recoil
+sensor and lab sensors of `simulators.physics`. A scene without effects therefore runs the closed
+forms only, with the rigid-barrel collision solved once per distinct impact.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+import threading
+from collections.abc import Callable
+
+from rig.core.devices import Interlocks
+from simulators.cannon import SimCannon
+from simulators.clamp import SimClamp
+from simulators.device import SimDevice
+from simulators.effects import CHAINED_HOOKS, Effect, overrides
+from simulators.gates import SimGates
+from simulators.physics import (
+    EnvironmentSensor,
+    NominalEnvironment,
+    RecoilSensor,
+    RigidCollision,
+    RoundingTicks,
+    StraightFlight,
+    drop_m,
+    pendulum_period,
+)
+from simulators.records import Crossing, Outgoing, Shot
+from simulators.scene import Scene
+from simulators.timeline import Schedule
+
+RECOIL_REPORT_S = 0.01  # the encoder reports the peak angular speed this long after contact
+
+
+class SimWorld:
+    """One simulated rig; devices opened on the same world share its state and clock."""
+
+    def __init__(self, scene: Scene) -> None:
+        self.scene = scene
+        self.clock = 0.0  # virtual seconds since the world started
+        self.rng = random.Random(scene.seed)
+        self.lock = threading.RLock()
+        self.changed = threading.Condition(self.lock)  # notified whenever output is queued
+        self._schedule = Schedule()
+        # Each effect draws from its own stream, so adding one never shifts another's numbers.
+        self.effects: tuple[Effect, ...] = tuple(
+            spec.build(scene, random.Random(f"{scene.seed}/{i}/{spec.kind}"))
+            for i, spec in enumerate(scene.effects)
+            if spec.enabled
+        )
+        self.hooks: dict[str, tuple[Callable[..., object], ...]] = {
+            hook: tuple(getattr(e, hook) for e in self.effects if overrides(e, hook))
+            for hook in CHAINED_HOOKS
+        }
+        slots: dict[str, object] = {e.slot: e for e in self.effects if e.slot}
+        self.flight = slots.get("flight") or StraightFlight()
+        self.collision = slots.get("collision") or RigidCollision(scene.bat.moi_kgm2)
+        self.ticker = slots.get("ticks") or RoundingTicks(scene.rig.tick_ns * 1e-9)
+        self.recoil_sensor: RecoilSensor | None = slots.get("recoil")  # type: ignore[assignment]
+        self.lab: EnvironmentSensor = slots.get("environment") or NominalEnvironment()  # type: ignore[assignment]
+        self.door = True
+        self.estop = True
+        self._pending_ilk: list[tuple[float, str, bool]] = []
+        self.attempts = 0  # FIRE commands accepted (misfires included): the faults' shot number
+        self.shots: list[Shot] = []
+        self.cannon = SimCannon(self)
+        self.gates = SimGates(self)
+        self.clamp = SimClamp(self)
+        self.devices: dict[str, SimDevice] = {"cannon": self.cannon, "gates": self.gates, "clamp": self.clamp}
+
+    # -- virtual time -----------------------------------------------------------------------
+    def at(self, time_s: float, apply: Callable[[], None], tag: str | None = None) -> None:
+        """Apply a state change when the clock reaches `time_s` (at once if that is now)."""
+        if time_s <= self.clock:
+            apply()
+        else:
+            self._schedule.at(time_s, apply, tag)
+
+    def advance_to(self, time_s: float) -> None:
+        """Move the clock forward to `time_s`, applying scheduled changes in order."""
+        with self.lock:
+            if time_s <= self.clock:
+                return
+            for when, apply in self._schedule.due(time_s):
+                self.clock = max(self.clock, when)
+                apply()
+            self.clock = time_s
+
+    def advance(self, seconds: float) -> None:
+        """Let `seconds` of virtual time pass (for tests and idle hosts)."""
+        self.advance_to(self.clock + seconds)
+
+    def cancel(self, tag: str) -> None:
+        """Withdraw pending changes and not-yet-happened messages tagged `tag`."""
+        self._schedule.cancel(tag)
+        for device in self.devices.values():
+            device.out.cancel(tag, self.clock)
+
+    # -- interlocks -------------------------------------------------------------------------
+    def interlocks(self) -> Interlocks:
+        """The interlock loop now (the clamp's lock sensor is wired into it)."""
+        return Interlocks(door=self.door, clamp=self.clamp.locked, estop=self.estop)
+
+    def interlocks_at(self, time_s: float) -> Interlocks:
+        """The interlock loop as it will be at `time_s`, given the changes already scheduled."""
+        state = {"door": self.door, "clamp": self.clamp.locked, "estop": self.estop}
+        for when, name, closed in sorted(self._pending_ilk):
+            if self.clock < when <= time_s:
+                state[name] = closed
+        return Interlocks(**state)
+
+    def set_interlock(self, name: str, closed: bool, at: float | None = None) -> None:
+        """Open or close 'door', 'estop' (or, from the clamp, 'clamp') now, or close it at `at`."""
+        with self.lock:
+            if name not in ("door", "estop", "clamp"):
+                raise ValueError(f"no interlock {name!r}: door, estop or clamp")
+            if at is not None and at > self.clock:
+                if not closed:
+                    raise ValueError("only closing can be scheduled; open an interlock now")
+                self._pending_ilk.append((at, name, closed))
+                self.cannon.interlocks_changed(self.interlocks_at(at), at, tag=f"ilk-{name}")
+                self.at(at, lambda: self._apply_interlock(name, closed, at), tag=f"ilk-{name}")
+            else:
+                self._apply_interlock(name, closed, None)
+                self.cannon.interlocks_changed(self.interlocks(), None)
+            self.changed.notify_all()
+
+    def cancel_interlock(self, name: str) -> None:
+        """Withdraw a scheduled change of interlock `name` (e.g. a grip released before it locked)."""
+        self.cancel(f"ilk-{name}")
+        self._pending_ilk = [p for p in self._pending_ilk if p[1] != name]
+
+    def _apply_interlock(self, name: str, closed: bool, scheduled: float | None) -> None:
+        if scheduled is not None:
+            self._pending_ilk.remove((scheduled, name, closed))
+        if name == "clamp":
+            self.clamp.locked = closed
+        else:
+            setattr(self, name, closed)
+
+    # -- hooks ------------------------------------------------------------------------------
+    def filter_outgoing(self, message: Outgoing) -> bytes | None:
+        """Pass a message through the link faults; None if it is lost."""
+        data: bytes | None = message.data
+        for hook in self.hooks["outgoing"]:
+            if data is None:
+                return None
+            data = hook(Outgoing(message.device, message.kind, message.name, message.shot, data))  # type: ignore[assignment]
+        return data
+
+    def misfires(self, shot: int) -> bool:
+        """True if a misfire fault strikes this FIRE."""
+        return any([hook(shot) for hook in self.hooks["misfire"]])
+
+    def after_arm(self, shot: int) -> None:
+        """Let interlock faults act once ARM is accepted."""
+        for hook in self.hooks["after_arm"]:
+            hook(self, shot)
+
+    def after_shot(self, shot: int) -> None:
+        """Let unplug faults cut a device off among the shot's messages."""
+        for name, device in self.devices.items():
+            for hook in self.hooks["unplug_after"]:
+                count = hook(name, shot)
+                if count is not None:
+                    when = device.out.unplug_after(shot, count, self.clock)
+                    self.at(when, lambda d=device: setattr(d, "unplugged", True), tag=f"unplug-{name}")
+                    break
+
+    # -- physics ----------------------------------------------------------------------------
+    def counter(self, ticks: int) -> int:
+        """The gates' counter register after `ticks` ticks since the world started."""
+        rig = self.scene.rig
+        return (rig.counter_start + ticks) % (1 << rig.counter_bits)
+
+    def swing_period(self) -> float:
+        """The bat's true pendulum period on the pivot at the SWING amplitude, s."""
+        bat, rig = self.scene.bat, self.scene.rig
+        lever = bat.balance_point_m - rig.pivot_from_knob_m
+        return pendulum_period(bat.moi_kgm2, bat.mass_kg, lever, math.radians(rig.swing_amplitude_deg))
+
+    def fire(self, pressure_kpa: float, shot: int) -> Shot:
+        """Launch one ball now: gate crossings in and out, the impact, the recoil; queue the events."""
+        scene, rig, bat = self.scene, self.scene.rig, self.scene.bat
+        t0 = self.clock
+        v0 = scene.cannon.muzzle_speed(pressure_kpa)
+        for hook in self.hooks["launch_speed"]:
+            v0 = hook(v0)  # type: ignore[assignment]
+        t_exit = t0 + scene.cannon.launch_delay_s
+        flight, muzzle = self.flight, rig.muzzle_m
+        crossings = [
+            Crossing(i + 1, t_exit + flight.time_to(muzzle - d, v0), True)
+            for i, d in enumerate(rig.gate_positions_m)
+        ]
+        q = self.clamp.position_mm(t0) / 1000.0
+        hit = q <= bat.length_m - rig.pivot_from_knob_m
+        v_in = flight.speed_at(muzzle, v0)
+        t_impact = t_exit + flight.time_to(muzzle, v0)
+        e_a = contact = v_out = 0.0
+        omega = None
+        if hit:
+            params = scene.ball
+            for hook in self.hooks["ball_params"]:
+                params = hook(params, t_impact)  # type: ignore[assignment]
+            e_a, contact = self.collision.collide(params, v_in, q)
+            v_out = e_a * v_in
+            t_leave = t_impact + contact
+            for i in range(len(rig.gate_positions_m) - 1, -1, -1):
+                dt = flight.time_to(rig.gate_positions_m[i], v_out)
+                if drop_m(dt) > rig.beam_half_height_m:
+                    break  # fallen below this beam, so below every farther one too
+                crossings.append(Crossing(i + 1, t_leave + dt, False))
+            if self.recoil_sensor is not None:
+                omega = self.recoil_sensor.recoil(params.m1, q, v_in, v_out)
+                self.clamp.report_recoil(omega, t_leave + RECOIL_REPORT_S, shot)
+        for hook in self.hooks["crossings"]:
+            crossings = hook(crossings, shot)  # type: ignore[assignment]
+        ticks = tuple((x.gate, self.counter(self.ticker.latch(x.gate, x.time_s))) for x in crossings)
+        self.gates.stream(crossings, ticks, shot)
+        record = Shot(
+            number=len(self.shots) + 1,
+            fire_time_s=t0,
+            pressure_kpa=pressure_kpa,
+            launch_speed=v0,
+            impact_speed=v_in if hit else 0.0,
+            impact_from_pivot_m=q,
+            hit=hit,
+            e_a=e_a,
+            rebound_speed=v_out,
+            contact_time_s=contact,
+            impact_time_s=t_impact,
+            recoil_rad_s=omega,
+            crossings=tuple(crossings),
+            ticks=ticks,
+        )
+        self.shots.append(record)
+        return record

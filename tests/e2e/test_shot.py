@@ -1,0 +1,195 @@
+"""One shot end to end: real drivers on simulated devices, in-process and across a process boundary."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from protocols.shot import ShotFailed, fire_shot, prepare
+from rig.cli import main
+from rig.core.devices import CannonState
+from rig.core.errors import DeviceError, DeviceGone, DeviceTimeout, RigError, SafetyRefusal
+from rig.physics import DEFAULT_PARAMS, PivotedBat, predict_bat
+from rig.session import RigSession, sim_config
+from simulators.scene import Scene
+from simulators.urlhandler import get_world
+
+
+def test_cli_shot_in_ideal_scene_matches_the_model(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["shot", "--sim", "ideal", "--speed", "60.8", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert [c["gate"] for c in out["crossings"]] == [1, 2, 3, 3, 2, 1]
+    assert out["gate_positions_m"] == [0.75, 0.5, 0.25]
+    assert all(isinstance(c["tick"], int) and c["host_time_s"] > 0 for c in out["crossings"])
+    # aiming from the calibration table lands within 1 % of the target
+    assert out["inbound_speed_m_s"] == pytest.approx(60.8, rel=0.01)
+    # ideal scene: rigid barrel on the pivoted bat; the rebound is the model's e_A x v_in
+    bat = Scene.load("ideal").bat
+    q = out["impact_from_pivot_m"]
+    expected = predict_bat(
+        DEFAULT_PARAMS,
+        out["inbound_speed_m_s"],
+        None,
+        PivotedBat(moi_kgm2=bat.moi_kgm2, impact_from_pivot_m=q),
+    )
+    e_a = out["rebound_speed_m_s"] / out["inbound_speed_m_s"]
+    assert e_a == pytest.approx(expected.e_a, abs=2e-4)  # tick quantization over ~23 ms
+
+
+def test_cli_shot_failure_is_one_line_and_nonzero(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["shot", "--sim", "ideal", "--speed", "150"]) == 2  # beyond the aim calibration
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "Traceback" not in err and "aim calibration" in err
+
+
+def test_cli_shot_needs_a_rig(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["shot", "--speed", "60.8", "--cannon", "sim://cannon"]) == 2
+    assert "--gates" in capsys.readouterr().err
+
+
+def test_unplugged_device_path_is_a_clear_error(capsys: pytest.CaptureFixture[str]) -> None:
+    argv = [
+        "shot",
+        "--speed",
+        "60.8",
+        "--cannon",
+        "/dev/does-not-exist-rig",
+        "--gates",
+        "loop://",
+        "--clamp",
+        "loop://",
+    ]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "cannon" in err and "does-not-exist-rig" in err
+
+
+def test_no_fire_with_an_open_interlock() -> None:
+    cfg = sim_config("ideal")
+    with RigSession.open(cfg) as s:
+        gc = prepare(s.cannon, s.gates, s.clamp, cfg.impact_from_pivot_m)
+        world = get_world(cfg.ports.cannon.split("rig=")[1])
+        for name in ("door", "estop"):
+            world.set_interlock(name, closed=False)
+            shots_before = s.cannon.status().shots
+            with pytest.raises(SafetyRefusal, match=name):
+                fire_shot(s.cannon, s.gates, s.clamp, cfg, 60.8, gc)
+            assert s.cannon.status().shots == shots_before
+            assert s.cannon.status().state is not CannonState.ARMED
+            world.set_interlock(name, closed=True)
+        assert b"FIRE" not in b"".join(
+            rec.data for dev, rec in s.traffic if dev == "cannon" and rec.direction == "tx"
+        )
+        fire_shot(s.cannon, s.gates, s.clamp, cfg, 60.8, gc)  # all closed again: it fires
+
+
+def test_every_fault_of_the_faulty_scene_ends_clearly() -> None:
+    """Each shot either measures (recovered) or raises a typed error; no hang, nothing lost."""
+    cfg = sim_config("faulty")
+    outcomes: list[str] = []
+    with RigSession.open(cfg) as s:
+        gc = prepare(s.cannon, s.gates, s.clamp, cfg.impact_from_pivot_m)
+        for _ in range(9):
+            t0 = time.monotonic()
+            try:
+                rec = fire_shot(s.cannon, s.gates, s.clamp, cfg, 60.8, gc)
+                outcomes.append("ok" if not rec.extra_crossings else "ok-extra")
+                assert rec.inbound_speed_m_s == pytest.approx(60.8, rel=0.01)
+            except ShotFailed as exc:
+                outcomes.append("failed")
+                assert exc.record is not None and exc.record.crossings  # raw events kept
+            except RigError as exc:
+                outcomes.append(type(exc).__name__)
+                assert str(exc)
+            assert time.monotonic() - t0 < 5.0
+            _recover(s)
+    assert outcomes[0] == "ok"
+    assert outcomes[1] == "DeviceError"  # misfire: FAULT, then RESET
+    assert outcomes[2] == "ok"  # missed middle trigger: the outer pair still gives the speed
+    assert outcomes[3] == "ok-extra"  # doubled trigger set aside
+    assert outcomes[6] == "failed"  # gates unplugged mid-shot, partial record kept
+    assert outcomes[7] == "SafetyRefusal"  # door opened after ARM: FIRE never sent
+    assert outcomes[8] == "ok"  # and the rig is back to normal
+    gates_rx = b"".join(rec.data for dev, rec in s.traffic if dev == "gates" and rec.direction == "rx")
+    # every gate event byte is in the traffic log, the garbled one and those of failed shots too
+    assert gates_rx.count(b"! G ") == 6 + 5 + 7 + 6 + 6 + 2 + 6
+
+
+def _recover(s: RigSession) -> None:
+    for dev in (s.cannon, s.gates, s.clamp):
+        try:
+            dev.identify()
+        except DeviceGone:
+            dev.reconnect()
+        except DeviceTimeout:
+            pass
+    try:
+        if s.cannon.status().state is CannonState.FAULT:
+            s.cannon.reset()
+    except DeviceTimeout:
+        pass  # the faulty scene drops one STATUS reply on purpose
+    except DeviceError:
+        raise
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX process groups")
+@pytest.mark.parametrize("kind", ["tcp", "pty"])
+def test_shot_through_rig_sim_serve(kind: str) -> None:
+    """The real drivers cross a real OS boundary to a `rig sim serve` process."""
+    server = subprocess.Popen(
+        [sys.executable, "-m", "rig.cli", "sim", "serve", "--scene", "lab", "--kind", kind],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        urls = {}
+        deadline = time.monotonic() + 60
+        while len(urls) < 3 and time.monotonic() < deadline:
+            line = server.stdout.readline()
+            if not line:
+                break
+            name, url = line.split()
+            urls[name] = url
+        assert set(urls) == {"cannon", "gates", "clamp"}, server.stderr.read() if server.poll() else urls
+        proc = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "rig.cli",
+                "shot",
+                "--speed",
+                "60.8",
+                "--json",
+                "--cannon",
+                urls["cannon"],
+                "--gates",
+                urls["gates"],
+                "--clamp",
+                urls["clamp"],
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        )
+        assert proc.returncode == 0, proc.stderr
+        out = json.loads(proc.stdout)
+        assert len(out["crossings"]) >= 6
+        assert out["inbound_speed_m_s"] == pytest.approx(60.8, rel=0.02)
+        assert 5.0 < out["rebound_speed_m_s"] < 30.0
+        assert out["recoil_rad_s"] > 0  # the lab scene turns on bat recoil
+    finally:
+        os.killpg(server.pid, signal.SIGINT)
+        try:
+            server.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            os.killpg(server.pid, signal.SIGKILL)
+            server.wait()

@@ -1,0 +1,113 @@
+"""Scenes: built-ins load, files override defaults, and a bad file names the file and the field."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from rig.core.errors import ConfigError
+from simulators.effects import KINDS
+from simulators.scene import Scene
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "scene.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_builtins_load_with_their_names() -> None:
+    assert Scene.builtin_names() == ["faulty", "ideal", "lab"]
+    ideal, lab, faulty = Scene.load("ideal"), Scene.load("lab"), Scene.load("faulty")
+    assert (ideal.name, lab.name, faulty.name) == ("ideal", "lab", "faulty")
+    assert ideal.effects == ()
+    assert {e.kind for e in lab.effects} == {
+        "speed_scatter", "gate_timing", "drag", "trampoline", "recoil", "ball_wear", "environment",
+    }  # fmt: skip
+    assert {e.kind for e in faulty.effects} >= {
+        "misfire", "missed_trigger", "double_trigger", "garbled", "dropped_reply", "unplug", "interlock",
+    }  # fmt: skip
+
+
+def test_every_effect_kind_is_in_some_builtin() -> None:
+    listed = {e.kind for name in Scene.builtin_names() for e in Scene.load(name).effects}
+    assert listed == set(KINDS)
+
+
+def test_defaults_are_the_rig_of_the_brief() -> None:
+    scene = Scene()
+    assert scene.rig.gate_positions_m == (0.75, 0.50, 0.25)
+    assert (scene.rig.tick_ns, scene.rig.counter_bits, scene.rig.counter_start) == (100.0, 32, 0)
+    assert scene.bat.moi_kgm2 == pytest.approx(0.19)
+    assert scene.bat.length_m == pytest.approx(33 * 0.0254)
+    # 60.8 m/s (136 mph) needs a few hundred kPa, and the inverse is exact.
+    p = scene.cannon.pressure_for(60.8)
+    assert 200.0 < p < 600.0
+    assert scene.cannon.muzzle_speed(p) == pytest.approx(60.8, rel=1e-12)
+
+
+def test_a_file_overrides_only_what_it_lists(tmp_path: Path) -> None:
+    path = write(
+        tmp_path,
+        """
+        seed = 42
+        [rig]
+        gate_positions_m = [0.9, 0.6, 0.3]
+        counter_start = 4294967000
+        [bat]
+        moi_kgm2 = 0.21
+        [ball]
+        c1 = 4800.0
+        [[effects]]
+        kind = "drag"
+        drag_coefficient = 0.4
+        """,
+    )
+    scene = Scene.load(path)
+    assert scene.name == "scene" and scene.seed == 42
+    assert scene.rig.gate_positions_m == (0.9, 0.6, 0.3) and scene.rig.tick_ns == 100.0
+    assert scene.bat.moi_kgm2 == 0.21 and scene.bat.hoop_hz == 1800.0
+    assert scene.ball.c1 == 4800.0 and scene.ball.m1 == 0.145
+    assert scene.effects[0].drag_coefficient == 0.4  # type: ignore[union-attr]
+    assert scene.rig_config_fragment()["gates"]["positions_m"] == (0.9, 0.6, 0.3)
+
+
+@pytest.mark.parametrize(
+    ("text", "field", "words"),
+    [
+        ("seed = ", "", "invalid TOML"),
+        ('[[effects]]\nkind = "wormhole"\n', "effects.0", "wormhole"),
+        (
+            '[[effects]]\nkind = "drag"\ndrag_coefficient = -1.0\n',
+            "effects.0.drag.drag_coefficient",
+            "greater",
+        ),
+        ('[[effects]]\nkind = "drag"\ncd = 0.3\n', "effects.0.drag.cd", "not permitted"),
+        ("[bat]\nweight_kg = 1.0\n", "bat.weight_kg", "not permitted"),
+        ("[rig]\ntick_ns = 0\n", "rig.tick_ns", "greater"),
+        ("[rig]\ngate_positions_m = [0.25, 0.5, 0.75]\n", "rig", "fall strictly"),
+        ("[bat]\nmoi_kgm2 = 0.05\n", "(scene)", "m d^2"),
+        ('[[effects]]\nkind = "drag"\n[[effects]]\nkind = "drag"\n', "(scene)", "flight"),
+        ('[[effects]]\nkind = "misfire"\nshots = [0]\n', "effects.0.misfire.shots.0", "greater"),
+    ],
+)
+def test_bad_file_names_file_and_field(tmp_path: Path, text: str, field: str, words: str) -> None:
+    path = write(tmp_path, text)
+    with pytest.raises(ConfigError) as info:
+        Scene.load(path)
+    err = info.value
+    assert err.source == str(path)
+    assert err.field == field
+    assert words in str(err)
+    assert str(path) in str(err)
+
+
+def test_a_disabled_effect_does_not_count_for_its_slot() -> None:
+    scene = Scene.model_validate({"effects": [{"kind": "drag", "enabled": False}, {"kind": "drag"}]})
+    assert len(scene.active_effects()) == 1
+
+
+def test_unknown_scene_lists_the_builtins() -> None:
+    with pytest.raises(ConfigError, match="built-in scenes: faulty, ideal, lab"):
+        Scene.load("no-such-scene")
