@@ -26,9 +26,10 @@ test: lint
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_curve.py
+	$(BIN)/python benchmarks/bench_scene.py
 
 accuracy: $(STAMP)
-	$(BIN)/rig model accuracy --plot docs/figures/work-precision.png
+	$(BIN)/python benchmarks/accuracy_doc.py
 
 clean:
 	rm -rf $(VENV) out .pytest_cache .ruff_cache

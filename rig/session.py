@@ -15,23 +15,35 @@ from drivers.cannon.driver import CannonDriver
 from drivers.clamp.driver import ClampDriver
 from drivers.gates.driver import GatesDriver
 from drivers.transport import TrafficRecord
+from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
+from rig.core.units import INCH
 
 DEVICES = ("cannon", "gates", "clamp")
 
 
-def sim_config(scene: str = "ideal", rig_name: str | None = None) -> RigConfig:
+def sim_config(scene: str = "ideal", rig_name: str | None = None, bat: BatSpec | None = None) -> RigConfig:
     """A rig config whose ports are simulated devices of `scene` (a built-in name or a TOML path).
 
     The gate positions and the aim table come from the scene, as a lab would measure them on
-    its own rig; everything else is the controller's default.
+    its own rig; everything else is the controller's default. With `bat`, the simulated bat takes
+    the bat file's properties as its true ones, unless the scene's [bat] table sets them.
     """
     from simulators.scene import Scene
-    from simulators.urlhandler import register
+    from simulators.urlhandler import install_world, register
 
     register()
     loaded = Scene.load(scene)
     rig = rig_name or f"session-{uuid.uuid4().hex[:8]}"
+    if bat is not None:
+        loaded = loaded.with_bat(
+            length_m=bat.length_m,
+            mass_kg=bat.mass_kg,
+            moi_kgm2=bat.moi_kgm2,
+            balance_point_m=None if bat.balance_point_in is None else bat.balance_point_in * INCH,
+            hoop_hz=bat.hoop_hz,
+        )
+        install_world(rig, scene, loaded)
     ports = {dev: f"sim://{dev}?scene={quote(scene, safe='')}&rig={rig}" for dev in DEVICES}
     data = {"name": f"simulated rig ({loaded.name})", "ports": ports, **loaded.rig_config_fragment()}
     return RigConfig.from_dict(data, source=f"scene {scene}")

@@ -131,6 +131,17 @@ class Scene(BaseModel):
                 filled[slot] = spec.kind
         return self
 
+    def with_bat(self, **true_values: float) -> Scene:
+        """This scene with the bat's true properties replaced, except those the scene file sets.
+
+        Keys are SimBat fields (length_m, mass_kg, moi_kgm2, balance_point_m, hoop_hz); a value
+        the scene's own [bat] table gives wins, so a scene can override the bat file.
+        """
+        pinned = self.bat.model_fields_set
+        update = {k: v for k, v in true_values.items() if v is not None and k not in pinned}
+        bat = SimBat.model_validate({**self.bat.model_dump(), **update})
+        return self.model_validate({**self.model_dump(), "bat": bat.model_dump()})
+
     def active_effects(self) -> list[Any]:
         """The effect configurations that are enabled, in scene order."""
         return [e for e in self.effects if e.enabled]

@@ -82,6 +82,7 @@ class RigConfig(_Model):
     aim: AimCalibration = AimCalibration()
     timeouts: Timeouts = Timeouts()
     impact_from_pivot_m: Annotated[float, Field(gt=0.1, lt=0.9)] = 0.56
+    cannon_cycle_s: Annotated[float, Field(gt=0.0)] = 45.0  # refill and reload between shots [assumed]
 
     @classmethod
     def load(cls, path: str | Path) -> RigConfig:

@@ -73,3 +73,19 @@ class ConfigError(RigError, ValueError):
     def __init__(self, reason: str, source: str = "", field: str = "") -> None:
         self.reason, self.source, self.field = reason, source, field
         super().__init__(": ".join(part for part in (source, field, reason) if part))
+
+
+class StoreError(RigError):
+    """The run records (rig.store) failed; the message names the file or the record."""
+
+
+class StoreFileError(StoreError):
+    """A file is not a usable store: missing, unreadable, not SQLite, foreign or too new."""
+
+
+class RecordRefused(StoreError, ValueError):
+    """An entry, payload, kind or status the store will not write; the message says why."""
+
+
+class UnknownRecord(StoreError, LookupError):
+    """No run or bat with that id; the message lists ids that do exist."""

@@ -13,6 +13,11 @@ States: x1, v1, x2, v2, x3, v3 (ball, barrel, body). For a rigid barrel x2, v2 i
 from __future__ import annotations
 
 import math
+import os
+
+# numba's OpenMP layer spins by default between parallel regions, which cost ~8 ms a call when
+# another process shares the CPUs; passive waiting costs microseconds. Set before numba loads it.
+os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 
 import numba as nb
 import numpy as np

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import operator
 from dataclasses import dataclass
 
 import numpy as np
@@ -81,12 +82,17 @@ def efficiency(params: CollisionParams, speed: float, hoop_hz: float, rtol: floa
 
 
 def refine_optimum(
-    params: CollisionParams, speed: float, lo: float, hi: float, cor_rigid: float
+    params: CollisionParams,
+    speed: float,
+    lo: float,
+    hi: float,
+    cor_rigid: float,
+    rtol: float = REFINE_RTOL,
 ) -> tuple[float, float]:
     """Maximize eta between lo and hi (bounded Brent); returns (hoop_hz, eta)."""
 
     def negative_eta(f: float) -> float:
-        return -fast.solve(Impact(params, speed, f), rtol=REFINE_RTOL).cor / cor_rigid
+        return -fast.solve(Impact(params, speed, f), rtol=rtol).cor / cor_rigid
 
     res = minimize_scalar(negative_eta, bounds=(lo, hi), method="bounded", options={"xatol": 1e-3})
     return float(res.x), float(-res.fun)
@@ -105,7 +111,11 @@ def efficiency_curve(
     hoop_min, hoop_max = check_hoop(hoop_min), check_hoop(hoop_max)
     if hoop_max <= hoop_min:
         raise ParameterError("hoop_max", hoop_max, f"must be greater than hoop_min ({hoop_min:g} Hz)")
-    if not isinstance(points, int) or points < 2:
+    try:
+        points = operator.index(points)
+    except TypeError:
+        raise ParameterError("points", points, "must be a whole number >= 2") from None
+    if points < 2:
         raise ParameterError("points", points, "must be a whole number >= 2")
     hoops = np.linspace(hoop_min, hoop_max, points)
     cor, tc = cor_grid(params, speed, hoops, rtol)
@@ -115,7 +125,9 @@ def efficiency_curve(
     interior = 0 < i < points - 1
     f_opt, eta_opt = float(hoops[i]), float(eta[i])
     if refine and interior:
-        f_opt, eta_opt = refine_optimum(params, speed, float(hoops[i - 1]), float(hoops[i + 1]), e_rigid)
+        f_opt, eta_opt = refine_optimum(
+            params, speed, float(hoops[i - 1]), float(hoops[i + 1]), e_rigid, min(rtol, REFINE_RTOL)
+        )
     return EfficiencyCurve(
         speed=speed,
         hoop_hz=hoops,

@@ -33,6 +33,19 @@ def world_for(rig: str, scene: str) -> SimWorld:
         return known[1]
 
 
+def install_world(rig: str, scene_ref: str, scene: Scene) -> SimWorld:
+    """Build rig `rig`'s world from a prepared Scene (e.g. with the bat under test), before any open.
+
+    Later opens must name the same `scene_ref`; installing over a running rig is refused.
+    """
+    with _lock:
+        if rig in _worlds:
+            raise RigConflict(f"sim rig {rig!r} is already running")
+        world = SimWorld(scene)
+        _worlds[rig] = (scene_ref, world)
+        return world
+
+
 def get_world(rig: str = DEFAULT_RIG) -> SimWorld:
     """The running world of rig `rig` (for tests: open the door, inspect the true shots)."""
     with _lock:

@@ -1,0 +1,198 @@
+"""From a shot's raw record to its metrics, uncertainty and validity; from the hits to the verdict.
+
+The decision rule (docs/procedures.md): with guarded acceptance a bat passes only when its mean
+metric plus the expanded uncertainty k u stays within the limit; with the simple rule, when the
+mean alone does. The model cross-check predicts the metric from the bat's hoop frequency.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict
+from typing import Any
+
+from protocols.procedure import Metric, Procedure
+from protocols.shot import ShotRecord
+from protocols.state import RunState
+from rig.core.bat import Barrel, BatSpec
+from rig.core.config import RigConfig
+from rig.core.devices import Recoil
+from rig.core.errors import RigError
+from rig.measure.metrics import DEFAULT_SWING, DEFINITIONS, compute_metrics
+from rig.measure.model import ShotInputs, Spread, UncertaintyModel
+from rig.measure.speeds import ShotDataError, shot_speeds, split_passes
+from rig.measure.tradeoff import tradeoff_table
+from rig.measure.uncertainty import budget, u_with_scatter
+from rig.measure.validity import Invalidity, ValidityLimits, check_shot, is_valid
+from rig.physics import DEFAULT_PARAMS, PivotedBat, predict_bat
+
+
+def uncertainty_model(p: Procedure) -> UncertaintyModel:
+    """The input distributions for this procedure (MOI uncertainty from the procedure)."""
+    return UncertaintyModel(
+        moi_relative=Spread(width=p.moi.relative_uncertainty), coverage_k=p.decision.coverage_k
+    )
+
+
+def _metric_u(p: Procedure, bud: dict[str, Any], v_pitch_plus_bat: float) -> float:
+    outs = bud["outputs"]
+    if p.standard is Metric.BBS:
+        # BBS = v_pitch e_A + v_bat (e_A + 1): dominated by e_A; the swing model is a definition.
+        return outs["e_a"]["u"] * v_pitch_plus_bat
+    return outs[p.standard.value]["u"]
+
+
+def shot(record: ShotRecord, p: Procedure, bat: BatSpec, state: RunState, failure: str) -> dict[str, Any]:
+    """Speeds, metrics, uncertainty and validity of one fired shot (JSON-ready)."""
+    moi = float(state.moi["moi_kgm2"]) if state.moi else float(bat.moi_kgm2 or 0.0)
+    q = record.impact_from_pivot_m
+    reasons: list[Invalidity] = []
+    out: dict[str, Any] = {"metric_name": p.standard.value, "metric": None, "u": None}
+    try:
+        passes = split_passes(record.crossings, record.gate_config)
+        speeds = shot_speeds(passes, record.gate_positions_m, record.gate_config)
+    except ShotDataError as exc:
+        return {
+            **out,
+            "valid": False,
+            "reasons": [{"code": "NO_DATA", "message": str(exc), "invalidates": True}],
+            "aim_factor": state.aim_factor,
+        }
+    limits = ValidityLimits(speed_tolerance_m_s=p.speed_tolerance_m_s)
+    recoil = None if record.recoil_rad_s is None else Recoil(record.recoil_rad_s)
+    reasons = check_shot(
+        speeds,
+        passes,
+        p.target_speed_m_s,
+        recoil,
+        q,
+        moi,
+        p.ball.mass_kg,
+        limits,
+        positions_m=record.gate_positions_m,
+    )
+    v_in, v_out = speeds.inbound, speeds.rebound
+    out["inbound_speed_m_s"], out["rebound_speed_m_s"] = v_in, v_out
+    out["aim_factor"] = state.aim_factor
+    if v_in is not None:
+        # the cannon gave v_in where the aim table promised the aimed speed: learn the ratio
+        aimed = p.target_speed_m_s / state.aim_factor
+        out["aim_factor"] = 0.5 * state.aim_factor + 0.5 * (v_in / aimed)
+    if v_in is not None and v_out is not None and v_out > 0:
+        m = compute_metrics(v_in, v_out, q, moi, p.ball.mass_kg, bat.length_m)
+        inputs = ShotInputs.from_passes(
+            passes, record.gate_positions_m, record.gate_config, q, moi, p.ball.mass_kg
+        )
+        bud = budget(inputs, uncertainty_model(p)).as_dict()
+        value = m.as_dict()[p.standard.value]
+        out.update(
+            metrics=m.as_dict(),
+            metric=value,
+            u=_metric_u(p, bud, m.v_bat + DEFAULT_SWING.pitch_speed_m_s),
+            budget=bud,
+            inputs={k: v for k, v in asdict(inputs).items()},
+        )
+    out["reasons"] = [
+        {
+            "code": r.code.value,
+            "message": r.message,
+            "invalidates": r.invalidates,
+            "measured": r.measured,
+            "limit": r.limit,
+        }
+        for r in reasons
+    ]
+    if failure:
+        out["reasons"].append({"code": "SHOT_FAILED", "message": failure, "invalidates": True})
+    out["valid"] = is_valid(reasons) and not failure and out["metric"] is not None
+    return out
+
+
+def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> dict[str, Any]:
+    """Mean of the valid hits at the chosen location, its uncertainty, the decision, the cross-check."""
+    loc = state.best_location_in
+    hits = state.valid_shots("valid", loc)
+    values = [float(h.metric) for h in hits if h.metric is not None]
+    if not values:
+        raise RigError("no valid hits to decide on")
+    n = len(values)
+    mean = sum(values) / n
+    inputs = [
+        ShotInputs(**{k: tuple(v) if isinstance(v, list) else v for k, v in h.measured["inputs"].items()})
+        for h in hits
+    ]
+    model = uncertainty_model(p)
+    per_bat = budget(inputs, model)
+    per_hit = budget(inputs[0], model)
+    name = p.standard.value if p.standard is not Metric.BBS else "e_a"
+    if n >= 2:
+        u = u_with_scatter(per_bat, [float(h.measured["metrics"][name]) for h in hits], name)
+    else:
+        u = per_bat.u_of(name)
+    if p.standard is Metric.BBS:
+        u *= hits[0].measured["metrics"]["v_bat"] + DEFAULT_SWING.pitch_speed_m_s
+    k = p.decision.coverage_k
+    big_u = k * u
+    if p.decision.rule == "guarded":
+        passed = mean + big_u <= p.limit
+        rule = f"guarded acceptance: PASS if mean + {k:g} u <= limit"
+    else:
+        passed = mean <= p.limit
+        rule = "simple acceptance: PASS if mean <= limit"
+    zone = (
+        "pass" if passed else ("fail: within the guard band" if mean <= p.limit else "fail: above the limit")
+    )
+    v_in_mean = sum(h.measured["inbound_speed_m_s"] for h in hits) / n
+    q = bat.impact_from_pivot_m(loc) if loc is not None else config.impact_from_pivot_m
+    moi = float(state.moi["moi_kgm2"]) if state.moi else float(bat.moi_kgm2 or 0.0)
+    return {
+        "verdict": "PASS" if passed else "FAIL",
+        "zone": zone,
+        "metric": p.standard.value,
+        "definition": DEFINITIONS.get(p.standard.value, ""),
+        "mean": mean,
+        "u": u,
+        "U": big_u,
+        "coverage_k": k,
+        "limit": p.limit,
+        "decision_rule": rule,
+        "n_hits": n,
+        "hits": values,
+        "location_in": loc,
+        "impact_from_pivot_m": q,
+        "moi_kgm2": moi,
+        "edition": p.edition,
+        "budget": per_bat.as_dict(),
+        "cross_check": cross_check(p, bat, v_in_mean, q, moi, mean),
+        "tradeoff": [
+            r.as_dict() for r in tradeoff_table(per_hit, name, max_hits=12, cycle_s=config.cannon_cycle_s)
+        ],
+    }
+
+
+def cross_check(
+    p: Procedure, bat: BatSpec, v_in: float, q: float, moi: float, measured: float
+) -> dict[str, Any]:
+    """The collision model's prediction at the bat's hoop frequency, next to the measured value."""
+    if bat.hoop_hz is None and bat.barrel is not Barrel.WOOD:
+        return {"predicted": None, "note": "no hoop frequency in the bat file: no model cross-check"}
+    hoop = None if bat.barrel is Barrel.WOOD else bat.hoop_hz
+    params = DEFAULT_PARAMS.model_copy(update={"m1": p.ball.mass_kg})
+    pred = predict_bat(params, v_in, hoop, PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q))
+    m = compute_metrics(v_in, pred.e_a * v_in, q, moi, p.ball.mass_kg, bat.length_m)
+    predicted = m.as_dict()[p.standard.value]
+    diff = measured - predicted
+    flagged = abs(diff) > p.cross_check_tolerance
+    return {
+        "predicted": predicted,
+        "measured": measured,
+        "difference": diff,
+        "tolerance": p.cross_check_tolerance,
+        "hoop_hz": hoop,
+        "model": "pivoted bat, rigid barrel" if hoop is None else "pivoted bat with hoop mode (Eqs. 1-2)",
+        "flagged": flagged,
+        "note": (
+            "measured performance out of line with the hoop frequency: possibly altered bat or rig fault"
+            if flagged
+            else "measured performance consistent with the hoop frequency"
+        ),
+    }

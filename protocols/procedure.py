@@ -1,0 +1,136 @@
+"""A certification procedure as data: what to measure, how often, and the limits (TOML).
+
+Values that standards.md marks unknown are configurable defaults, each commented in the
+built-in files (protocols/*.toml) with its status.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from enum import StrEnum
+from pathlib import Path
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+from rig.core.errors import ConfigError
+
+BUILTIN_DIR = Path(__file__).parent
+BUILTIN = ("bbcor", "besr", "bbs")
+
+
+class Metric(StrEnum):
+    """Which performance metric decides the verdict."""
+
+    BBCOR = "bbcor"
+    BESR = "besr"
+    BBS = "bbs"
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+
+class Scan(_Model):
+    """Impact-location scan, distances from the barrel end (inches)."""
+
+    from_in: Annotated[float, Field(gt=0.0)] = 5.0
+    to_in: Annotated[float, Field(gt=0.0)] = 7.5
+    step_in: Annotated[float, Field(gt=0.0)] = 0.5
+    hits_per_location: Annotated[int, Field(ge=1, le=10)] = 1
+
+    @model_validator(mode="after")
+    def _order(self) -> Scan:
+        if self.to_in < self.from_in:
+            raise ValueError("scan.to_in must not be less than scan.from_in")
+        if self.count > 40:
+            raise ValueError(f"scan has {self.count} locations; at most 40")
+        return self
+
+    @property
+    def count(self) -> int:
+        """Number of locations."""
+        return round((self.to_in - self.from_in) / self.step_in) + 1
+
+    def locations_in(self) -> list[float]:
+        """The scan's locations from the barrel end, inches."""
+        return [round(self.from_in + i * self.step_in, 6) for i in range(self.count)]
+
+
+class Hits(_Model):
+    """The valid hits that make the bat's result."""
+
+    valid_hits: Annotated[int, Field(ge=1, le=50)] = 6
+    max_reshoots: Annotated[int, Field(ge=0, le=100)] = 10  # invalid shots allowed in the whole run
+
+
+class Ball(_Model):
+    """Ball handling."""
+
+    mass_kg: Annotated[float, Field(gt=0.1, lt=0.2)] = 0.145
+    replace_after_hits: Annotated[int, Field(ge=1, le=1000)] = 12
+
+
+class EnvironmentLimits(_Model):
+    """Lab conditions that must hold before firing."""
+
+    temperature_c: tuple[float, float] = (18.0, 26.0)
+    humidity_pct: tuple[float, float] = (30.0, 70.0)
+
+
+class Moi(_Model):
+    """Where the bat's MOI about the pivot comes from."""
+
+    source: Literal["pendulum", "entered"] = "pendulum"
+    cycles: Annotated[int, Field(ge=1, le=100)] = 10
+    relative_uncertainty: Annotated[float, Field(gt=0.0, lt=0.1)] = 0.005
+
+
+class Decision(_Model):
+    """Decision rule: guarded acceptance, pass only if mean + guard <= limit."""
+
+    rule: Literal["guarded", "simple"] = "guarded"
+    coverage_k: Annotated[float, Field(gt=0.0, le=3.0)] = 2.0
+
+
+class Procedure(_Model):
+    """A certification procedure, pinned to the edition it follows."""
+
+    name: str
+    standard: Metric
+    edition: str
+    limit: float
+    limit_note: str = ""
+    target_speed_m_s: Annotated[float, Field(gt=10.0, lt=80.0)] = 60.8
+    speed_tolerance_m_s: Annotated[float, Field(gt=0.0, lt=10.0)] = 0.447  # 1 mph
+    scan: Scan = Scan()
+    hits: Hits = Hits()
+    ball: Ball = Ball()
+    environment: EnvironmentLimits = EnvironmentLimits()
+    moi: Moi = Moi()
+    ring_check: bool = True
+    decision: Decision = Decision()
+    cross_check_tolerance: Annotated[float, Field(gt=0.0)] = 0.05  # |measured - model| flag level
+
+    @classmethod
+    def load(cls, name_or_path: str | Path) -> Procedure:
+        """A built-in procedure by name (bbcor, besr, bbs) or a TOML file; errors name the field."""
+        text_path = Path(name_or_path)
+        if str(name_or_path) in BUILTIN:
+            text_path = BUILTIN_DIR / f"{name_or_path}.toml"
+        try:
+            data = tomllib.loads(text_path.read_text(encoding="utf-8"))
+        except FileNotFoundError:
+            raise ConfigError(
+                f"no such procedure; built-in ones are {', '.join(BUILTIN)}", source=str(name_or_path)
+            ) from None
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"not valid TOML: {exc}", source=str(text_path)) from None
+        if not isinstance(data.get("procedure"), dict):
+            raise ConfigError("needs a [procedure] table", source=str(text_path))
+        try:
+            return cls.model_validate(data["procedure"])
+        except ValidationError as exc:
+            first = exc.errors()[0]
+            where = "procedure." + ".".join(str(p) for p in first["loc"])
+            raise ConfigError(first["msg"], source=str(text_path), field=where) from None

@@ -1,0 +1,324 @@
+"""Runs a certification procedure against device interfaces, emitting events, deciding the verdict.
+
+The runner is restartable: its progress is a fold of the recorded events (protocols.state), so
+`run()` on a resumed event list continues at the next unfired shot. A shot whose intent was
+recorded but whose outcome was not (a crash between FIRE and the record) is marked lost, never
+fired again.
+"""
+
+from __future__ import annotations
+
+import math
+import platform
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+from protocols import evaluate
+from protocols.procedure import Procedure
+from protocols.shot import ShotFailed, ShotRecord, fire_shot, prepare
+from protocols.state import RunState, fold
+from rig import __version__
+from rig.core import events as ev
+from rig.core.bat import BatSpec
+from rig.core.config import RigConfig
+from rig.core.devices import Cannon, CannonState, Clamp, GateConfig, Gates
+from rig.core.errors import ConfigError, DeviceError, DeviceGone, RigError, SafetyRefusal
+from rig.core.events import RunEvent
+from rig.core.units import G_STANDARD, INCH
+
+
+class Operator(Protocol):
+    """Answers the operator prompts (ring check, ball replacement)."""
+
+    def ask(self, prompt_id: str, text: str) -> bool: ...
+
+
+@dataclass
+class ScriptedOperator:
+    """An operator for scripted runs: answers every prompt the same way, recorded as such."""
+
+    answer: bool = True
+    who: str = "script"
+
+    def ask(self, prompt_id: str, text: str) -> bool:
+        """Return the scripted answer."""
+        return self.answer
+
+
+class RunAborted(RigError):
+    """The run cannot go on; the reason is recorded and the run can be resumed after a fix."""
+
+
+def dry_run(p: Procedure, bat: BatSpec, config: RigConfig) -> list[str]:
+    """Everything in the procedure the rig or the bat cannot do, found before the cannon is armed."""
+    problems: list[str] = []
+    lo, hi = config.aim.speed_m_s[0], config.aim.speed_m_s[-1]
+    for speed in (p.target_speed_m_s - p.speed_tolerance_m_s, p.target_speed_m_s + p.speed_tolerance_m_s):
+        if not lo <= speed <= hi:
+            problems.append(
+                f"target speed {speed:.2f} m/s is outside the aim calibration ({lo:g}-{hi:g} m/s)"
+            )
+    barrel_room_in = bat.length_in - 6.0
+    for loc in p.scan.locations_in():
+        q_mm = bat.impact_from_pivot_m(loc) * 1000.0
+        if loc >= barrel_room_in:
+            problems.append(f"scan location {loc:g} in from the tip is not on the bat beyond the pivot")
+        elif not 100.0 <= q_mm <= 900.0:
+            problems.append(f"scan location {loc:g} in needs the stage at {q_mm:.0f} mm (range 100-900 mm)")
+    if p.moi.source == "entered" and bat.moi_kgm2 is None:
+        problems.append("procedure wants the MOI entered, but the bat file has no moi_kgm2")
+    if p.moi.source == "pendulum" and bat.balance_point_in is None:
+        problems.append("the pendulum MOI needs balance_point_in in the bat file")
+    if p.hits.valid_hits > p.ball.replace_after_hits * 10:
+        problems.append("more valid hits than ten balls allow")
+    return problems
+
+
+class Runner:
+    """Executes one procedure for one bat; every persisted event goes to `emit` before it goes on."""
+
+    def __init__(
+        self,
+        procedure: Procedure,
+        bat: BatSpec,
+        config: RigConfig,
+        cannon: Cannon,
+        gates: Gates,
+        clamp: Clamp,
+        emit: Callable[[RunEvent], None],
+        operator: Operator | None = None,
+        history: list[RunEvent] | None = None,
+        drain_traffic: Callable[[], list[dict[str, Any]]] | None = None,
+    ) -> None:
+        self.p, self.bat, self.config = procedure, bat, config
+        self.cannon, self.gates, self.clamp = cannon, gates, clamp
+        self._emit = emit
+        self.operator = operator or ScriptedOperator()
+        self.history = list(history or [])
+        self.state: RunState = fold(self.history)
+        self.drain_traffic = drain_traffic or (lambda: [])
+        self.gate_config: GateConfig | None = None
+
+    # -- events -----------------------------------------------------------------------------
+    def emit(self, kind: str, **data: Any) -> None:
+        """Record a fact and update the run state from it."""
+        event = RunEvent(kind, data)
+        self._emit(event)
+        if event.persisted:
+            self.history.append(event)
+            self.state = fold(self.history)
+
+    # -- the procedure ----------------------------------------------------------------------
+    def run(self) -> dict[str, Any]:
+        """Run (or resume) to the verdict; returns the RunFinished payload."""
+        if self.state.finished:
+            return dict(self.state.verdict or {})
+        problems = dry_run(self.p, self.bat, self.config)
+        if problems:
+            raise ConfigError("; ".join(problems), source="dry run")
+        self._start()
+        self._check_environment()
+        self.gate_config = prepare(self.cannon, self.gates, self.clamp, self._q(self.p.scan.from_in))
+        self._resolve_pending()
+        if self.state.moi is None:
+            self._measure_moi()
+        for loc in self.p.scan.locations_in():
+            while len(self.state.valid_shots("scan", loc)) < self.p.scan.hits_per_location:
+                self._shoot(loc, "scan")
+        if self.state.best_location_in is None:
+            self._choose_location()
+        best = self.state.best_location_in
+        assert best is not None
+        while len(self.state.valid_shots("valid", best)) < self.p.hits.valid_hits:
+            self._shoot(best, "valid")
+        verdict = evaluate.verdict(self.p, self.bat, self.state, self.config)
+        self.emit(ev.RUN_FINISHED, **verdict)
+        return verdict
+
+    def _start(self) -> None:
+        if not self.state.started:
+            self.emit(
+                ev.RUN_STARTED,
+                procedure=self.p.model_dump(mode="json"),
+                bat=self.bat.model_dump(mode="json"),
+                rig=self.config.model_dump(mode="json"),
+                software={"rig": __version__, "python": platform.python_version()},
+            )
+        else:
+            self.emit(ev.RUN_RESUMED, shots_so_far=len(self.state.shots))
+        if self.cannon.status().state is CannonState.FAULT:
+            self.cannon.reset()  # a fault left by the previous session; the tank is vented
+
+    def _check_environment(self) -> None:
+        env = self.cannon.environment()
+        lim = self.p.environment
+        ok_t = lim.temperature_c[0] <= env.temperature_c <= lim.temperature_c[1]
+        ok_h = lim.humidity_pct[0] <= env.humidity_pct <= lim.humidity_pct[1]
+        self.emit(
+            ev.ENVIRONMENT_CHECKED,
+            temperature_c=env.temperature_c,
+            humidity_pct=env.humidity_pct,
+            ok=ok_t and ok_h,
+        )
+        if not (ok_t and ok_h):
+            raise RunAborted(
+                f"lab conditions {env.temperature_c:.1f} C, {env.humidity_pct:.0f} % RH outside the "
+                f"procedure's {lim.temperature_c} C, {lim.humidity_pct} % RH"
+            )
+
+    def _resolve_pending(self) -> None:
+        pending = self.state.pending
+        if pending is None:
+            return
+        reason = (
+            "the run stopped after this shot was requested and before its outcome was recorded; "
+            "it may have been fired, so it is not fired again"
+        )
+        self.emit(ev.SHOT_LOST, index=pending.index, reason=reason)
+
+    def _measure_moi(self) -> None:
+        if self.p.moi.source == "entered":
+            if self.bat.moi_kgm2 is None:
+                raise ConfigError("procedure wants the MOI entered, but the bat file has no moi_kgm2")
+            self.emit(
+                ev.MOI_MEASURED,
+                moi_kgm2=self.bat.moi_kgm2,
+                source="entered",
+                u_kgm2=self.bat.moi_kgm2 * self.p.moi.relative_uncertainty,
+            )
+            return
+        if self.bat.balance_point_in is None:
+            raise ConfigError("the pendulum MOI needs the bat's balance_point_in in the bat file")
+        period = self.clamp.measure_period(self.p.moi.cycles)
+        lever = (self.bat.balance_point_in - 6.0) * INCH
+        theta0 = math.radians(period.amplitude_deg)
+        t0 = period.period_s / (1.0 + theta0**2 / 16.0)  # finite-amplitude correction
+        moi = self.bat.mass_kg * G_STANDARD * lever * t0**2 / (4.0 * math.pi**2)
+        self.emit(
+            ev.MOI_MEASURED,
+            moi_kgm2=moi,
+            source="pendulum",
+            period_s=period.period_s,
+            amplitude_deg=period.amplitude_deg,
+            cycles=period.cycles,
+            u_kgm2=moi * self.p.moi.relative_uncertainty,
+        )
+
+    def _choose_location(self) -> None:
+        means: dict[float, float] = {}
+        for loc in self.p.scan.locations_in():
+            vals = [s.metric for s in self.state.valid_shots("scan", loc) if s.metric is not None]
+            if vals:
+                means[loc] = sum(vals) / len(vals)
+        best = max(means, key=lambda k: means[k])
+        self.emit(
+            ev.LOCATION_CHOSEN,
+            from_barrel_end_in=best,
+            mean_metric=means[best],
+            scan={str(k): v for k, v in means.items()},
+        )
+
+    # -- one shot ---------------------------------------------------------------------------
+    def _q(self, loc_in: float) -> float:
+        return self.bat.impact_from_pivot_m(loc_in)
+
+    def _prompt(self, prompt_id: str, text: str) -> bool:
+        self.emit(ev.OPERATOR_PROMPTED, prompt_id=prompt_id, text=text)
+        answer = self.operator.ask(prompt_id, text)
+        self.emit(
+            ev.OPERATOR_ANSWERED,
+            prompt_id=prompt_id,
+            answer=answer,
+            who=getattr(self.operator, "who", "operator"),
+        )
+        return answer
+
+    def _shoot(self, loc_in: float, purpose: str) -> None:
+        if self.state.invalid_count > self.p.hits.max_reshoots:
+            raise RunAborted(f"more than {self.p.hits.max_reshoots} invalid shots: check the rig")
+        if self.state.ball_hits >= self.p.ball.replace_after_hits:
+            if not self._prompt(
+                "ball",
+                f"Replace the ball (ball {self.state.ball_number} has {self.state.ball_hits} hits). Done?",
+            ):
+                raise RunAborted("ball not replaced")
+            self.emit(ev.BALL_REPLACED, ball_number=self.state.ball_number + 1)
+        index = len(self.state.shots) + 1
+        if self.p.ring_check and not self._prompt(
+            f"ring-before-{index}", "Ring check: does the ring pass over the whole bat?"
+        ):
+            self._fail_ring(index)
+        if self.state.location_in != loc_in:
+            q = self._q(loc_in)
+            self.clamp.move_to(q * 1000.0)
+            self.emit(ev.LOCATION_SET, from_barrel_end_in=loc_in, impact_from_pivot_m=q)
+        q = self._q(loc_in)
+        config = self.config.model_copy(update={"impact_from_pivot_m": q})
+        aim_speed = self.p.target_speed_m_s / self.state.aim_factor
+        self.emit(
+            ev.SHOT_REQUESTED,
+            index=index,
+            purpose=purpose,
+            location_in=loc_in,
+            target_speed_m_s=self.p.target_speed_m_s,
+            aim_speed_m_s=aim_speed,
+        )
+        try:
+            record, failure = self._fire(config, aim_speed)
+        except DeviceError as exc:
+            self.emit(ev.TRAFFIC, index=index, chunks=self.drain_traffic())
+            self.emit(ev.SHOT_LOST, index=index, reason=f"{type(exc).__name__}: {exc}")
+            self._recover_or_abort(exc)
+            return
+        self.emit(
+            ev.SHOT_FIRED,
+            index=index,
+            ball_number=self.state.ball_number,
+            **(record.as_dict() if record else {"crossings": []}),
+        )
+        self.emit(ev.TRAFFIC, index=index, chunks=self.drain_traffic())
+        if record is None:
+            self.emit(ev.SHOT_LOST, index=index, reason=failure)
+            return
+        result = evaluate.shot(record, self.p, self.bat, self.state, failure)
+        self.emit(ev.SHOT_MEASURED if result["valid"] else ev.SHOT_REJECTED, index=index, **result)
+        if self.p.ring_check and not self._prompt(
+            f"ring-after-{index}", "Ring check after the hit: does the ring still pass?"
+        ):
+            self._fail_ring(index)
+
+    def _fire(self, config: RigConfig, aim_speed: float) -> tuple[ShotRecord | None, str]:
+        assert self.gate_config is not None
+        try:
+            rec = fire_shot(self.cannon, self.gates, self.clamp, config, aim_speed, self.gate_config)
+            return rec, ""
+        except ShotFailed as exc:
+            return exc.record, str(exc)
+
+    def _recover_or_abort(self, exc: DeviceError) -> None:
+        """After a shot lost to a device error: make the cannon safe and go on, or stop the run.
+
+        The lost shot is never fired again (it is recorded as lost); an open interlock or a vanished
+        device stops the run, to be resumed once the operator has fixed it.
+        """
+        if isinstance(exc, SafetyRefusal | DeviceGone):
+            raise RunAborted(f"shot not completed: {exc}") from exc
+        try:
+            state = self.cannon.status().state
+            if state is CannonState.FAULT:
+                self.cannon.reset()
+            elif state is CannonState.ARMED:
+                self.cannon.vent()
+        except DeviceError as again:
+            raise RunAborted(f"device failure: {exc}; then {again}") from exc
+
+    def _fail_ring(self, index: int) -> None:
+        verdict = {
+            "verdict": "FAIL",
+            "reason": f"ring check failed at shot {index}: barrel deformed",
+            "metric": self.p.standard.value,
+            "limit": self.p.limit,
+        }
+        self.emit(ev.RUN_FINISHED, **verdict)
+        raise RunAborted(verdict["reason"])

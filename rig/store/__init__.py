@@ -1,0 +1,41 @@
+"""Run records: an append-only, hash-chained log in SQLite (WAL) with tables derived from it.
+
+The log is the record of truth (rule 5, "nothing is lost"); `bats` and `runs` are conveniences
+rebuilt from it at will. See docs/records.md for the schema, the chain and its limits.
+"""
+
+from rig.core.errors import RecordRefused, StoreError, StoreFileError, UnknownRecord
+from rig.store._codec import GENESIS_HASH, canonical_json, decode_bytes, encode_bytes, entry_hash
+from rig.store._records import (
+    RESERVED_KINDS,
+    RUN_STATUSES,
+    Anchor,
+    LogEntry,
+    RunStatus,
+    RunSummary,
+    VerifyReport,
+)
+from rig.store._schema import SCHEMA_VERSION
+from rig.store._store import EntrySpec, Store
+
+__all__ = [
+    "GENESIS_HASH",
+    "RESERVED_KINDS",
+    "RUN_STATUSES",
+    "SCHEMA_VERSION",
+    "Anchor",
+    "EntrySpec",
+    "LogEntry",
+    "RecordRefused",
+    "RunStatus",
+    "RunSummary",
+    "Store",
+    "StoreError",
+    "StoreFileError",
+    "UnknownRecord",
+    "VerifyReport",
+    "canonical_json",
+    "decode_bytes",
+    "encode_bytes",
+    "entry_hash",
+]

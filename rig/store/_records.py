@@ -1,0 +1,72 @@
+"""What the store hands out: frozen records read from the log and the convenience tables."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from datetime import datetime
+from typing import Any, Literal
+
+RunStatus = Literal["running", "finished", "aborted"]
+RUN_STATUSES: tuple[str, ...] = ("running", "finished", "aborted")
+
+# Kinds the store writes itself; append() refuses them so the tables always follow the log.
+BAT_REGISTERED = "BatRegistered"
+RUN_CREATED = "RunCreated"
+RUN_STATUS_CHANGED = "RunStatusChanged"
+RESERVED_KINDS = frozenset({BAT_REGISTERED, RUN_CREATED, RUN_STATUS_CHANGED})
+
+
+@dataclass(frozen=True)
+class LogEntry:
+    """One entry of the append-only log, payload decoded (a fresh dict on every read)."""
+
+    seq: int
+    run_id: str | None
+    kind: str
+    payload: dict[str, Any]
+    t_utc: str
+    prev_hash: str
+    hash: str
+
+    @property
+    def time(self) -> datetime:
+        """t_utc as an aware datetime."""
+        return datetime.fromisoformat(self.t_utc)
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """One row of the `runs` table: where a run stands, derived from the log."""
+
+    run_id: str
+    procedure: str
+    bat_id: str
+    started_utc: str
+    status: RunStatus
+    verdict: str | None
+    last_seq: int
+
+
+@dataclass(frozen=True)
+class Anchor:
+    """A (seq, hash) pair kept outside the file, e.g. printed on a certificate."""
+
+    seq: int
+    hash: str
+
+
+@dataclass(frozen=True)
+class VerifyReport:
+    """Outcome of `Store.verify()`; `problems` lists every finding, chain ones first."""
+
+    ok: bool
+    entries_checked: int
+    head: Anchor
+    first_broken_seq: int | None = None
+    reason: str | None = None
+    problems: tuple[str, ...] = field(default=())
+
+    def __str__(self) -> str:
+        if self.ok:
+            return f"ok: {self.entries_checked} entries, head seq {self.head.seq} hash {self.head.hash}"
+        return "BROKEN: " + "; ".join(self.problems)

@@ -1,0 +1,143 @@
+"""The file: opening it safely, telling ours from a foreign one, the schema and its migrations."""
+
+from __future__ import annotations
+
+import sqlite3
+from datetime import UTC, datetime
+from pathlib import Path
+
+from rig.core.errors import StoreFileError
+
+# Written into the SQLite header so that a rig store is recognisable without reading tables.
+APPLICATION_ID = 0x52494753  # "RIGS"
+
+# Version n is reached by applying MIGRATIONS[n - 1] to a version n - 1 file, in one transaction.
+# Append new versions; never edit a released one (files in the field were made by it).
+MIGRATIONS: tuple[tuple[str, ...], ...] = (
+    (
+        "CREATE TABLE schema_version (version INTEGER PRIMARY KEY, applied_utc TEXT NOT NULL)",
+        """CREATE TABLE log (
+            seq INTEGER PRIMARY KEY,
+            run_id TEXT,
+            kind TEXT NOT NULL,
+            payload TEXT NOT NULL,
+            t_utc TEXT NOT NULL,
+            prev_hash TEXT NOT NULL,
+            hash TEXT NOT NULL UNIQUE)""",
+        "CREATE INDEX log_by_run ON log (run_id, seq)",
+        "CREATE INDEX log_by_kind ON log (kind, seq)",
+        # Refuse edits through SQL by mistake; deliberate tampering (dropping these) is what
+        # the hash chain is for.
+        """CREATE TRIGGER log_no_update BEFORE UPDATE ON log
+            BEGIN SELECT RAISE(ABORT, 'the log is append-only'); END""",
+        """CREATE TRIGGER log_no_delete BEFORE DELETE ON log
+            BEGIN SELECT RAISE(ABORT, 'the log is append-only'); END""",
+        "CREATE TABLE bats (id TEXT PRIMARY KEY, spec TEXT NOT NULL)",
+        """CREATE TABLE runs (
+            run_id TEXT PRIMARY KEY,
+            procedure TEXT NOT NULL,
+            bat_id TEXT NOT NULL REFERENCES bats (id),
+            started_utc TEXT NOT NULL,
+            status TEXT NOT NULL CHECK (status IN ('running', 'finished', 'aborted')),
+            verdict TEXT,
+            last_seq INTEGER NOT NULL)""",
+        "CREATE INDEX runs_by_status ON runs (status, started_utc)",
+    ),
+)
+SCHEMA_VERSION = len(MIGRATIONS)
+APPEND_ONLY_TRIGGERS = ("log_no_update", "log_no_delete")
+
+
+def connect(path: Path, *, create: bool, busy_timeout_s: float) -> sqlite3.Connection:
+    """An open, migrated connection in WAL mode with synchronous=FULL and foreign keys on."""
+    if not create and not path.exists():
+        raise StoreFileError(f"{path}: no such store")
+    if path.is_dir():
+        raise StoreFileError(f"{path}: is a directory, not a store file")
+    if not path.parent.is_dir():
+        raise StoreFileError(f"{path}: the folder {path.parent} does not exist")
+    try:
+        # isolation_level=None: we issue BEGIN/COMMIT ourselves, so every transaction is explicit.
+        # check_same_thread=False: the Store serialises use with its own lock.
+        conn = sqlite3.connect(path, timeout=busy_timeout_s, isolation_level=None, check_same_thread=False)
+    except sqlite3.Error as exc:
+        raise StoreFileError(f"{path}: cannot open: {exc}") from None
+    try:
+        fresh = _identify(conn, path)
+        _configure(conn, path, busy_timeout_s)
+        _migrate(conn, path, fresh)
+    except sqlite3.Error as exc:
+        conn.close()
+        raise StoreFileError(f"{path}: not a usable store: {exc}") from None
+    except BaseException:
+        conn.close()
+        raise
+    return conn
+
+
+def _identify(conn: sqlite3.Connection, path: Path) -> bool:
+    """True for an empty file to initialise; raise for a foreign one before changing it."""
+    try:
+        app_id = conn.execute("PRAGMA application_id").fetchone()[0]
+        n_objects = conn.execute("SELECT count(*) FROM sqlite_master").fetchone()[0]
+    except sqlite3.DatabaseError as exc:
+        raise StoreFileError(f"{path}: not a SQLite database ({exc})") from None
+    if app_id == APPLICATION_ID:
+        return False
+    if app_id == 0 and n_objects == 0:
+        return True
+    raise StoreFileError(
+        f"{path}: a SQLite database but not a rig store "
+        f"(application_id {app_id:#x}, {n_objects} schema objects); refusing to touch it"
+    )
+
+
+def _configure(conn: sqlite3.Connection, path: Path, busy_timeout_s: float) -> None:
+    mode = conn.execute("PRAGMA journal_mode=WAL").fetchone()[0]
+    if str(mode).lower() != "wal":
+        raise StoreFileError(f"{path}: cannot switch to WAL mode (journal_mode is {mode})")
+    # FULL in WAL mode syncs the WAL at every commit: a returned append survives power loss too.
+    conn.execute("PRAGMA synchronous=FULL")
+    conn.execute("PRAGMA foreign_keys=ON")
+    conn.execute(f"PRAGMA busy_timeout={int(busy_timeout_s * 1000)}")
+
+
+def _migrate(conn: sqlite3.Connection, path: Path, fresh: bool) -> None:
+    # The common case, an up-to-date file, needs no write lock (readers must not wait for one).
+    if not fresh and _current_version(conn, path, fresh) == SCHEMA_VERSION:
+        return
+    # IMMEDIATE: two processes opening a new file at once must not both initialise it.
+    conn.execute("BEGIN IMMEDIATE")
+    try:
+        version = _current_version(conn, path, fresh)
+        if version > SCHEMA_VERSION:
+            raise StoreFileError(
+                f"{path}: written by newer software (schema {version}; this one knows up to {SCHEMA_VERSION})"
+            )
+        for target in range(version + 1, SCHEMA_VERSION + 1):
+            for statement in MIGRATIONS[target - 1]:
+                conn.execute(statement)
+            conn.execute(
+                "INSERT INTO schema_version (version, applied_utc) VALUES (?, ?)",
+                (target, datetime.now(UTC).isoformat(timespec="seconds")),
+            )
+        conn.execute(f"PRAGMA application_id={APPLICATION_ID}")
+        conn.execute("COMMIT")
+    except BaseException:
+        conn.execute("ROLLBACK")
+        raise
+
+
+def _current_version(conn: sqlite3.Connection, path: Path, fresh: bool) -> int:
+    has_table = conn.execute(
+        "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = 'schema_version'"
+    ).fetchone()[0]
+    if not has_table:
+        # Another process may have initialised the file between _identify and BEGIN IMMEDIATE.
+        if fresh:
+            return 0
+        raise StoreFileError(f"{path}: marked as a rig store but has no schema_version table")
+    version = conn.execute("SELECT max(version) FROM schema_version").fetchone()[0]
+    if version is None:
+        raise StoreFileError(f"{path}: the schema_version table is empty")
+    return int(version)

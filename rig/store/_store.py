@@ -1,0 +1,296 @@
+"""The Store: one SQLite file, an append-only hash-chained log and tables derived from it."""
+
+from __future__ import annotations
+
+import sqlite3
+import threading
+import uuid
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from contextlib import contextmanager
+from datetime import UTC, datetime
+from pathlib import Path
+from types import TracebackType
+from typing import Any, Self
+
+from rig.core.errors import RecordRefused, StoreError, UnknownRecord
+from rig.store import _derive, _verify
+from rig.store._codec import GENESIS_HASH, check_kind, check_payload, decode_payload, entry_hash
+from rig.store._records import (
+    BAT_REGISTERED,
+    RESERVED_KINDS,
+    RUN_CREATED,
+    RUN_STATUS_CHANGED,
+    Anchor,
+    LogEntry,
+    RunSummary,
+    VerifyReport,
+)
+from rig.store._schema import connect
+
+Clock = Callable[[], datetime]
+EntrySpec = tuple[str | None, str, dict[str, Any]]  # (run_id, kind, payload) for append_many
+
+_ENTRY_COLUMNS = "seq, run_id, kind, payload, t_utc, prev_hash, hash"
+_RUN_COLUMNS = ", ".join(_derive.RUN_COLUMNS)
+_CLOSED_STATUSES = ("finished", "aborted")
+
+
+def _utc_now() -> datetime:
+    return datetime.now(UTC)
+
+
+class Store:
+    """Run records in one SQLite file (WAL). Thread-safe: one connection behind a lock.
+
+    Every write is one transaction that appends to the log and updates the tables; when a
+    write method returns, its entries are on disk.
+    """
+
+    def __init__(self, conn: sqlite3.Connection, path: Path, clock: Clock) -> None:
+        """Use `Store.open`."""
+        self._conn: sqlite3.Connection | None = conn
+        self._path = path
+        self._clock = clock
+        self._lock = threading.RLock()
+
+    @classmethod
+    def open(
+        cls, path: str | Path, *, create: bool = True, busy_timeout_s: float = 5.0, clock: Clock | None = None
+    ) -> Store:
+        """Open (and with `create`, make) a store; a bad or foreign file raises StoreFileError."""
+        path = Path(path)
+        return cls(connect(path, create=create, busy_timeout_s=busy_timeout_s), path, clock or _utc_now)
+
+    @property
+    def path(self) -> Path:
+        """The store's file."""
+        return self._path
+
+    def close(self) -> None:
+        """Close the file; further calls raise StoreError. Closing twice is harmless."""
+        with self._lock:
+            if self._conn is not None:
+                self._conn.close()
+                self._conn = None
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
+
+    # --- writing -------------------------------------------------------------------------
+
+    def register_bat(self, bat_id: str, spec: dict[str, Any]) -> LogEntry:
+        """Record a bat (rig-level 'BatRegistered' entry); an id is registered once only."""
+        _check_id("bat_id", bat_id)
+        with self._write() as conn:
+            if conn.execute("SELECT 1 FROM bats WHERE id = ?", (bat_id,)).fetchone():
+                raise RecordRefused(f"bat {bat_id} is already registered")
+            entry = self._append(conn, None, BAT_REGISTERED, {"bat_id": bat_id, "spec": spec})
+            conn.execute("INSERT INTO bats (id, spec) VALUES (?, ?)", (bat_id, check_payload(spec)))
+        return entry
+
+    def create_run(self, procedure: str, bat_id: str, meta: dict[str, Any]) -> str:
+        """Start a run of `procedure` on a registered bat ('RunCreated' entry); returns its id."""
+        _check_id("procedure", procedure)
+        run_id = uuid.uuid4().hex
+        with self._write() as conn:
+            if not conn.execute("SELECT 1 FROM bats WHERE id = ?", (bat_id,)).fetchone():
+                known = [b for (b,) in conn.execute("SELECT id FROM bats ORDER BY id")]
+                raise UnknownRecord(f"no bat {bat_id!r}; {_known('bats', known)}")
+            payload = {"procedure": procedure, "bat_id": bat_id, "meta": meta}
+            entry = self._append(conn, run_id, RUN_CREATED, payload, new_run=True)
+            conn.execute(
+                f"INSERT INTO runs ({_RUN_COLUMNS}) VALUES (?, ?, ?, ?, 'running', NULL, ?)",
+                (run_id, procedure, bat_id, entry.t_utc, entry.seq),
+            )
+        return run_id
+
+    def append(self, run_id: str | None, kind: str, payload: dict[str, Any]) -> LogEntry:
+        """Append one entry (run_id None: rig-level); committed and synced when it returns."""
+        return self.append_many([(run_id, kind, payload)])[0]
+
+    def append_many(self, items: Iterable[EntrySpec]) -> list[LogEntry]:
+        """Append several (run_id, kind, payload) entries in one transaction: all or none."""
+        items = list(items)
+        for _, kind, _ in items:
+            if check_kind(kind) in RESERVED_KINDS:
+                raise RecordRefused(f"kind {kind} is written by the store itself; use its own method")
+        with self._write() as conn:
+            return [self._append(conn, run_id, kind, payload) for run_id, kind, payload in items]
+
+    def set_run_status(self, run_id: str, status: str, verdict: str | None = None) -> LogEntry:
+        """Finish or abort a running run ('RunStatusChanged' entry), with an optional verdict."""
+        if status not in _CLOSED_STATUSES:
+            raise RecordRefused(f"status {status!r}: a run can only become one of {_CLOSED_STATUSES}")
+        if verdict is not None and not isinstance(verdict, str):
+            raise RecordRefused(f"verdict {verdict!r}: must be a str or None")
+        with self._write() as conn:
+            current = self._run(conn, run_id).status
+            if current != "running":
+                raise RecordRefused(f"run {run_id} is already {current}")
+            entry = self._append(conn, run_id, RUN_STATUS_CHANGED, {"status": status, "verdict": verdict})
+            conn.execute(
+                "UPDATE runs SET status = ?, verdict = ? WHERE run_id = ?", (status, verdict, run_id)
+            )
+        return entry
+
+    def rebuild_indexes(self) -> None:
+        """Recompute `bats` and `runs` from the log (refuses if the log contradicts itself)."""
+        with self._write() as conn:
+            deriver = _derive.derive(conn)
+            if deriver.problems:
+                raise StoreError(f"{self._path}: cannot rebuild: " + "; ".join(deriver.problems[:5]))
+            _derive.write_tables(conn, deriver)
+
+    # --- reading -------------------------------------------------------------------------
+
+    def entries(
+        self, run_id: str | None = None, kinds: Iterable[str] | None = None, after_seq: int = 0
+    ) -> list[LogEntry]:
+        """Entries in seq order: of one run (or all), of some kinds (or all), after a seq."""
+        where, params = ["seq > ?"], [after_seq]
+        if run_id is not None:
+            where.append("run_id = ?")
+            params.append(run_id)
+        if kinds is not None:
+            kinds = list(kinds)
+            where.append(f"kind IN ({', '.join('?' * len(kinds))})")
+            params += kinds
+        sql = f"SELECT {_ENTRY_COLUMNS} FROM log WHERE {' AND '.join(where)} ORDER BY seq"
+        with self._read() as conn:
+            return [_entry(row) for row in conn.execute(sql, params)]
+
+    def runs(self) -> list[RunSummary]:
+        """Every run, oldest first."""
+        with self._read() as conn:
+            rows = conn.execute(f"SELECT {_RUN_COLUMNS} FROM runs ORDER BY started_utc, rowid")
+            return [RunSummary(*row) for row in rows]
+
+    def open_runs(self) -> list[RunSummary]:
+        """Runs still 'running' (e.g. after a crash), oldest first: candidates for resuming."""
+        return [r for r in self.runs() if r.status == "running"]
+
+    def run(self, run_id: str) -> RunSummary:
+        """One run; an unknown id raises UnknownRecord listing known ones."""
+        with self._read() as conn:
+            return self._run(conn, run_id)
+
+    def bats(self) -> dict[str, dict[str, Any]]:
+        """Every registered bat's spec, by id."""
+        with self._read() as conn:
+            return {
+                bat_id: decode_payload(spec) for bat_id, spec in conn.execute("SELECT id, spec FROM bats")
+            }
+
+    def head(self) -> Anchor:
+        """Seq and hash of the latest entry ((0, 64 zeros) when empty): print it as an anchor."""
+        with self._read() as conn:
+            row = conn.execute("SELECT seq, hash FROM log ORDER BY seq DESC LIMIT 1").fetchone()
+        return Anchor(*row) if row else Anchor(0, GENESIS_HASH)
+
+    def head_hash(self) -> str:
+        """Hash of the latest entry; only a copy kept outside the file reveals a cut-off tail."""
+        return self.head().hash
+
+    def verify(self, anchors: Iterable[Anchor] = ()) -> VerifyReport:
+        """Walk the chain from genesis, cross-check the tables and any outside anchors."""
+        anchors = list(anchors)
+        with self._read() as conn:
+            conn.execute("BEGIN")  # one snapshot: a concurrent append must not look like a mismatch
+            try:
+                return _verify.verify(conn, anchors)
+            finally:
+                if conn.in_transaction:
+                    conn.execute("COMMIT")
+
+    def pragmas(self) -> dict[str, Any]:
+        """The connection's journal_mode, synchronous, foreign_keys and busy_timeout (diagnostics)."""
+        names = ("journal_mode", "synchronous", "foreign_keys", "busy_timeout")
+        with self._read() as conn:
+            return {name: conn.execute(f"PRAGMA {name}").fetchone()[0] for name in names}
+
+    # --- internals -----------------------------------------------------------------------
+
+    @contextmanager
+    def _read(self) -> Iterator[sqlite3.Connection]:
+        with self._lock:
+            if self._conn is None:
+                raise StoreError(f"{self._path}: the store is closed")
+            try:
+                yield self._conn
+            except sqlite3.Error as exc:
+                raise StoreError(f"{self._path}: {exc}") from exc
+
+    @contextmanager
+    def _write(self) -> Iterator[sqlite3.Connection]:
+        # IMMEDIATE takes the write lock before reading the head, so that two writers (even in
+        # two processes) can never both append after the same entry.
+        with self._read() as conn:
+            conn.execute("BEGIN IMMEDIATE")
+            try:
+                yield conn
+                conn.execute("COMMIT")
+            except BaseException:
+                if conn.in_transaction:  # also when COMMIT itself failed
+                    conn.execute("ROLLBACK")
+                raise
+
+    def _append(
+        self,
+        conn: sqlite3.Connection,
+        run_id: str | None,
+        kind: str,
+        payload: dict[str, Any],
+        *,
+        new_run: bool = False,
+    ) -> LogEntry:
+        text = check_payload(payload)
+        if run_id is not None and not isinstance(run_id, str):
+            raise RecordRefused(f"run_id {run_id!r}: must be a str or None")
+        if run_id is not None and not new_run:
+            self._run(conn, run_id)  # refuses an unknown run with the known ids
+        head = conn.execute("SELECT seq, hash FROM log ORDER BY seq DESC LIMIT 1").fetchone()
+        seq, prev_hash = (head[0] + 1, head[1]) if head else (1, GENESIS_HASH)
+        t_utc = self._clock().astimezone(UTC).isoformat(timespec="microseconds")
+        digest = entry_hash(prev_hash, seq, run_id, kind, t_utc, text)
+        conn.execute(
+            f"INSERT INTO log ({_ENTRY_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?)",
+            (seq, run_id, kind, text, t_utc, prev_hash, digest),
+        )
+        if run_id is not None and not new_run:
+            conn.execute("UPDATE runs SET last_seq = ? WHERE run_id = ?", (seq, run_id))
+        return LogEntry(seq, run_id, kind, decode_payload(text), t_utc, prev_hash, digest)
+
+    def _run(self, conn: sqlite3.Connection, run_id: str) -> RunSummary:
+        row = conn.execute(f"SELECT {_RUN_COLUMNS} FROM runs WHERE run_id = ?", (run_id,)).fetchone()
+        if row is None:
+            recent = [r for (r,) in conn.execute("SELECT run_id FROM runs ORDER BY started_utc DESC")]
+            close = [r for r in recent if isinstance(run_id, str) and run_id and r.startswith(run_id)]
+            hint = f"did you mean {', '.join(close[:3])}?" if close else _known("runs", recent)
+            raise UnknownRecord(f"no run {run_id!r}; {hint}")
+        return RunSummary(*row)
+
+
+def _entry(row: Sequence[Any]) -> LogEntry:
+    seq, run_id, kind, payload, t_utc, prev_hash, hash_ = row
+    try:
+        decoded = decode_payload(payload)
+    except (StoreError, TypeError) as exc:  # only a tampered file gets here; verify() says more
+        raise StoreError(f"seq {seq}: {exc}") from None
+    return LogEntry(seq, run_id, kind, decoded, t_utc, prev_hash, hash_)
+
+
+def _check_id(name: str, value: object) -> None:
+    if not isinstance(value, str) or not value.strip():
+        raise RecordRefused(f"{name} {value!r}: must be a non-empty str")
+
+
+def _known(what: str, ids: list[str], shown: int = 5) -> str:
+    if not ids:
+        return f"there are no {what} yet"
+    more = f" and {len(ids) - shown} more" if len(ids) > shown else ""
+    return f"known {what}: {', '.join(ids[:shown])}{more}"
