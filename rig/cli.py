@@ -278,7 +278,12 @@ def _db(args: argparse.Namespace) -> Any:
 
 
 def _resolve_run(store: Any, text: str) -> str:
-    """A run id from a full id or a unique prefix."""
+    """A run id from a full id, a unique prefix, or 'last' (the newest run)."""
+    if text == "last":
+        runs = store.runs()
+        if not runs:
+            raise ConfigError("the record store has no runs yet", source="run")
+        return runs[-1].run_id
     matches = [r.run_id for r in store.runs() if r.run_id.startswith(text)]
     if len(matches) == 1:
         return matches[0]
@@ -504,7 +509,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(handler=cmd_runs)
 
     p = sub.add_parser("report", help="a run's record or certificate", description=cmd_report.__doc__)
-    p.add_argument("run", metavar="RUN", help="run id (a unique prefix will do)")
+    p.add_argument("run", metavar="RUN", help="run id (a unique prefix will do), or 'last'")
     p.add_argument("--format", choices=("json", "md", "html"), default="md", help="output format")
     p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
     p.add_argument("--output", "-o", metavar="FILE", help="write to a file instead of stdout")

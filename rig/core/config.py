@@ -70,7 +70,8 @@ class Timeouts(_Model):
     pressure_ready_s: Annotated[float, Field(gt=0.0)] = 120.0
     stage_s: Annotated[float, Field(gt=0.0)] = 30.0
     shot_window_s: Annotated[float, Field(gt=0.0)] = 0.5  # silence that ends a shot's gate events
-    recoil_s: Annotated[float, Field(gt=0.0)] = 0.1  # the encoder reports within ms of the impact
+    recoil_s: Annotated[float, Field(gt=0.0)] = 0.02  # the encoder reports within ms of the impact,
+    # long before the rebound has cleared the far gate, so little waiting is left by then
 
 
 class RigConfig(_Model):
