@@ -22,10 +22,11 @@ from rig import __version__
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
-from rig.core.devices import Cannon, CannonState, Clamp, GateConfig, Gates
+from rig.core.devices import Cannon, CannonState, Clamp, GateConfig, GateCrossing, Gates
 from rig.core.errors import ConfigError, DeviceError, DeviceGone, RigError, SafetyRefusal
 from rig.core.events import RunEvent
 from rig.core.units import G_STANDARD, INCH
+from rig.measure.realtime import InboundKnown, ReboundKnown, ShotTracker
 
 
 class Operator(Protocol):
@@ -265,7 +266,7 @@ class Runner:
             aim_speed_m_s=aim_speed,
         )
         try:
-            record, failure = self._fire(config, aim_speed)
+            record, failure = self._fire(config, aim_speed, index)
         except DeviceError as exc:
             self.emit(ev.TRAFFIC, index=index, chunks=self.drain_traffic())
             self.emit(ev.SHOT_LOST, index=index, reason=f"{type(exc).__name__}: {exc}")
@@ -288,10 +289,33 @@ class Runner:
         ):
             self._fail_ring(index)
 
-    def _fire(self, config: RigConfig, aim_speed: float) -> tuple[ShotRecord | None, str]:
+    def _live(self, index: int) -> Callable[[GateCrossing], None]:
+        """Feed each gate event to a tracker; speeds go out as live events as soon as known."""
+        assert self.gate_config is not None
+        tracker = ShotTracker(self.gate_config, self.config.gates.positions_m)
+
+        def on_crossing(c: GateCrossing) -> None:
+            self.emit(ev.GATE_CROSSED, index=index, gate=c.gate, tick=c.tick, host_time_s=c.host_time_s)
+            for update in tracker.add(c):
+                if isinstance(update, InboundKnown):
+                    self.emit(ev.INBOUND_MEASURED, index=index, speed_m_s=update.v)
+                elif isinstance(update, ReboundKnown):
+                    self.emit(ev.REBOUND_MEASURED, index=index, speed_m_s=update.v)
+
+        return on_crossing
+
+    def _fire(self, config: RigConfig, aim_speed: float, index: int) -> tuple[ShotRecord | None, str]:
         assert self.gate_config is not None
         try:
-            rec = fire_shot(self.cannon, self.gates, self.clamp, config, aim_speed, self.gate_config)
+            rec = fire_shot(
+                self.cannon,
+                self.gates,
+                self.clamp,
+                config,
+                aim_speed,
+                self.gate_config,
+                on_crossing=self._live(index),
+            )
             return rec, ""
         except ShotFailed as exc:
             return exc.record, str(exc)

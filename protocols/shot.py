@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 
 from rig.core.config import RigConfig
@@ -64,8 +65,12 @@ def fire_shot(
     config: RigConfig,
     speed_m_s: float,
     gate_config: GateConfig,
+    on_crossing: Callable[[GateCrossing], None] | None = None,
 ) -> ShotRecord:
-    """Aim for `speed_m_s`, fire once, collect the gate events and compute speeds."""
+    """Aim for `speed_m_s`, fire once, collect the gate events and compute speeds.
+
+    `on_crossing` sees each gate event the moment it arrives (live speeds, displays).
+    """
     pressure = config.aim.pressure_for(speed_m_s)
     cannon.set_pressure(pressure, wait_ready=True)
     status = cannon.status()
@@ -84,7 +89,7 @@ def fire_shot(
         )
 
     try:
-        _collect(gates, config.timeouts.shot_window_s, crossings, notes)
+        _collect(gates, config.timeouts.shot_window_s, crossings, notes, on_crossing)
         recoil = clamp.next_recoil(timeout_s=config.timeouts.recoil_s)
     except DeviceGone as exc:
         raise partial(f"device lost mid-shot, raw events so far kept: {exc}") from exc
@@ -95,7 +100,13 @@ def fire_shot(
     return derive_speeds(record)
 
 
-def _collect(gates: Gates, window_s: float, crossings: list[GateCrossing], notes: list[str]) -> None:
+def _collect(
+    gates: Gates,
+    window_s: float,
+    crossings: list[GateCrossing],
+    notes: list[str],
+    on_crossing: Callable[[GateCrossing], None] | None = None,
+) -> None:
     """Append gate events until the rebound has passed gate 1 or the line is silent for `window_s`.
 
     Filled in place, so that what arrived before a failure is kept. A garbled event is noted and
@@ -106,6 +117,8 @@ def _collect(gates: Gates, window_s: float, crossings: list[GateCrossing], notes
         try:
             for crossing in gates.crossings(timeout_s=window_s):
                 crossings.append(crossing)
+                if on_crossing is not None:
+                    on_crossing(crossing)
                 if _shot_complete(crossings):
                     return
             return

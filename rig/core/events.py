@@ -32,6 +32,7 @@ TRAFFIC = "Traffic"
 # live only
 GATE_CROSSED = "GateCrossed"
 INBOUND_MEASURED = "InboundMeasured"
+REBOUND_MEASURED = "ReboundMeasured"
 DEVICE_STATUS = "DeviceStatus"
 
 PERSISTED = frozenset(

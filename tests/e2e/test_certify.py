@@ -256,3 +256,28 @@ def test_sim_bat_takes_the_bat_file_properties(tmp_path: Path) -> None:
         )
         rec = run_record(store, out.run_id)
     assert rec["moi"]["moi_kgm2"] == pytest.approx(0.21, rel=1e-3)
+
+
+def test_inbound_speed_is_known_before_the_ball_reaches_the_bat(tmp_path: Path) -> None:
+    """Live events: the inbound speed goes out right after gate 3's inbound event, before any rebound."""
+    seen: list[tuple[str, dict]] = []
+    bat = BatSpec.load(SAMPLE_BAT)
+    with Store.open(tmp_path / "r.db") as store:
+        certify(
+            store,
+            Procedure.load("bbcor"),
+            bat,
+            sim_config("ideal", bat=bat),
+            subscribers=[lambda e: seen.append((e.kind, e.data))],
+        )
+    first_shot = [
+        (k, d)
+        for k, d in seen
+        if d.get("index") == 1 and k in ("GateCrossed", "InboundMeasured", "ReboundMeasured")
+    ]
+    kinds = [k if k != "GateCrossed" else f"G{d['gate']}" for k, d in first_shot]
+    assert kinds[:4] == ["G1", "G2", "G3", "InboundMeasured"]
+    assert kinds.index("InboundMeasured") < kinds.index("ReboundMeasured")
+    inbound = next(d for k, d in first_shot if k == "InboundMeasured")["speed_m_s"]
+    measured = next(d for k, d in seen if k in ("ShotMeasured", "ShotRejected") and d["index"] == 1)
+    assert inbound == pytest.approx(measured["inbound_speed_m_s"], rel=1e-12)
