@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import platform
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
@@ -45,6 +46,42 @@ class ScriptedOperator:
     def ask(self, prompt_id: str, text: str) -> bool:
         """Return the scripted answer."""
         return self.answer
+
+
+class RunControl:
+    """Commands from a UI to a running procedure: pause, resume, abort (thread-safe)."""
+
+    def __init__(self) -> None:
+        self._go = threading.Event()
+        self._go.set()
+        self._abort = threading.Event()
+
+    def pause(self) -> None:
+        """Hold before the next shot."""
+        self._go.clear()
+
+    def resume(self) -> None:
+        """Go on after a pause."""
+        self._go.set()
+
+    def abort(self) -> None:
+        """Stop before the next shot; the run stays resumable."""
+        self._abort.set()
+        self._go.set()
+
+    @property
+    def paused(self) -> bool:
+        """Whether a pause is in force."""
+        return not self._go.is_set()
+
+    @property
+    def aborted(self) -> bool:
+        """Whether an abort was asked for."""
+        return self._abort.is_set()
+
+    def wait(self, timeout_s: float | None = None) -> bool:
+        """Block while paused; True once free to go on."""
+        return self._go.wait(timeout_s)
 
 
 class RunAborted(RigError):
@@ -91,6 +128,8 @@ class Runner:
         operator: Operator | None = None,
         history: list[RunEvent] | None = None,
         drain_traffic: Callable[[], list[dict[str, Any]]] | None = None,
+        control: RunControl | None = None,
+        confirm_fire: bool = False,
     ) -> None:
         self.p, self.bat, self.config = procedure, bat, config
         self.cannon, self.gates, self.clamp = cannon, gates, clamp
@@ -100,6 +139,8 @@ class Runner:
         self.state: RunState = fold(self.history)
         self.drain_traffic = drain_traffic or (lambda: [])
         self.gate_config: GateConfig | None = None
+        self.control = control or RunControl()
+        self.confirm_fire = confirm_fire  # the operator confirms every shot (the UI's fire key)
 
     # -- events -----------------------------------------------------------------------------
     def emit(self, kind: str, **data: Any) -> None:
@@ -235,7 +276,18 @@ class Runner:
         )
         return answer
 
+    def _hold(self) -> None:
+        """Honour pause and abort between shots."""
+        if self.control.paused:
+            self.emit(ev.RUN_PAUSED)
+            self.control.wait()
+            if not self.control.aborted:
+                self.emit(ev.RUN_CONTINUED)
+        if self.control.aborted:
+            raise RunAborted("aborted by the operator")
+
     def _shoot(self, loc_in: float, purpose: str) -> None:
+        self._hold()
         if self.state.invalid_count > self.p.hits.max_reshoots:
             raise RunAborted(f"more than {self.p.hits.max_reshoots} invalid shots: check the rig")
         if self.state.ball_hits >= self.p.ball.replace_after_hits:
@@ -257,6 +309,11 @@ class Runner:
         q = self._q(loc_in)
         config = self.config.model_copy(update={"impact_from_pivot_m": q})
         aim_speed = self.p.target_speed_m_s / self.state.aim_factor
+        if self.confirm_fire and not self._prompt(
+            f"fire-{index}", f"Fire shot {index} ({purpose}) at {loc_in:g} in from the tip?"
+        ):
+            raise RunAborted(f"the operator declined to fire shot {index}")
+        self._hold()
         self.emit(
             ev.SHOT_REQUESTED,
             index=index,

@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from protocols.procedure import Procedure
-from protocols.runner import Operator, RunAborted, Runner
+from protocols.runner import Operator, RunAborted, RunControl, Runner
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError
@@ -62,6 +62,8 @@ def certify(
     run_id: str | None = None,
     operator: Operator | None = None,
     subscribers: Iterable[Subscriber] = (),
+    control: RunControl | None = None,
+    confirm_fire: bool = False,
 ) -> Outcome:
     """Run (or with `run_id`, resume) a certification; returns its outcome."""
     listeners = list(subscribers)
@@ -96,6 +98,8 @@ def certify(
             operator=operator,
             history=past,
             drain_traffic=_traffic_drain(session),
+            control=control,
+            confirm_fire=confirm_fire,
         )
         try:
             verdict = runner.run()

@@ -34,6 +34,8 @@ GATE_CROSSED = "GateCrossed"
 INBOUND_MEASURED = "InboundMeasured"
 REBOUND_MEASURED = "ReboundMeasured"
 DEVICE_STATUS = "DeviceStatus"
+RUN_PAUSED = "RunPaused"
+RUN_CONTINUED = "RunContinued"
 
 PERSISTED = frozenset(
     {

@@ -281,3 +281,40 @@ def test_inbound_speed_is_known_before_the_ball_reaches_the_bat(tmp_path: Path) 
     inbound = next(d for k, d in first_shot if k == "InboundMeasured")["speed_m_s"]
     measured = next(d for k, d in seen if k in ("ShotMeasured", "ShotRejected") and d["index"] == 1)
     assert inbound == pytest.approx(measured["inbound_speed_m_s"], rel=1e-12)
+
+
+def test_pause_abort_and_fire_confirmation(tmp_path: Path) -> None:
+    """A UI's commands: the operator confirms each fire; abort stops between shots, resumable."""
+    from protocols.runner import RunControl
+
+    control = RunControl()
+    asked: list[str] = []
+
+    class Operator:
+        who = "test operator"
+
+        def ask(self, prompt_id: str, text: str) -> bool:
+            asked.append(prompt_id)
+            if prompt_id == "fire-3":
+                control.abort()
+            return True
+
+    bat = BatSpec.load(SAMPLE_BAT)
+    with Store.open(tmp_path / "r.db") as store:
+        out = certify(
+            store,
+            Procedure.load("bbcor"),
+            bat,
+            sim_config("ideal", bat=bat),
+            operator=Operator(),
+            control=control,
+            confirm_fire=True,
+        )
+        assert out.status == "interrupted" and "aborted by the operator" in out.reason
+        assert [p for p in asked if p.startswith("fire-")] == ["fire-1", "fire-2", "fire-3"]
+        fired = store.entries(out.run_id, kinds=["ShotFired"])
+        assert [e.payload["index"] for e in fired] == [1, 2]  # aborted before shot 3 was requested
+        resumed = certify(
+            store, Procedure.load("bbcor"), bat, sim_config("ideal", bat=bat), run_id=out.run_id
+        )
+        assert resumed.status == "finished"
