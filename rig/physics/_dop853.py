@@ -76,6 +76,82 @@ def _gfun(y: np.ndarray, p: np.ndarray) -> float:
     return spring + p[2] * (y[1] - y[3])
 
 
+@nb.njit(cache=True, inline="always")
+def _gdot(y: np.ndarray, f: np.ndarray, p: np.ndarray) -> float:
+    """Time derivative of g along the solution (f = the state's derivative)."""
+    d = y[0] - y[2]
+    ad = abs(d)
+    dd = y[1] - y[3]
+    spring = 0.0
+    if ad > 0.0:
+        spring = p[1] * (1.0 + p[3] - p[4]) * ad ** (p[3] - p[4]) * dd
+    return spring + p[2] * (f[1] - f[3])
+
+
+@nb.njit(cache=True)
+def _dense(
+    y: np.ndarray,
+    ynew: np.ndarray,
+    f: np.ndarray,
+    fnew: np.ndarray,
+    h: float,
+    p: np.ndarray,
+    K: np.ndarray,
+    tmp: np.ndarray,
+    F: np.ndarray,
+) -> None:
+    """Coefficients of the 7th-order dense output of the step just taken (scipy's DOP853 form)."""
+    _stages(y, h, p, K, tmp, _NS + 1, _NX)
+    for i in range(6):
+        dy = ynew[i] - y[i]
+        F[0, i] = dy
+        F[1, i] = h * f[i] - dy
+        F[2, i] = 2.0 * dy - h * (fnew[i] + f[i])
+        for r in range(4):
+            acc = 0.0
+            for s in range(_NX):
+                acc += _D[r, s] * K[s, i]
+            F[3 + r, i] = h * acc
+
+
+@nb.njit(cache=True)
+def _minimum(y: np.ndarray, F: np.ndarray, p: np.ndarray, tmp: np.ndarray) -> tuple:
+    """Golden-section search for the minimum of g on the step's dense output: (x, g)."""
+    invphi = 0.6180339887498949
+    a = 0.0
+    b = 1.0
+    c = b - invphi * (b - a)
+    d = a + invphi * (b - a)
+    _interpolate(y, F, c, tmp)
+    gc = _gfun(tmp, p)
+    _interpolate(y, F, d, tmp)
+    gd = _gfun(tmp, p)
+    for _ in range(60):
+        if gc <= 0.0:
+            return c, gc
+        if gd <= 0.0 and gc > gd:
+            return d, gd
+        if gc < gd:
+            b = d
+            d = c
+            gd = gc
+            c = b - invphi * (b - a)
+            _interpolate(y, F, c, tmp)
+            gc = _gfun(tmp, p)
+        else:
+            a = c
+            c = d
+            gc = gd
+            d = a + invphi * (b - a)
+            _interpolate(y, F, d, tmp)
+            gd = _gfun(tmp, p)
+        if b - a < 1e-12:
+            break
+    if gc < gd:
+        return c, gc
+    return d, gd
+
+
 @nb.njit(cache=True)
 def _stages(
     y: np.ndarray, h: float, p: np.ndarray, K: np.ndarray, tmp: np.ndarray, first: int, last: int
@@ -176,25 +252,30 @@ def solve_one(
         # accepted step
         steps += 1
         g_new = _gfun(ynew, p)
-        if g_old > 0.0 and g_new <= 0.0:
-            _stages(y, h, p, K, tmp, _NS + 1, _NX)
+        crossed = g_old > 0.0 and g_new <= 0.0
+        if not crossed and g_old > 0.0 and _gdot(y, f, p) < 0.0 and _gdot(ynew, fnew, p) > 0.0:
+            # g has a minimum inside the step: F may dip below zero and come back between the
+            # step's ends (a brief separation). Look inside on the dense output.
+            _dense(y, ynew, f, fnew, h, p, K, tmp, F)
             nfev += _NX - _NS - 1
-            for i in range(6):
-                dy = ynew[i] - y[i]
-                F[0, i] = dy
-                F[1, i] = h * f[i] - dy
-                F[2, i] = 2.0 * dy - h * (fnew[i] + f[i])
-                for r in range(4):
-                    acc = 0.0
-                    for s in range(_NX):
-                        acc += _D[r, s] * K[s, i]
-                    F[3 + r, i] = h * acc
+            x_min, g_min = _minimum(y, F, p, tmp)
+            if g_min <= 0.0:
+                crossed = True
+                g_new = g_min
+                hi_start = x_min
+            else:
+                hi_start = 1.0
+        elif crossed:
+            _dense(y, ynew, f, fnew, h, p, K, tmp, F)
+            nfev += _NX - _NS - 1
+            hi_start = 1.0
+        if crossed:
             lo = 0.0
-            hi = 1.0
+            hi = hi_start
             glo = g_old
             ghi = g_new
             side = 0
-            x = 1.0
+            x = hi
             for _ in range(100):
                 x = (lo * ghi - hi * glo) / (ghi - glo)
                 if not (lo < x < hi):

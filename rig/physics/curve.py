@@ -98,6 +98,13 @@ def refine_optimum(
     return float(res.x), float(-res.fun)
 
 
+def _bound(name: str, value: float) -> float:
+    try:
+        return check_hoop(value)
+    except ParameterError as exc:
+        raise ParameterError(name, value, exc.reason) from None
+
+
 def efficiency_curve(
     params: CollisionParams,
     speed: float,
@@ -108,7 +115,7 @@ def efficiency_curve(
     refine: bool = True,
 ) -> EfficiencyCurve:
     """eta at `points` evenly spaced hoop frequencies, with the optimum located between them."""
-    hoop_min, hoop_max = check_hoop(hoop_min), check_hoop(hoop_max)
+    hoop_min, hoop_max = _bound("hoop_min", hoop_min), _bound("hoop_max", hoop_max)
     if hoop_max <= hoop_min:
         raise ParameterError("hoop_max", hoop_max, f"must be greater than hoop_min ({hoop_min:g} Hz)")
     try:

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rig.core.errors import ParameterError
 from rig.physics.params import CollisionParams, check_hoop, check_speed
 
 
@@ -32,10 +33,14 @@ class Impact:
         object.__setattr__(self, "speed", check_speed(self.speed))
         if self.hoop_hz is not None:
             object.__setattr__(self, "hoop_hz", check_hoop(self.hoop_hz))
-        if self.body_mass is not None and not (math.isfinite(self.body_mass) and self.body_mass > 0):
-            from rig.core.errors import ParameterError
-
-            raise ParameterError("body_mass", self.body_mass, "must be finite and > 0 kg")
+        if self.body_mass is not None:
+            ok = (
+                isinstance(self.body_mass, int | float)
+                and math.isfinite(self.body_mass)
+                and self.body_mass > 0
+            )
+            if not ok:
+                raise ParameterError("body_mass", self.body_mass, "must be a finite number > 0 kg")
 
     @property
     def rigid(self) -> bool:

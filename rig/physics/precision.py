@@ -229,13 +229,13 @@ def _solver(method: str, imp: Impact, rtol: float) -> Callable[[], CollisionResu
         return lambda: fast.solve(imp, rtol)
     if method not in SCIPY_METHODS:
         raise ParameterError("method", method, f"choose from {', '.join(METHODS)}")
-    return lambda: solve_reference(imp, method=method, rtol=rtol)
+    return lambda: solve_reference(imp, method=method, rtol=rtol, first_step="scipy")
 
 
 def reference_value(imp: Impact) -> ReferenceValue:
     """Reference COR and contact time from DOP853 and Radau at rtol 1e-13; SolverError if they disagree."""
-    dop = solve_reference(imp, method="DOP853", rtol=REFERENCE_RTOL)
-    rad = solve_reference(imp, method="Radau", rtol=REFERENCE_RTOL)
+    dop = solve_reference(imp, method="DOP853", rtol=REFERENCE_RTOL, first_step="scipy")
+    rad = solve_reference(imp, method="Radau", rtol=REFERENCE_RTOL, first_step="scipy")
     gap = abs(dop.cor - rad.cor)
     tc_gap = abs(dop.contact_time_s - rad.contact_time_s) / dop.contact_time_s
     if not gap <= REFERENCE_AGREEMENT:
@@ -416,7 +416,11 @@ def first_step_effect(
     from rig.physics.reference import _time_limit
 
     p = imp.params
-    ref = cor_ref if cor_ref is not None else solve_reference(imp, "DOP853", REFERENCE_RTOL).cor
+    ref = (
+        cor_ref
+        if cor_ref is not None
+        else solve_reference(imp, "DOP853", REFERENCE_RTOL, first_step="scipy").cor
+    )
     fun, y0, t_max = make_rhs(imp), initial_state(imp), _time_limit(imp)
     h_kernel = 1e-4 * p.compression_scale(imp.speed) / imp.speed
 

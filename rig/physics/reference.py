@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from rig.core.errors import SolverError
+from rig.core.errors import ParameterError, SolverError
 from rig.physics.equations import (
     Impact,
     initial_state,
@@ -41,11 +41,25 @@ class CollisionResult:
 
 
 def _time_limit(imp: Impact) -> float:
-    """A generous bound on the contact time; contact not over by then is an error."""
+    """A generous bound on the contact time; contact not over by then is an error.
+
+    A barrel much lighter than the ball rides its spring with the ball for ~pi sqrt(m1/k2), which
+    is sqrt(m1/m2) barrel periods: the bound grows with that ratio.
+    """
     limit = 500.0 * imp.time_scale()
     if imp.hoop_hz is not None:
-        limit += 20.0 / imp.hoop_hz
+        limit += 20.0 / imp.hoop_hz * max(1.0, math.sqrt(imp.params.m1 / imp.params.m2))
     return limit
+
+
+def _first_step(imp: Impact, first_step: float | str) -> dict[str, float]:
+    if first_step == "scipy":
+        return {}
+    if first_step == "auto":
+        return {"first_step": 1e-4 * imp.time_scale()}
+    if isinstance(first_step, int | float) and math.isfinite(first_step) and first_step > 0:
+        return {"first_step": float(first_step)}
+    raise ParameterError("first_step", first_step, "must be 'auto', 'scipy' or a positive number of s")
 
 
 def solve_reference(
@@ -53,15 +67,17 @@ def solve_reference(
     method: str = "DOP853",
     rtol: float = 1e-10,
     energy: bool = False,
-    first_step: float | None = None,
+    first_step: float | str = "auto",
 ) -> CollisionResult:
     """Solve one collision with solve_ivp; contact ends where the contact force returns to zero.
 
-    `first_step` defaults to scipy's own choice, which at loose tolerances is too long for the
-    d^b onset of the contact force; pass e.g. 1e-4 * imp.time_scale() to start as the kernel does.
+    `first_step` "auto" starts at 1e-4 of the contact's time scale, as the kernel does, because
+    scipy's own choice ("scipy") is too long for the non-smooth d^b onset of the contact force;
+    a number sets it. A brief dip of the force below zero inside one step is found too: the
+    minima of g are events, and contact ends at the first one where g < 0.
     """
     if method not in SCIPY_METHODS:
-        raise SolverError(f"unknown method {method!r}; choose one of {', '.join(SCIPY_METHODS)}")
+        raise ParameterError("method", method, f"choose one of {', '.join(SCIPY_METHODS)}")
     rtol = check_tolerance(rtol)
     p = imp.params
     fun = make_rhs(imp, energy=energy)
@@ -77,10 +93,36 @@ def solve_reference(
 
     ended.terminal = True  # type: ignore[attr-defined]
     ended.direction = -1  # type: ignore[attr-defined]
+    moving_barrel = not (imp.rigid and imp.body_mass is None)
+
+    def dip(t: float, y: np.ndarray) -> float:
+        d, dd = relative_motion(imp, y)
+        acc = fun(t, y)
+        ddd = acc[1] - acc[3] if moving_barrel else acc[1]
+        spring = p.k1 * (1.0 + p.a - p.b) * abs(d) ** (p.a - p.b) * dd if d != 0.0 else 0.0
+        return spring + p.c1 * ddd
+
+    dip.direction = 1  # type: ignore[attr-defined]  # g' from - to +: a minimum of g
     t_max = _time_limit(imp)
-    options = {} if first_step is None else {"first_step": first_step}
-    sol = solve_ivp(fun, (0.0, t_max), y0, method=method, rtol=rtol, atol=atol, events=ended, **options)
+    options = _first_step(imp, first_step)
     where = f"speed {imp.speed:g} m/s, hoop {imp.hoop_hz or 'rigid'} Hz, {method} rtol {rtol:g}"
+
+    def run(t_stop: float) -> object:
+        try:
+            return solve_ivp(
+                fun, (0.0, t_stop), y0, method=method, rtol=rtol, atol=atol, events=[ended, dip], **options
+            )
+        except (RuntimeError, ValueError, ZeroDivisionError) as exc:
+            raise SolverError(f"scipy {method} failed ({exc}) at {where}") from None
+
+    sol = run(t_max)
+    if sol.status == 1 and len(sol.t_events[0]):
+        t_sep = float(sol.t_events[0][0])
+        for t_m, y_m in zip(sol.t_events[1], sol.y_events[1], strict=True):
+            if 0.0 < t_m < t_sep and separation_function(*relative_motion(imp, y_m), p) < 0.0:
+                # F dipped below zero inside one step: contact really ended before t_m
+                sol = run(float(t_m))
+                break
     if sol.status == -1:
         raise SolverError(f"solver failed ({sol.message}) at {where}")
     if sol.status != 1 or len(sol.t_events[0]) == 0:

@@ -120,7 +120,9 @@ def test_reliable_rtol_ignores_a_lucky_loose_tolerance() -> None:
 
 
 def test_reference_disagreement_raises(monkeypatch: pytest.MonkeyPatch) -> None:
-    def fake(imp: Impact, method: str = "DOP853", rtol: float = 1e-10) -> CollisionResult:
+    def fake(
+        imp: Impact, method: str = "DOP853", rtol: float = 1e-10, first_step: object = "auto"
+    ) -> CollisionResult:
         cor = 0.5 if method == "DOP853" else 0.5 + 1e-9
         return CollisionResult(cor, 1e-3, -cor * imp.speed, (0.0,) * 4, 10, method, rtol)
 
@@ -207,8 +209,9 @@ def test_accuracy_doc_markdown_from_a_quick_run(
     first = precision.first_step_effect(
         Impact(DEFAULT_PARAMS, 60.8, 1250.0), rtols=(1e-6,), cor_ref=study.references[0].cor
     )
-    # scipy with the kernel's first step is the kernel's own method and error control: same answer
-    assert first[0].nfev_kernel_step == first[0].kernel_nfev
+    # scipy with the kernel's first step is the kernel's own method and error control: same steps
+    # (the kernel may add the 3 dense-output stages of its in-step check for a brief separation)
+    assert 0 <= first[0].kernel_nfev - first[0].nfev_kernel_step <= 3
     assert first[0].cor_error_kernel_step == pytest.approx(first[0].kernel_cor_error, rel=1e-3, abs=1e-13)
     figures = {"main": "figures/a.png", "near": "figures/b.png", "curve": "figures/c.png"}
     md = build_markdown(study, study, curve_rows, first, None, 1.0, figures, 1e-6, (), "today")

@@ -1,0 +1,38 @@
+"""Shared test set-up: Hypothesis profiles and the collision model's default constants.
+
+Profiles (choose with HYPOTHESIS_PROFILE, default "ci"):
+- "ci": few examples, no deadline (the first call may load the compiled kernel), derandomized so
+  that a CI run is reproducible, no example database written into the checkout;
+- "dev": many random examples, for hunting new hard cases locally.
+"""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+from hypothesis import HealthCheck, settings
+
+from rig.physics.params import DEFAULT_PARAMS, CollisionParams
+
+settings.register_profile(
+    "ci",
+    max_examples=50,
+    deadline=None,
+    derandomize=True,
+    database=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+settings.register_profile(
+    "dev",
+    max_examples=300,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
+
+
+@pytest.fixture(scope="session")
+def paper_params() -> CollisionParams:
+    """The founding paper's constants (ball 0.145 kg, barrel 0.09 kg, a = 0.6495, b = 0.5202)."""
+    return DEFAULT_PARAMS
