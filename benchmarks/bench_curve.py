@@ -119,8 +119,12 @@ def main(argv: list[str] | None = None) -> int:
     figures = {
         "machine": f"{platform.machine()} {platform.processor() or ''}".strip(),
         "cores_used_by_kernel": threads,
-        "versions": {"python": platform.python_version(), "numpy": np.__version__,
-                     "scipy": scipy.__version__, "numba": numba.__version__},
+        "versions": {
+            "python": platform.python_version(),
+            "numpy": np.__version__,
+            "scipy": scipy.__version__,
+            "numba": numba.__version__,
+        },
         "curve": f"{POINTS} points, {HOOP_MIN:g}-{HOOP_MAX:g} Hz, {SPEED} m/s",
         "reference": "compiled DOP853 at rtol 1e-13",
         "reference_agreement": agreement,
