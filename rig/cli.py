@@ -387,7 +387,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     else:
         from rig.report.certificate import render
 
-        text = render(record, args.format, figures_dir=args.figures)
+        text = render(record, args.format, figures_dir=args.figures, output=args.output)
     if args.output:
         Path(args.output).parent.mkdir(parents=True, exist_ok=True)
         Path(args.output).write_text(text, encoding="utf-8")

@@ -48,8 +48,8 @@ class BatSpec(BaseModel):
 
     @property
     def drop(self) -> float:
-        """Length (in) minus weight (oz): -3 or more for NCAA/NFHS bats."""
-        return self.length_in - self.weight_oz
+        """Weight (oz) minus length (in), the "drop": at least -3 for NCAA/NFHS bats."""
+        return self.weight_oz - self.length_in
 
     def impact_from_pivot_m(self, from_barrel_end_in: float) -> float:
         """Pivot-to-impact distance Q for an impact `from_barrel_end_in` inches from the tip."""

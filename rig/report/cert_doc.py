@@ -1,0 +1,167 @@
+"""A small document model (headings, paragraphs, tables, figures) written as Markdown or HTML.
+
+Text from the record is always escaped on output: `html_escape` for HTML, `md_escape` for
+Markdown (so that a raw '<' cannot become markup when the Markdown is converted later).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import os
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class Heading:
+    """A section heading (level 1-3)."""
+
+    text: str
+    level: int = 2
+
+
+@dataclass(frozen=True)
+class Para:
+    """A paragraph of plain text; `strong` for emphasis."""
+
+    text: str
+    strong: bool = False
+
+
+@dataclass(frozen=True)
+class Table:
+    """A table with a header row."""
+
+    headers: tuple[str, ...]
+    rows: tuple[tuple[str, ...], ...]
+
+
+@dataclass(frozen=True)
+class Figure:
+    """A PNG figure on disk with its caption."""
+
+    path: Path
+    caption: str
+
+
+@dataclass(frozen=True)
+class Code:
+    """A command to type, shown verbatim."""
+
+    text: str
+
+
+@dataclass(frozen=True)
+class Banner:
+    """The verdict, shown prominently; tone is 'pass', 'fail' or 'none'."""
+
+    title: str
+    lines: tuple[str, ...]
+    tone: str
+
+
+Block = Heading | Para | Table | Figure | Code | Banner
+
+
+def kv(pairs: list[tuple[str, str]]) -> Table:
+    """A two-column table of labelled values."""
+    return Table(("item", "value"), tuple(pairs))
+
+
+_ENTITY = re.compile(r"&(?=#?\w+;)")  # what a Markdown converter would read as an entity
+_RAW_HTML = re.compile(r"<(?=[A-Za-z/!?])")  # ... or as the start of a tag, comment or declaration
+
+
+def html_escape(text: object) -> str:
+    """Text safe inside HTML elements and attribute values."""
+    return html.escape(str(text), quote=True)
+
+
+def md_escape(text: object, cell: bool = False) -> str:
+    """Text safe in Markdown: no raw HTML; in a table cell, no column breaks or newlines."""
+    out = _RAW_HTML.sub("&lt;", _ENTITY.sub("&amp;", str(text)))  # '<=' stays readable
+    if cell:
+        out = out.replace("\\", "\\\\").replace("|", "\\|").replace("\r", " ").replace("\n", " ")
+    return out
+
+
+def to_markdown(blocks: list[Block], link_base: Path | None) -> str:
+    """Markdown with pipe tables; figures linked relative to `link_base` (the document's folder),
+    or by absolute path when the document's place is unknown."""
+    parts: list[str] = []
+    for b in blocks:
+        if isinstance(b, Heading):
+            parts.append("#" * b.level + " " + md_escape(b.text))
+        elif isinstance(b, Para):
+            parts.append(f"**{md_escape(b.text)}**" if b.strong else md_escape(b.text))
+        elif isinstance(b, Table):
+            lines = ["| " + " | ".join(md_escape(h, cell=True) for h in b.headers) + " |"]
+            lines.append("|" + "|".join("---" for _ in b.headers) + "|")
+            lines += ["| " + " | ".join(md_escape(c, cell=True) for c in row) + " |" for row in b.rows]
+            parts.append("\n".join(lines))
+        elif isinstance(b, Figure):
+            where = os.path.abspath(b.path)
+            link = Path(where if link_base is None else os.path.relpath(where, os.path.abspath(link_base)))
+            link = link.as_posix()
+            target = f"<{link}>" if " " in link else link
+            parts.append(f"![{md_escape(b.caption)}]({target})\n\n*Figure: {md_escape(b.caption)}*")
+        elif isinstance(b, Code):
+            parts.append(f"```\n{b.text}\n```")
+        else:
+            body = [f"> **{md_escape(b.title)}**"] + [f"> {md_escape(line)}" for line in b.lines]
+            parts.append("\n>\n".join(body))
+    return "\n\n".join(parts) + "\n"
+
+
+_CSS = """
+body { font-family: system-ui, sans-serif; max-width: 60rem; margin: 2rem auto; padding: 0 1rem;
+       color: #1b1b1b; line-height: 1.4; }
+h1 { font-size: 1.6rem; border-bottom: 2px solid #333; padding-bottom: .3rem; }
+h2 { font-size: 1.2rem; margin-top: 2rem; border-bottom: 1px solid #bbb; }
+table { border-collapse: collapse; margin: .6rem 0; font-size: .9rem; }
+th, td { border: 1px solid #bbb; padding: .2rem .5rem; text-align: left; vertical-align: top; }
+th { background: #eee; }
+.banner { border: 3px solid; border-radius: 6px; padding: .8rem 1.2rem; margin: 1rem 0; }
+.banner .title { font-size: 1.5rem; font-weight: bold; }
+.pass { border-color: #1a7f37; background: #e8f5ec; }
+.fail { border-color: #c0262d; background: #fbeaea; }
+.none { border-color: #9a6700; background: #fff8e1; }
+pre { background: #f4f4f4; padding: .6rem; overflow-x: auto; }
+figure { margin: 1rem 0; } figure img { max-width: 100%; }
+figcaption { font-size: .85rem; color: #555; }
+@media print { .banner { -webkit-print-color-adjust: exact; print-color-adjust: exact; } }
+"""
+
+
+def to_html(blocks: list[Block], title: str) -> str:
+    """A standalone HTML page: inline CSS, figures embedded as data: URIs, all text escaped."""
+    e = html_escape
+    body: list[str] = []
+    for b in blocks:
+        if isinstance(b, Heading):
+            body.append(f"<h{b.level}>{e(b.text)}</h{b.level}>")
+        elif isinstance(b, Para):
+            body.append(f"<p><strong>{e(b.text)}</strong></p>" if b.strong else f"<p>{e(b.text)}</p>")
+        elif isinstance(b, Table):
+            head = "".join(f"<th>{e(h)}</th>" for h in b.headers)
+            rows = "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>" for r in b.rows)
+            body.append(f"<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>")
+        elif isinstance(b, Figure):
+            data = base64.b64encode(b.path.read_bytes()).decode("ascii")
+            body.append(
+                f'<figure><img src="data:image/png;base64,{data}" alt="{e(b.caption)}">'
+                f"<figcaption>{e(b.caption)}</figcaption></figure>"
+            )
+        elif isinstance(b, Code):
+            body.append(f"<pre><code>{e(b.text)}</code></pre>")
+        else:
+            lines = "".join(f"<p>{e(line)}</p>" for line in b.lines)
+            body.append(f'<div class="banner {e(b.tone)}"><div class="title">{e(b.title)}</div>{lines}</div>')
+    return (
+        '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
+        f"<title>{e(title)}</title>\n<style>{_CSS}</style>\n</head>\n<body>\n"
+        + "\n".join(body)
+        + "\n</body>\n</html>\n"
+    )

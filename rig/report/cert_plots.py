@@ -1,0 +1,235 @@
+"""The certificate's figures (matplotlib Agg, PNG): location scan, valid hits, model curve with the bat.
+
+Each plot works from the run record alone (`rig.report.record.run_record`) and is skipped (None)
+when the record lacks what it needs, e.g. an interrupted run has no verdict to plot.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+
+from rig.core.errors import RigError
+from rig.core.units import INCH
+from rig.measure.metrics import compute_metrics
+from rig.physics import DEFAULT_PARAMS, PivotedBat, fast
+from rig.physics.bat import impact_for
+
+HOOP_RANGE_HZ = (800.0, 8000.0)
+CURVE_POINTS = 60
+CURVE_RTOL = 1e-8  # far below the rig's resolution; keeps the 60-point batch well under a second
+LABELS = {"bbcor": "BBCOR", "besr": "BESR", "bbs": "BBS", "e_a": "e_A"}
+UNITS = {"bbs": "m/s"}
+_DPI = 110
+
+
+def metric_label(name: str | None) -> str:
+    """How a metric is named in text and tables."""
+    return LABELS.get(name or "", (name or "metric").upper())
+
+
+def axis_label(name: str | None) -> str:
+    """A metric's name with its unit, for plot axes."""
+    unit = UNITS.get(name or "")
+    return f"{metric_label(name)} ({unit})" if unit else metric_label(name)
+
+
+def bbs_per_e_a(record: dict[str, Any]) -> float | None:
+    """dBBS/de_A = V_pitch + V_bat of the averaged hits (BBS is linear in e_A), from their metrics."""
+    for s in certification_hits(record):
+        m = s.get("metrics") or {}
+        e_a, v_bat, bbs = m.get("e_a"), m.get("v_bat"), m.get("bbs")
+        if e_a and v_bat is not None and bbs is not None:
+            return (bbs - v_bat * (e_a + 1.0)) / e_a + v_bat
+    return None
+
+
+def certification_hits(record: dict[str, Any]) -> list[dict[str, Any]]:
+    """The valid certification hits the verdict averaged (at its chosen location)."""
+    loc = (record.get("verdict") or {}).get("location_in")
+    return [
+        s
+        for s in record.get("shots", [])
+        if s.get("status") == "valid" and s.get("purpose") == "valid" and s.get("location_in") == loc
+    ]
+
+
+def _save(fig: Any, path: Path) -> Path:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.tight_layout()
+    fig.savefig(path, dpi=_DPI, metadata={"Software": None})
+    plt.close(fig)
+    return path
+
+
+def _limit_line(ax: Any, limit: Any) -> None:
+    if isinstance(limit, int | float):
+        ax.axhline(limit, color="C3", lw=1.2, ls="--", label=f"limit {limit:g}")
+
+
+def plot_scan(record: dict[str, Any], path: Path) -> Path | None:
+    """Metric against distance from the barrel end: valid scan shots, scan means, chosen location."""
+    shots = [s for s in record.get("shots", []) if s.get("purpose") == "scan" and s.get("status") == "valid"]
+    if not shots:
+        return None
+    name = (record.get("procedure") or {}).get("standard")
+    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    ax.plot(
+        [s["location_in"] for s in shots], [s["metric"] for s in shots], "o", color="C0", label="valid shot"
+    )
+    scan = (record.get("location") or {}).get("scan") or {}
+    if scan:
+        locs = sorted(scan, key=float)
+        ax.plot([float(k) for k in locs], [scan[k] for k in locs], "-", color="C0", lw=1, alpha=0.6)
+    chosen = (record.get("location") or {}).get("from_barrel_end_in")
+    if chosen is not None:
+        ax.axvline(chosen, color="C2", lw=1.2, label=f"chosen: {chosen:g} in")
+        if str(chosen) in scan:
+            ax.plot([chosen], [scan[str(chosen)]], "*", ms=14, color="C2")
+    _limit_line(ax, (record.get("procedure") or {}).get("limit"))
+    ax.set_xlabel("impact point: distance from the barrel end (in)")
+    ax.set_ylabel(axis_label(name))
+    ax.set_title("Location scan")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def plot_hits(record: dict[str, Any], path: Path) -> Path | None:
+    """The valid hits the verdict averaged, with their mean, the +-U band and the limit."""
+    v = record.get("verdict") or {}
+    hits = certification_hits(record)
+    if not hits or v.get("mean") is None:
+        return None
+    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    idx = [s["index"] for s in hits]
+    ax.errorbar(
+        idx,
+        [s["metric"] for s in hits],
+        yerr=[s.get("u") or 0.0 for s in hits],
+        fmt="o",
+        capsize=3,
+        color="C0",
+        label="valid hit (+- u)",
+    )
+    mean, big_u = v["mean"], v.get("U") or 0.0
+    ax.axhline(mean, color="C0", lw=1.2, label=f"mean {mean:.4g}")
+    ax.axhspan(
+        mean - big_u,
+        mean + big_u,
+        color="C0",
+        alpha=0.15,
+        label=f"mean +- U (k = {v.get('coverage_k', 2):g})",
+    )
+    _limit_line(ax, v.get("limit"))
+    ax.set_xticks(idx)
+    ax.set_xlabel("shot number")
+    ax.set_ylabel(axis_label(v.get("metric")))
+    ax.set_title(f"Valid hits at {v.get('location_in')} in from the barrel end: {v.get('verdict')}")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+def model_curve(record: dict[str, Any], hoops: np.ndarray) -> tuple[np.ndarray, float] | None:
+    """The model's metric at each hoop frequency, and with a rigid barrel, for this bat and run.
+
+    Same model and inputs as the verdict's cross-check: pivoted bat (MOI, impact point Q), the mean
+    inbound speed of the averaged hits, the procedure's ball mass. None if the record cannot say.
+    """
+    v = record.get("verdict") or {}
+    hits = certification_hits(record)
+    bat, proc = record.get("bat") or {}, record.get("procedure") or {}
+    name = v.get("metric")
+    needed = (v.get("mean"), v.get("moi_kgm2"), v.get("impact_from_pivot_m"), bat.get("length_in"))
+    if not hits or name is None or any(x is None for x in needed):
+        return None
+    v_in = sum(s["inbound_speed_m_s"] for s in hits) / len(hits)
+    q, moi, m_ball = v["impact_from_pivot_m"], v["moi_kgm2"], (proc.get("ball") or {}).get("mass_kg", 0.145)
+    length = bat["length_in"] * INCH
+    params = DEFAULT_PARAMS.model_copy(update={"m1": m_ball})
+    pivoted = PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q)
+
+    def metric(e_a: float) -> float:
+        value = compute_metrics(v_in, e_a * v_in, q, moi, m_ball, length).as_dict()[name]
+        return float("nan") if value is None else value
+
+    try:
+        impacts = [impact_for(params, v_in, float(f), pivoted) for f in hoops]
+        cor, _ = fast.solve_batch(impacts, rtol=CURVE_RTOL)
+        rigid, _ = fast.solve_batch([impact_for(params, v_in, None, pivoted)], rtol=CURVE_RTOL)
+    except RigError:
+        return None
+    return np.array([metric(float(e)) for e in cor]), metric(float(rigid[0]))
+
+
+def plot_model(record: dict[str, Any], path: Path) -> Path | None:
+    """Predicted metric against hoop frequency, this bat's measured value (+-U) on it, the limit."""
+    v = record.get("verdict") or {}
+    hoop = (record.get("bat") or {}).get("hoop_hz")
+    lo, hi = HOOP_RANGE_HZ
+    if hoop is not None:
+        lo, hi = min(lo, 0.8 * hoop), max(hi, 1.2 * hoop)
+    hoops = np.linspace(lo, hi, CURVE_POINTS)
+    curve = model_curve(record, hoops)
+    if curve is None:
+        return None
+    values, rigid = curve
+    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    ax.plot(hoops, values, "-", color="C0", lw=1.6, label="model: pivoted bat with hoop mode")
+    ax.axhline(rigid, color="0.5", lw=0.9, ls=":", label="model: rigid barrel")
+    mean, big_u = v["mean"], v.get("U") or 0.0
+    if hoop is not None:
+        ax.errorbar(
+            [hoop],
+            [mean],
+            yerr=[big_u],
+            fmt="s",
+            color="C1",
+            capsize=4,
+            ms=7,
+            zorder=4,
+            label=f"this bat: measured +- U at {hoop:g} Hz",
+        )
+        predicted = (record.get("cross_check") or {}).get("predicted")
+        if predicted is not None:
+            ax.plot([hoop], [predicted], "x", color="C0", ms=9, label="model at this bat")
+    else:
+        wood = (record.get("bat") or {}).get("barrel") == "wood"
+        band = "this bat: measured +- U" + (" (wood: compare the rigid barrel)" if wood else " (no hoop Hz)")
+        ax.axhspan(mean - big_u, mean + big_u, color="C1", alpha=0.25, label=band)
+    _limit_line(ax, v.get("limit"))
+    ax.set_xlabel("hoop frequency (Hz)")
+    ax.set_ylabel(axis_label(v.get("metric")))
+    ax.set_title("Collision model and this bat")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    return _save(fig, path)
+
+
+FIGURES = (
+    (
+        "scan",
+        "location-scan.png",
+        plot_scan,
+        "Location scan: metric against the impact point, chosen location",
+    ),
+    ("hits", "valid-hits.png", plot_hits, "Valid hits with their mean, the +-U band and the limit"),
+    ("model", "model-curve.png", plot_model, "Model prediction against hoop frequency, with this bat"),
+)
+
+
+def write_figures(record: dict[str, Any], figures_dir: Path) -> dict[str, tuple[Path, str]]:
+    """Draw every figure the record supports into figures_dir; key -> (PNG path, caption)."""
+    out: dict[str, tuple[Path, str]] = {}
+    for key, filename, plot, caption in FIGURES:
+        path = plot(record, figures_dir / filename)
+        if path is not None:
+            out[key] = (path, caption)
+    return out

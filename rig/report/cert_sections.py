@@ -1,0 +1,298 @@
+"""Certificate sections built from the shots and the verdict: scan, hits, rejects, operator, budget, model."""
+
+from __future__ import annotations
+
+import re
+from typing import Any
+
+from rig.report.cert_doc import Block, Figure, Heading, Para, Table, kv
+from rig.report.cert_plots import bbs_per_e_a, certification_hits, metric_label
+
+_PROMPT_SEQ = re.compile(r"-\d+$")  # ring-before-12 -> ring-before
+_INPUTS = {
+    "I": "MOI about the pivot (kg m²)",
+    "Q": "pivot-to-impact distance (m)",
+    "m_ball": "ball mass (kg)",
+}
+
+
+def _num(x: Any, decimals: int) -> str:
+    return "—" if not isinstance(x, int | float) else f"{x:.{decimals}f}"
+
+
+def _sig(x: Any, digits: int = 2) -> str:
+    return "—" if not isinstance(x, int | float) else f"{x:.{digits}g}"
+
+
+def _reasons(shot: dict[str, Any]) -> str:
+    return (
+        "; ".join(f"{r.get('code', '?')}: {r.get('message', '')}" for r in shot.get("reasons") or []) or "—"
+    )
+
+
+def _purpose(shot: dict[str, Any]) -> str:
+    return {"scan": "scan", "valid": "certification"}.get(
+        str(shot.get("purpose")), str(shot.get("purpose", "?"))
+    )
+
+
+def shot_blocks(record: dict[str, Any], decimals: int, fig: dict[str, Figure]) -> list[Block]:
+    """Location scan, valid hits, and every shot that did not count, with its reasons."""
+    shots = record.get("shots") or []
+    name = metric_label((record.get("procedure") or {}).get("standard"))
+    d = decimals + 1  # one place finer than the result
+    loc = record.get("location") or {}
+    scan, chosen = loc.get("scan") or {}, loc.get("from_barrel_end_in")
+    scan_shots = [s for s in shots if s.get("purpose") == "scan"]
+    places = sorted(
+        {float(k) for k in scan} | {float(s["location_in"]) for s in scan_shots if "location_in" in s}
+    )
+    rows = []
+    for x in places:
+        here = [s for s in scan_shots if s.get("location_in") == x]
+        q = next(
+            (
+                s["raw"]["impact_from_pivot_m"]
+                for s in here
+                if (s.get("raw") or {}).get("impact_from_pivot_m")
+            ),
+            None,
+        )
+        valid = [str(s["index"]) for s in here if s.get("status") == "valid"]
+        mean = next((v for k, v in scan.items() if float(k) == x), None)
+        rows.append(
+            (f"{x:g}", _num(q, 4), ", ".join(valid) or "—", _num(mean, d), "◀ chosen" if x == chosen else "")
+        )
+    out: list[Block] = [Heading("Location scan")]
+    if rows:
+        out.append(Table(("from barrel end (in)", "Q (m)", "valid shots", f"mean {name}", ""), tuple(rows)))
+    else:
+        out.append(Para("No location scan recorded."))
+    out += [fig["scan"]] if "scan" in fig else []
+    used = {s["index"] for s in certification_hits(record)}
+    valid = [s for s in shots if s.get("status") == "valid"]
+    out += [
+        Heading("Valid hits"),
+        Para(f"Valid shots; those marked 'yes' are the hits whose mean {name} is the result."),
+        Table(
+            (
+                "shot",
+                "purpose",
+                "location (in)",
+                "ball",
+                "inbound (m/s)",
+                "rebound (m/s)",
+                name,
+                "u",
+                "in result",
+                "notes",
+            ),
+            tuple(
+                (
+                    str(s["index"]),
+                    _purpose(s),
+                    f"{s.get('location_in', '?'):g}",
+                    str((s.get("raw") or {}).get("ball_number", "—")),
+                    _num(s.get("inbound_speed_m_s"), 3),
+                    _num(s.get("rebound_speed_m_s"), 3),
+                    _num(s.get("metric"), d),
+                    _sig(s.get("u")),
+                    "yes" if s["index"] in used else "",
+                    _reasons(s) if s.get("reasons") else "",
+                )
+                for s in valid
+            ),
+        ),
+    ]
+    out += [fig["hits"]] if "hits" in fig else []
+    rejected = [s for s in shots if s.get("status") != "valid"]
+    status_text = {"invalid": "invalid: re-shot", "lost": "lost: no result", "fired": "fired, not evaluated"}
+    out += [
+        Heading("Invalid and lost shots"),
+        Table(
+            ("shot", "purpose", "location (in)", "status", "inbound (m/s)", "rebound (m/s)", "reasons"),
+            tuple(
+                (
+                    str(s["index"]),
+                    _purpose(s),
+                    f"{s.get('location_in', '?'):g}",
+                    status_text.get(str(s.get("status")), "requested, no outcome recorded"),
+                    _num(s.get("inbound_speed_m_s"), 3),
+                    _num(s.get("rebound_speed_m_s"), 3),
+                    _reasons(s),
+                )
+                for s in rejected
+            ),
+        )
+        if rejected
+        else Para("None."),
+        Para(
+            f"Shots in the record: {len(shots)} ({len(valid)} valid, "
+            f"{sum(s.get('status') == 'invalid' for s in shots)} invalid, "
+            f"{sum(s.get('status') == 'lost' for s in shots)} lost, "
+            f"{sum(s.get('status') not in ('valid', 'invalid', 'lost') for s in shots)} without an outcome); "
+            "every one is listed above."
+        ),
+    ]
+    return out
+
+
+def operator_blocks(record: dict[str, Any]) -> list[Block]:
+    """Prompts grouped by kind with their answers; anything but 'yes' listed one by one."""
+    groups: dict[str, dict[str, Any]] = {}
+    texts: dict[str, str] = {}
+    odd: list[tuple[str, ...]] = []
+    for e in record.get("operator") or []:
+        pid = str(e.get("prompt_id", "?"))
+        g = groups.setdefault(
+            _PROMPT_SEQ.sub("", pid), {"text": "", "asked": 0, "yes": 0, "no": 0, "who": set()}
+        )
+        if e.get("kind") == "OperatorPrompted":
+            g["asked"] += 1
+            g["text"] = g["text"] or str(e.get("text", ""))
+            texts[pid] = str(e.get("text", ""))
+            continue
+        g["who"].add(str(e.get("who", "?")))
+        if e.get("answer") is True:
+            g["yes"] += 1
+        else:
+            g["no"] += 1
+            odd.append(
+                (
+                    str(e.get("t_utc", "")),
+                    pid,
+                    texts.get(pid, ""),
+                    str(e.get("answer")),
+                    str(e.get("who", "?")),
+                )
+            )
+    if not groups:
+        return [Para("No operator prompts.")]
+    rows = tuple(
+        (
+            key,
+            g["text"],
+            str(g["asked"]),
+            str(g["yes"]),
+            str(g["no"]),
+            str(g["asked"] - g["yes"] - g["no"]),
+            ", ".join(sorted(g["who"])),
+        )
+        for key, g in groups.items()
+    )
+    out: list[Block] = [
+        Table(("prompt", "question", "asked", "yes", "no", "unanswered", "answered by"), rows)
+    ]
+    if odd:
+        out += [
+            Para("Answers other than yes:"),
+            Table(("time (UTC)", "prompt", "question", "answer", "by"), tuple(odd)),
+        ]
+    return out
+
+
+def _input_name(key: str) -> str:
+    if key in _INPUTS:
+        return _INPUTS[key]
+    if m := re.fullmatch(r"t_(in|out)_g(\d+)", key):
+        return f"{'inbound' if m[1] == 'in' else 'rebound'} crossing time, gate {m[2]} (s)"
+    if m := re.fullmatch(r"x(\d+)", key):
+        return f"gate {m[1]} position (m)"
+    if m := re.fullmatch(r"delay_g(\d+)", key):
+        return f"gate {m[1]} trigger delay (s)"
+    return key
+
+
+def _share(share: float) -> str:
+    return f"{100 * share:.1f} %" if share >= 1e-3 else f"{100 * share:.1g} %"
+
+
+def budget_blocks(record: dict[str, Any]) -> list[Block]:
+    """The uncertainty budget of the bat's mean (top contributions) and the lab-time trade-off.
+
+    The record keeps BBS's budget as e_A's (BBS is linear in e_A); it is scaled here by
+    dBBS/de_A = V_pitch + V_bat so that every u shown is in the metric's own unit.
+    """
+    v = record.get("verdict") or {}
+    budget = v.get("budget") or {}
+    metric = v.get("metric")
+    scale = bbs_per_e_a(record) if metric == "bbs" else 1.0
+    out_b = (budget.get("outputs") or {}).get(("e_a" if metric == "bbs" else metric) or "")
+    if not out_b or scale is None:
+        return []
+    name, inputs = metric_label(metric), budget.get("inputs") or {}
+    ranked = sorted((out_b.get("contributions") or {}).items(), key=lambda item: -item[1])
+    top = [(k, share) for k, share in ranked if share > 0][:6]
+    rows = [
+        (
+            k,
+            _input_name(k),
+            _sig((inputs.get(k) or {}).get("u")),
+            "systematic" if (inputs.get(k) or {}).get("systematic") else "random",
+            _share(share),
+        )
+        for k, share in top
+    ]
+    rest = 1.0 - sum(share for _, share in top)
+    if rest > 5e-4:
+        rows.append(("others", "", "", "", _share(rest)))
+    sys_u = scale * out_b.get("systematic_variance", 0.0) ** 0.5
+    rnd_u = scale * out_b.get("random_variance", 0.0) ** 0.5
+    lead = f"{_input_name(top[0][0])}, {_share(top[0][1])} of u²" if top else "—"
+    note = f" (e_A's budget times dBBS/de_A = V_pitch + V_bat = {scale:.2f} m/s)" if metric == "bbs" else ""
+    out: list[Block] = [
+        Heading("Uncertainty budget of the mean"),
+        Para(
+            f"Result: u = {_sig(v.get('u'), 3)}, U = {_sig(v.get('U'), 3)} (k = {v.get('coverage_k', 2):g}). "
+            f"It combines the model budget below{note}, u = {_sig(scale * out_b.get('u', 0.0), 3)} "
+            f"(systematic {_sig(sys_u)}, random {_sig(rnd_u)} for the mean of {budget.get('n_hits', '?')} "
+            "hits), with the hits' observed scatter (docs/measurement.md, section 3)."
+        ),
+        Table(("input", "what", "u of input", "kind", f"share of u²({name})"), tuple(rows)),
+        Para(f"Largest contribution: {lead}. Shared (systematic) inputs are not reduced by more hits."),
+    ]
+    trade = v.get("tradeoff") or []
+    if trade:
+        n_proc = ((record.get("procedure") or {}).get("hits") or {}).get("valid_hits")
+        rows_t = tuple(
+            (
+                str(r.get("hits")),
+                str(r.get("shots")),
+                _sig(scale * r.get("u", 0.0), 3),
+                _sig(scale * r.get("expanded", 0.0), 3),
+                f"{r.get('lab_time_s', 0) / 60:.1f} min",
+                "◀ this procedure" if r.get("hits") == n_proc else "",
+            )
+            for r in trade
+        )
+        out += [
+            Heading("Accuracy against lab time"),
+            Para(f"U of the mean {name} from the model budget (without observed scatter) for n valid hits:"),
+            Table(("valid hits", "shots", "u", "U", "lab time", ""), rows_t),
+        ]
+    return out
+
+
+def cross_check_blocks(record: dict[str, Any], fig: dict[str, Figure]) -> list[Block]:
+    """The collision model's prediction next to the measured value, and the model figure."""
+    cc = record.get("cross_check")
+    if not cc:
+        return [Para("No model cross-check in the record.")]
+    if cc.get("predicted") is None:
+        return [Para(str(cc.get("note", "no prediction")))] + ([fig["model"]] if "model" in fig else [])
+    hoop = cc.get("hoop_hz")
+    out: list[Block] = [
+        kv(
+            [
+                ("model", str(cc.get("model", "—"))),
+                ("hoop frequency", "rigid barrel (wood)" if hoop is None else f"{hoop:g} Hz"),
+                ("predicted", _num(cc.get("predicted"), 4)),
+                ("measured", _num(cc.get("measured"), 4)),
+                ("difference (measured − predicted)", _num(cc.get("difference"), 4)),
+                ("tolerance", f"± {cc.get('tolerance')}"),
+                ("flagged", "YES: investigate before signing" if cc.get("flagged") else "no"),
+                ("note", str(cc.get("note", ""))),
+            ]
+        )
+    ]
+    return out + ([fig["model"]] if "model" in fig else [])

@@ -1,0 +1,307 @@
+"""A run's certificate, the document a lab's quality manager signs, as Markdown or standalone HTML.
+
+Built from the run record alone (`rig.report.record.run_record`): every shot appears, valid or not.
+Figures are PNG files written to `figures_dir`; by default `<run id[:12]>-figures` in the folder
+of `output` (the path the document will be saved to), else in the working directory. Markdown
+links them relative to the folder of `output`, or by absolute path when `output` is not given
+(the text may then go anywhere); HTML embeds them as data: URIs, so it stands alone. Nothing in
+the document depends on the time of rendering: the same record gives the same text.
+"""
+
+from __future__ import annotations
+
+import math
+import shlex
+from pathlib import Path
+from typing import Any
+from urllib.parse import parse_qs, urlsplit
+
+from rig.core.errors import ConfigError
+from rig.core.units import INCH, OUNCE
+from rig.report.cert_doc import Banner, Block, Code, Figure, Heading, Para, Table, kv, to_html, to_markdown
+from rig.report.cert_plots import certification_hits, metric_label, write_figures
+from rig.report.cert_sections import budget_blocks, cross_check_blocks, operator_blocks, shot_blocks
+
+FORMATS = ("md", "html")
+NOT_CERTIFIED = "NOT CERTIFIED — run interrupted"
+
+
+def render(
+    record: dict[str, Any],
+    fmt: str,
+    figures_dir: str | Path | None = None,
+    *,
+    output: str | Path | None = None,
+) -> str:
+    """The certificate as 'md' or 'html' text; writes its figures (PNG) into figures_dir.
+
+    `output`, the path the text will be saved to, places the default figures folder beside it and
+    makes the Markdown's image links relative to it.
+    """
+    if fmt not in FORMATS:
+        raise ConfigError(
+            f"unknown certificate format {fmt!r}: use one of {', '.join(FORMATS)}", source="--format"
+        )
+    base = Path(output).parent if output is not None else None
+    default = (base or Path.cwd()) / f"{record['run_id'][:12]}-figures"
+    blocks = build(record, write_figures(record, Path(figures_dir) if figures_dir is not None else default))
+    return to_markdown(blocks, base) if fmt == "md" else to_html(blocks, title(record))
+
+
+def title(record: dict[str, Any]) -> str:
+    """'Certificate: <procedure name> — bat <id>'."""
+    proc, bat = record.get("procedure") or {}, record.get("bat") or {}
+    return f"Bat performance certificate: {proc.get('name', 'unknown procedure')} — bat {bat.get('id', '?')}"
+
+
+def build(record: dict[str, Any], figures: dict[str, tuple[Path, str]]) -> list[Block]:
+    """Every section of the certificate, in reading order."""
+    proc = record.get("procedure") or {}
+    fig = {key: Figure(path, caption) for key, (path, caption) in figures.items()}
+    blocks: list[Block] = [
+        Heading(title(record), 1),
+        Para(f"Edition: {proc.get('edition', 'not recorded')}"),
+        kv(
+            [
+                ("run", str(record.get("run_id"))),
+                ("procedure", f"{proc.get('name', '?')} (standard: {proc.get('standard', '?')})"),
+                ("started (UTC)", str(record.get("started_utc") or "?")),
+                ("record status", str(record.get("status"))),
+            ]
+        ),
+        Heading("Verdict"),
+        *verdict_blocks(record),
+        Heading("Bat"),
+        bat_table(record),
+        Heading("Rig and software"),
+        rig_table(record),
+        Heading("Lab environment"),
+        *environment_blocks(record),
+        *shot_blocks(record, _decimals(record), fig),
+        Heading("Operator prompts and answers"),
+        *operator_blocks(record),
+        Heading("Interruptions and resumes"),
+        *interruption_blocks(record),
+        *budget_blocks(record),
+        Heading("Model cross-check"),
+        *cross_check_blocks(record, fig),
+        Heading("Record anchor"),
+        *anchor_blocks(record),
+        Heading("Signatures"),
+        Table(
+            ("role", "name", "signature", "date"),
+            (("test performed by", "", "", ""), ("reviewed and approved (quality manager)", "", "", "")),
+        ),
+    ]
+    return blocks
+
+
+def _decimals(record: dict[str, Any]) -> int:
+    """Decimal places of the result: U to two significant digits, the mean to match (GUM 7.2.6)."""
+    big_u = (record.get("verdict") or {}).get("U")
+    if not isinstance(big_u, int | float) or big_u <= 0 or not math.isfinite(big_u):
+        return 4
+    return max(0, min(8, 1 - math.floor(math.log10(big_u))))
+
+
+def fmt_num(x: Any, decimals: int) -> str:
+    """A number to fixed decimals, or '—' when absent."""
+    return "—" if not isinstance(x, int | float) else f"{x:.{decimals}f}"
+
+
+def decision_words(record: dict[str, Any]) -> str:
+    """The decision rule as a sentence."""
+    v, proc = record.get("verdict") or {}, record.get("procedure") or {}
+    name, limit = metric_label(v.get("metric") or proc.get("standard")), v.get("limit", proc.get("limit"))
+    k = v.get("coverage_k", (proc.get("decision") or {}).get("coverage_k", 2.0))
+    rule = (proc.get("decision") or {}).get("rule") or (
+        "guarded" if "guarded" in str(v.get("decision_rule")) else ""
+    )
+    if rule == "guarded":
+        return (
+            f"Guarded acceptance (k = {k:g}): the bat passes only if its mean {name} plus the expanded "
+            f"uncertainty U = {k:g} u is at or below the limit {limit}; a mean below the limit but closer "
+            "to it than U fails (guard band)."
+        )
+    return (
+        f"Simple acceptance: the bat passes if its mean {name} is at or below the limit {limit}; "
+        "U is reported but does not enter the decision."
+    )
+
+
+def resume_command(record: dict[str, Any]) -> str:
+    """How to resume the run: on the same simulated scene, or with the lab's rig file."""
+    scene = None
+    for url in ((record.get("rig") or {}).get("ports") or {}).values():
+        if isinstance(url, str) and url.startswith("sim://"):
+            scene = (parse_qs(urlsplit(url).query).get("scene") or [None])[0]
+            break
+    where = f"--sim {shlex.quote(scene)}" if scene else "--config RIG.toml"
+    return f"rig certify --resume {record.get('run_id')} {where}"
+
+
+def verdict_blocks(record: dict[str, Any]) -> list[Block]:
+    """The verdict banner and its figures, or NOT CERTIFIED with the resume command."""
+    v = record.get("verdict")
+    if not v:
+        stops = [i for i in record.get("interruptions", []) if i.get("kind") == "RunInterrupted"]
+        reason = stops[-1].get("reason", "") if stops else "the run stopped before a verdict was recorded"
+        return [
+            Banner(
+                NOT_CERTIFIED, (f"Reason: {reason}", "No verdict: this record certifies nothing."), "none"
+            ),
+            Para(
+                "Fix the cause, then resume the run (add --db FILE if the record is not in rig-records.db):"
+            ),
+            Code(resume_command(record)),
+        ]
+    tone = "pass" if v.get("verdict") == "PASS" else "fail"
+    name, limit = metric_label(v.get("metric")), v.get("limit")
+    if v.get("mean") is None:
+        return [
+            Banner(f"{v.get('verdict')} — {v.get('reason', 'no metric measured')}", (f"limit {limit}",), tone)
+        ]
+    d = _decimals(record)
+    unit = " m/s" if v.get("metric") == "bbs" else ""
+    mean, big_u = v["mean"], v.get("U") or 0.0
+    loc, q = v.get("location_in"), v.get("impact_from_pivot_m")
+    lines = (
+        f"{name} = {fmt_num(mean, d)} ± {fmt_num(big_u, d)}{unit} (k = {v.get('coverage_k', 2):g}) "
+        f"against the limit {limit}{unit}; zone: {v.get('zone', '?')}",
+        decision_words(record),
+    )
+    return [
+        Banner(f"{v.get('verdict')}: {name} {fmt_num(mean, d)}{unit}", lines, tone),
+        kv(
+            [
+                ("metric", f"{name}: {v.get('definition', '')}"),
+                ("mean of valid hits", f"{fmt_num(mean, d)}{unit} (n = {v.get('n_hits')})"),
+                ("standard uncertainty u", f"{fmt_num(v.get('u'), d + 1)}{unit}"),
+                (f"expanded uncertainty U (k = {v.get('coverage_k', 2):g})", f"{fmt_num(big_u, d)}{unit}"),
+                ("mean + U", f"{fmt_num(mean + big_u, d)}{unit}"),
+                ("limit", f"{limit}{unit}"),
+                ("margin: limit − (mean + U)", f"{fmt_num((limit or 0.0) - mean - big_u, d)}{unit}"),
+                ("decision rule", decision_words(record)),
+                ("basis of the limit", str((record.get("procedure") or {}).get("limit_note", "—"))),
+                ("impact point", f"{loc} in from the barrel end (Q = {fmt_num(q, 4)} m from the pivot)"),
+                ("hits averaged", ", ".join(str(s["index"]) for s in certification_hits(record)) or "—"),
+            ]
+        ),
+    ]
+
+
+def bat_table(record: dict[str, Any]) -> Table:
+    """Identity and properties of the bat, and how its MOI was obtained."""
+    bat, moi = record.get("bat") or {}, record.get("moi")
+    length, weight = bat.get("length_in"), bat.get("weight_oz")
+    drop = f"{weight - length:+g}" if length is not None and weight is not None else "—"
+    hoop = bat.get("hoop_hz")
+    rel = ((record.get("procedure") or {}).get("moi") or {}).get("relative_uncertainty")
+    if moi:
+        value, u = moi.get("moi_kgm2"), moi.get("u_kgm2")
+        how = f"measured on the rig ({moi.get('source', '?')}"
+        if moi.get("period_s") is not None:
+            cycles, amp = moi.get("cycles"), moi.get("amplitude_deg")
+            how += f": period {moi['period_s']:.5f} s over {cycles} cycles at {amp}° amplitude"
+        how += ")"
+    elif bat.get("moi_kgm2") is not None:
+        value = bat["moi_kgm2"]
+        u = value * rel if rel else None
+        how = "from the bat file (uncertainty: the procedure's relative uncertainty)"
+    else:
+        value, u, how = None, None, "not measured (the run stopped before the MOI)"
+    moi_text = "—" if value is None else f"{value:.5f} kg m²"
+    if value is not None and u:
+        moi_text += f" ± {u:.2g} (standard uncertainty, {100 * u / value:.2f} %)"
+    return kv(
+        [
+            ("bat id", str(bat.get("id", "?"))),
+            ("length", "—" if length is None else f"{length:g} in ({length * INCH:.3f} m)"),
+            ("weight", "—" if weight is None else f"{weight:g} oz ({weight * OUNCE:.3f} kg)"),
+            ("drop (weight − length)", drop),
+            ("barrel", str(bat.get("barrel", "—"))),
+            ("hoop frequency", "not given" if hoop is None else f"{hoop:g} Hz (bat file)"),
+            (
+                "balance point",
+                "—" if bat.get("balance_point_in") is None else f"{bat['balance_point_in']:g} in",
+            ),
+            ("MOI about the pivot (6 in from the knob)", moi_text),
+            ("MOI obtained", how),
+        ]
+    )
+
+
+def rig_table(record: dict[str, Any]) -> Table:
+    """The rig's set-up and the software that ran it."""
+    rig, sw = record.get("rig") or {}, record.get("software") or {}
+    gates = rig.get("gates") or {}
+    pos = " / ".join(f"{x:.3f}" for x in gates.get("positions_m") or []) or "—"
+    u_pos = gates.get("position_uncertainty_m")
+    ports = rig.get("ports") or {}
+    aim = (rig.get("aim") or {}).get("speed_m_s") or []
+    return kv(
+        [
+            ("rig", str(rig.get("name", "—"))),
+            *[(f"{dev} port", str(url)) for dev, url in sorted(ports.items())],
+            (
+                "gate positions from the impact point",
+                f"{pos} m" + (f" (± {u_pos * 1000:.3f} mm)" if u_pos else ""),
+            ),
+            ("cannon cycle", f"{rig['cannon_cycle_s']:g} s" if rig.get("cannon_cycle_s") else "—"),
+            ("aim calibration", f"{len(aim)} points, {min(aim):.1f}–{max(aim):.1f} m/s" if aim else "—"),
+            *[(f"software: {name}", str(version)) for name, version in sorted(sw.items())],
+        ]
+    )
+
+
+def environment_blocks(record: dict[str, Any]) -> list[Block]:
+    """Temperature and humidity checks against the procedure's ranges."""
+    env = (record.get("procedure") or {}).get("environment") or {}
+    t, h = env.get("temperature_c") or [None, None], env.get("humidity_pct") or [None, None]
+    checks = record.get("environment") or []
+    rows = tuple(
+        (
+            str(c.get("t_utc", "")),
+            fmt_num(c.get("temperature_c"), 1),
+            fmt_num(c.get("humidity_pct"), 0),
+            "yes" if c.get("ok") else "NO",
+        )
+        for c in checks
+    )
+    return [
+        Para(f"Allowed: {t[0]}–{t[1]} °C, {h[0]}–{h[1]} % RH."),
+        Table(("checked (UTC)", "temperature (°C)", "humidity (% RH)", "within range"), rows)
+        if rows
+        else Para("No environment check recorded."),
+    ]
+
+
+def interruption_blocks(record: dict[str, Any]) -> list[Block]:
+    """Every interruption and resume, in order."""
+    rows = tuple(
+        (
+            "interrupted" if i.get("kind") == "RunInterrupted" else "resumed",
+            str(i.get("t_utc", "")),
+            str(i["reason"]) if "reason" in i else f"{i.get('shots_so_far', '?')} shots recorded before",
+        )
+        for i in record.get("interruptions") or []
+    )
+    return [
+        Table(("event", "time (UTC)", "detail"), rows)
+        if rows
+        else Para("None: the run went straight through.")
+    ]
+
+
+def anchor_blocks(record: dict[str, Any]) -> list[Block]:
+    """The record's head: check the store against it with rig verify."""
+    a = record.get("anchor") or {}
+    seq, digest = a.get("seq", 0), a.get("hash", "")
+    return [
+        Para(
+            f"Rendered from this run's {record.get('entries', '?')} entries in the hash-chained record; "
+            f"its last is entry {seq}, hash {digest}. To check that the record has not been altered "
+            "since this certificate was issued (add --db FILE to name the store):"
+        ),
+        Code(f"rig verify --anchor {seq}:{digest}"),
+    ]
