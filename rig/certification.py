@@ -64,8 +64,13 @@ def certify(
     subscribers: Iterable[Subscriber] = (),
     control: RunControl | None = None,
     confirm_fire: bool = False,
+    on_open: Callable[[RigSession], None] | None = None,
 ) -> Outcome:
-    """Run (or with `run_id`, resume) a certification; returns its outcome."""
+    """Run (or with `run_id`, resume) a certification; returns its outcome.
+
+    `on_open` sees the open session before the runner starts: an operator console uses it to read
+    device status on the runner's thread while the runner waits for the operator.
+    """
     listeners = list(subscribers)
     if run_id is None:
         if bat.id not in store.bats():
@@ -86,6 +91,8 @@ def certify(
             listener(event)
 
     with RigSession.open(config) as session:
+        if on_open is not None:
+            on_open(session)
         session.traffic.clear()  # opening chatter belongs to no shot
         runner = Runner(
             procedure,

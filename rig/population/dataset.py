@@ -1,0 +1,155 @@
+"""A bat population for the study of the founding paper's section 5: its CSV and TOML formats.
+
+One bat per row (CSV) or per [[bat]] table (TOML), keys as in COLUMNS:
+  bat_id      identifier (letters, digits, '.', '_', '-')
+  barrel      aluminium | composite | wood
+  hoop_hz     first hoop frequency, Hz (required)
+  bending_hz  first bending frequency, Hz (optional)
+  length_in, weight_oz, moi_kgm2 (about the pivot 6 in from the knob)   optional
+  besr, bbs (m/s), bbcor   measured performance, each optional
+  source      where the row comes from (free text; "synthetic ..." marks made-up data)
+CSV: comment lines start with '#'; the header names the columns (any order, these names only);
+an empty cell is a missing value. TOML: the same keys; a missing key is a missing value.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import tomllib
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Annotated, Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError
+
+from rig.core.bat import Barrel
+from rig.core.errors import ConfigError
+
+COLUMNS = (
+    "bat_id",
+    "barrel",
+    "hoop_hz",
+    "bending_hz",
+    "length_in",
+    "weight_oz",
+    "moi_kgm2",
+    "besr",
+    "bbs",
+    "bbcor",
+    "source",
+)
+METRICS = ("besr", "bbs", "bbcor")
+
+
+class PopulationBat(BaseModel):
+    """One bat of the population."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+    bat_id: Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9._-]+$")]
+    barrel: Barrel
+    hoop_hz: Annotated[float, Field(gt=0.0)]
+    bending_hz: Annotated[float, Field(gt=0.0)] | None = None
+    length_in: Annotated[float, Field(gt=20.0, lt=40.0)] | None = None
+    weight_oz: Annotated[float, Field(gt=10.0, lt=50.0)] | None = None
+    moi_kgm2: Annotated[float, Field(gt=0.0, lt=1.0)] | None = None
+    besr: Annotated[float, Field(gt=0.0, lt=2.0)] | None = None
+    bbs: Annotated[float, Field(gt=0.0, lt=100.0)] | None = None
+    bbcor: Annotated[float, Field(gt=0.0, lt=1.0)] | None = None
+    source: str = ""
+
+    def metric(self, name: str) -> float | None:
+        """besr, bbs or bbcor."""
+        return {"besr": self.besr, "bbs": self.bbs, "bbcor": self.bbcor}[name]
+
+    @property
+    def synthetic(self) -> bool:
+        """True for made-up rows (source starting 'synthetic')."""
+        return self.source.lower().startswith("synthetic")
+
+
+def _validate(row: dict[str, Any], path: Path, where: str) -> PopulationBat:
+    try:
+        return PopulationBat.model_validate(row)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        field = ".".join(str(p) for p in first["loc"]) or "row"
+        raise ConfigError(
+            f"{first['msg']} (got {first.get('input')!r})", source=f"{path}: {where}", field=field
+        ) from None
+
+
+def _read_csv(path: Path, text: str) -> list[PopulationBat]:
+    lines = [
+        (n, line) for n, line in enumerate(text.splitlines(), start=1) if not line.lstrip().startswith("#")
+    ]
+    lines = [(n, line) for n, line in lines if line.strip()]
+    if not lines:
+        raise ConfigError("no header and no rows", source=str(path))
+    reader = csv.reader(io.StringIO("\n".join(line for _, line in lines)))
+    rows = list(reader)
+    header = [c.strip() for c in rows[0]]
+    unknown = [c for c in header if c not in COLUMNS]
+    if unknown:
+        raise ConfigError(
+            f"unknown column(s) {', '.join(unknown)}; known: {', '.join(COLUMNS)}",
+            source=f"{path}: line {lines[0][0]}",
+        )
+    missing = [c for c in ("bat_id", "barrel", "hoop_hz") if c not in header]
+    if missing:
+        raise ConfigError(f"missing column(s) {', '.join(missing)}", source=f"{path}: line {lines[0][0]}")
+    bats = []
+    for (line_no, _), cells in zip(lines[1:], rows[1:], strict=True):
+        if len(cells) != len(header):
+            raise ConfigError(
+                f"{len(cells)} cells, the header has {len(header)}", source=f"{path}: line {line_no}"
+            )
+        row = {k: v.strip() for k, v in zip(header, cells, strict=True) if v.strip() != ""}
+        bats.append(_validate(row, path, f"line {line_no}"))
+    return bats
+
+
+def _read_toml(path: Path, text: str) -> list[PopulationBat]:
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ConfigError(f"not valid TOML: {exc}", source=str(path)) from None
+    tables = data.get("bat")
+    if not isinstance(tables, list) or not all(isinstance(t, dict) for t in tables):
+        raise ConfigError("needs [[bat]] tables", source=str(path))
+    return [_validate(t, path, f"bat {i + 1}") for i, t in enumerate(tables)]
+
+
+def load_population(path: str | Path) -> list[PopulationBat]:
+    """Read a population file (.csv or .toml); ids must be unique."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise ConfigError("no such file", source=str(path)) from None
+    bats = _read_toml(path, text) if path.suffix.lower() == ".toml" else _read_csv(path, text)
+    seen: set[str] = set()
+    for b in bats:
+        if b.bat_id in seen:
+            raise ConfigError(f"bat {b.bat_id} appears twice", source=str(path))
+        seen.add(b.bat_id)
+    return bats
+
+
+def write_population_csv(
+    bats: Iterable[PopulationBat], path: str | Path, comments: Iterable[str] = ()
+) -> Path:
+    """Write a population in the CSV format (comment lines first)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    out = io.StringIO()
+    for c in comments:
+        out.write(f"# {c}\n")
+    writer = csv.writer(out, lineterminator="\n")
+    writer.writerow(COLUMNS)
+    for b in bats:
+        d = b.model_dump(mode="json")
+        writer.writerow(["" if d[c] is None else d[c] for c in COLUMNS])
+    path.write_text(out.getvalue(), encoding="utf-8")
+    return path

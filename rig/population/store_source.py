@@ -1,0 +1,78 @@
+"""Population rows from the record store: registered bats, their modal results and measured runs.
+
+For each registered bat: hoop_hz from its registered spec, else from its latest ModalResult
+entry; first bending frequency from that ModalResult; BESR, BBS and BBCOR the means over the
+valid hits (purpose 'valid', at the run's chosen location) of every finished run of the bat, each
+metric as rig.measure.metrics computed it per shot (ShotMeasured). Bats with no hoop frequency
+are left out, with a note.
+"""
+
+from __future__ import annotations
+
+import statistics
+from collections import defaultdict
+from typing import Any
+
+from rig.modal.link import latest_modal_result
+from rig.population.dataset import METRICS, PopulationBat
+from rig.store import Store
+
+
+def _run_metrics(store: Store, run_id: str) -> tuple[dict[str, list[float]], float | None]:
+    entries = store.entries(run_id, kinds=["ShotRequested", "ShotMeasured", "RunFinished"])
+    finished = [e.payload for e in entries if e.kind == "RunFinished"]
+    out: dict[str, list[float]] = defaultdict(list)
+    if not finished:
+        return out, None
+    location = finished[-1].get("location_in")
+    requested = {e.payload.get("index"): e.payload for e in entries if e.kind == "ShotRequested"}
+    for e in entries:
+        if e.kind != "ShotMeasured" or not e.payload.get("valid"):
+            continue
+        req = requested.get(e.payload.get("index"), {})
+        if req.get("purpose") != "valid" or req.get("location_in") != location:
+            continue
+        metrics: dict[str, Any] = e.payload.get("metrics") or {}
+        for name in METRICS:
+            if isinstance(metrics.get(name), int | float):
+                out[name].append(float(metrics[name]))
+    moi = finished[-1].get("moi_kgm2")
+    return out, float(moi) if isinstance(moi, int | float) else None
+
+
+def bats_from_store(store: Store) -> tuple[list[PopulationBat], list[str]]:
+    """The store's bats as population rows, and notes on those left out."""
+    per_bat: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
+    mois: dict[str, list[float]] = defaultdict(list)
+    for run in store.runs():
+        if run.status != "finished":
+            continue
+        values, moi = _run_metrics(store, run.run_id)
+        for name, vals in values.items():
+            per_bat[run.bat_id][name] += vals
+        if moi is not None:
+            mois[run.bat_id].append(moi)
+    bats, notes = [], []
+    for bat_id, spec in sorted(store.bats().items()):
+        modal = latest_modal_result(store, bat_id)
+        hoop = spec.get("hoop_hz") or (modal or {}).get("hoop_hz")
+        if hoop is None:
+            notes.append(f"bat {bat_id}: no hoop frequency (bat file or modal result): left out")
+            continue
+        bending = (modal or {}).get("bending_hz") or []
+        metrics = {name: statistics.fmean(v) for name, v in per_bat[bat_id].items() if v}
+        moi = spec.get("moi_kgm2") or (statistics.fmean(mois[bat_id]) if mois[bat_id] else None)
+        bats.append(
+            PopulationBat(
+                bat_id=bat_id,
+                barrel=spec["barrel"],
+                hoop_hz=float(hoop),
+                bending_hz=float(bending[0]) if bending else None,
+                length_in=spec.get("length_in"),
+                weight_oz=spec.get("weight_oz"),
+                moi_kgm2=moi,
+                source=f"store {store.path.name}",
+                **metrics,
+            )
+        )
+    return bats, notes

@@ -1,0 +1,67 @@
+"""The operator's console: a Textual app over rig.certification, rig.session and rig.store."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from textual.app import App
+from textual.binding import Binding, BindingType
+
+from rig.tui.modals import ConfirmScreen, HelpScreen
+from rig.tui.rigs import ConsoleSettings
+from rig.tui.run import RunScreen
+from rig.tui.setup import SetupScreen
+
+
+class RigConsole(App[None]):
+    """Set-up, run and history screens; `?` help and `q` quit everywhere."""
+
+    TITLE = "Rig console"
+    ENABLE_COMMAND_PALETTE = False  # every command has its key; keep the footer for them
+    BINDINGS: ClassVar[list[BindingType]] = [
+        Binding("question_mark,f1", "help", "Help"),
+        Binding("q", "quit", "Quit"),
+    ]
+
+    def __init__(self, settings: ConsoleSettings) -> None:
+        super().__init__()
+        self.settings = settings
+
+    def on_mount(self) -> None:
+        self.push_screen(SetupScreen(self.settings))
+
+    @property
+    def run_screen(self) -> RunScreen | None:
+        """The run screen whose run is active, if any."""
+        return next((s for s in self.screen_stack if isinstance(s, RunScreen) and s.running), None)
+
+    @property
+    def run_active(self) -> bool:
+        """Whether a certification is running now."""
+        return self.run_screen is not None
+
+    def action_help(self) -> None:
+        """The keys of every screen."""
+        if not isinstance(self.screen, HelpScreen):
+            self.push_screen(HelpScreen())
+
+    async def action_quit(self) -> None:
+        """Quit; while a run is active, ask first, then stop it (resumable) and wait for it."""
+        screen = self.run_screen
+        if screen is None:
+            self.exit()
+            return
+
+        async def stop_then_exit() -> None:
+            await screen.finish("the operator quit the console")
+            self.exit()
+
+        def confirmed(yes: bool | None) -> None:
+            if yes:
+                self.notify("stopping the run after the current step...", title="Quit")
+                self.run_worker(stop_then_exit(), group="quit")
+
+        self.push_screen(
+            ConfirmScreen("A run is active. Stop it (it stays resumable) and quit?", "Quit (y)", "Stay (n)"),
+            confirmed,
+        )

@@ -1,0 +1,139 @@
+"""History screen: the recorded runs and, for the highlighted one, its report."""
+
+from __future__ import annotations
+
+import tempfile
+from typing import Any, ClassVar
+
+from textual import work
+from textual.app import ComposeResult
+from textual.binding import Binding, BindingType
+from textual.containers import VerticalScroll
+from textual.screen import Screen
+from textual.widgets import DataTable, Footer, Header, Markdown
+
+from protocols.procedure import Procedure
+from rig.certification import history
+from rig.core.bat import BatSpec
+from rig.core.errors import RigError
+from rig.report.record import run_record
+from rig.store import RunSummary, Store
+from rig.tui.report import record_summary
+from rig.tui.rigs import ConsoleSettings, RigChoice, RunJob
+
+
+def _certificate_md(record: dict[str, Any]) -> str | None:
+    """The certificate as Markdown when rig.report.certificate can render it, else None."""
+    try:
+        from rig.report.certificate import render
+    except ImportError:
+        return None
+    try:
+        with tempfile.TemporaryDirectory(prefix="rig-tui-") as figures:  # no PNGs left in the cwd
+            return render(record, "md", figures_dir=figures)
+    except Exception:  # a certificate that cannot be drawn still leaves the summary to read
+        return None
+
+
+class HistoryScreen(Screen[None]):
+    """Past runs, newest first; Enter shows a run's report, r resumes an open run."""
+
+    DEFAULT_CSS = """
+    HistoryScreen #runs { height: 8; border: round $primary; }
+    HistoryScreen #report { height: 1fr; border: round $primary-darken-2; }
+    """
+    BINDINGS: ClassVar[list[BindingType]] = [
+        Binding("escape,b", "back", "Back"),
+        Binding("enter", "show", "Report", show=False),
+        Binding("r", "resume", "Resume"),
+    ]
+
+    def __init__(self, settings: ConsoleSettings, rig: RigChoice | None = None) -> None:
+        super().__init__()
+        self.settings, self.rig = settings, rig or settings.rigs[0]
+        self.runs: list[RunSummary] = []
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        yield DataTable(id="runs", cursor_type="row", zebra_stripes=True)
+        with VerticalScroll(id="report"):
+            yield Markdown("Choose a run.", id="report-text")
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.sub_title = "history"
+        table = self.query_one("#runs", DataTable)
+        table.border_title = "Runs (newest first)"
+        self.query_one("#report", VerticalScroll).border_title = "Report"
+        table.add_columns("run", "procedure", "bat", "started (UTC)", "status", "verdict")
+        try:
+            with Store.open(self.settings.db) as store:
+                self.runs = list(reversed(store.runs()))
+        except RigError as exc:
+            self.query_one("#report-text", Markdown).update(f"**Cannot read the records:** {exc}")
+            return
+        for r in self.runs:
+            started = r.started_utc[:16].replace("T", " ")
+            table.add_row(
+                r.run_id[:8], r.procedure, r.bat_id, started, r.status, r.verdict or "", key=r.run_id
+            )
+        if not self.runs:
+            self.query_one("#report-text", Markdown).update(f"No runs recorded yet in `{self.settings.db}`.")
+        table.focus()
+
+    def _selected(self) -> RunSummary | None:
+        table = self.query_one("#runs", DataTable)
+        if not self.runs or table.cursor_row < 0:
+            return None
+        return self.runs[min(table.cursor_row, len(self.runs) - 1)]
+
+    def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
+        self.action_show()
+
+    def action_show(self) -> None:
+        """Show the highlighted run's report (built in a worker: a certificate draws plots)."""
+        run = self._selected()
+        if run is not None:
+            self.query_one("#report-text", Markdown).update(f"Reading run {run.run_id[:8]}...")
+            self._load(run.run_id)
+
+    @work(thread=True, exclusive=True, group="report", exit_on_error=False)
+    def _load(self, run_id: str) -> None:
+        try:
+            with Store.open(self.settings.db) as store:
+                record = run_record(store, run_id)
+            text = _certificate_md(record) or record_summary(record)
+        except Exception as exc:  # an unreadable record is reported, not raised
+            text = f"**Cannot build the report:** {exc}"
+        self.app.call_from_thread(self.query_one("#report-text", Markdown).update, text)
+
+    def action_back(self) -> None:
+        """Back to where the history was opened from."""
+        self.dismiss(None)
+
+    def action_resume(self) -> None:
+        """Resume the highlighted run if it never finished, on the rig chosen in set-up."""
+        run = self._selected()
+        if run is None or run.status == "finished":
+            self.notify("choose a run that has not finished", severity="warning")
+            return
+        if getattr(self.app, "run_active", False):
+            self.notify("a run is already active", severity="warning")
+            return
+        try:
+            with Store.open(self.settings.db) as store:
+                started = store.entries(run.run_id, kinds=["RunStarted"])
+                past = history(store, run.run_id)
+                if started:
+                    procedure = Procedure.model_validate(started[0].payload["procedure"])
+                    bat = BatSpec.model_validate(started[0].payload["bat"])
+                else:  # created, then stopped before it started (e.g. a port would not open)
+                    procedure = Procedure.load(run.procedure)
+                    bat = BatSpec.model_validate(store.bats()[run.bat_id])
+            job = RunJob(procedure, bat, self.rig.config(bat), self.rig.label, run_id=run.run_id)
+        except (RigError, ValueError) as exc:
+            self.notify(str(exc), title="Cannot resume", severity="error")
+            return
+        from rig.tui.run import RunScreen
+
+        self.app.switch_screen(RunScreen(self.settings, job, past))

@@ -1,0 +1,73 @@
+"""The blocking work behind the run screen: a certification run and the model's prediction.
+
+Both are called from thread workers only; neither touches the UI (results are returned).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from protocols.evaluate import cross_check
+from protocols.runner import RunControl
+from rig.certification import Outcome, certify
+from rig.core.errors import RigError
+from rig.core.events import Subscriber
+from rig.store import Store
+from rig.tui.operator import ConsoleOperator
+from rig.tui.rigs import ConsoleSettings, RunJob
+
+
+@dataclass(frozen=True)
+class JobResult:
+    """How a run ended: an outcome, or the failure that stopped it; `run_id` to resume it."""
+
+    outcome: Outcome | None
+    failure: str
+    run_id: str | None
+
+
+def run_job(
+    settings: ConsoleSettings,
+    job: RunJob,
+    operator: ConsoleOperator,
+    control: RunControl,
+    on_event: Subscriber,
+) -> JobResult:
+    """Run (or resume) the job to its end; every error comes back as a message, never raised."""
+    run_id = job.run_id
+    try:
+        with settings.device_lock, Store.open(settings.db, clock=settings.clock) as store:
+            before = {r.run_id for r in store.runs()}
+            try:
+                outcome = certify(
+                    store,
+                    job.procedure,
+                    job.bat,
+                    job.config,
+                    run_id=job.run_id,
+                    operator=operator,
+                    subscribers=[on_event],
+                    control=control,
+                    confirm_fire=True,
+                    on_open=operator.attach,
+                )
+            finally:  # a run that failed is resumed by its id, even one that never started
+                run_id = next((r.run_id for r in store.runs() if r.run_id not in before), run_id)
+    except RigError as exc:
+        return JobResult(None, str(exc), run_id)
+    except Exception as exc:  # a bug must still reach the screen, not kill the console
+        return JobResult(None, f"unexpected {type(exc).__name__}: {exc}", run_id)
+    return JobResult(outcome, "", outcome.run_id)
+
+
+def predict(job: RunJob, moi_kgm2: float, location_in: float) -> tuple[float | None, str]:
+    """The collision model's metric for this bat at the target speed, and a short note."""
+    p, bat = job.procedure, job.bat
+    try:
+        q = bat.impact_from_pivot_m(location_in)
+        cc = cross_check(p, bat, p.target_speed_m_s, q, moi_kgm2, 0.0)
+    except Exception as exc:  # the model is a help, never a reason to stop the run
+        return None, f"model failed: {exc}"
+    if cc["predicted"] is None:
+        return None, "no hoop frequency: no model"
+    return float(cc["predicted"]), f"predicted at {location_in:g} in"

@@ -1,0 +1,234 @@
+"""What the run screen shows, folded from the run's events (pure: no Textual, no devices).
+
+A resumed run starts from its recorded events, so the scan, the hits and the average are whole
+again before the first new shot.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from protocols.procedure import Procedure
+from rig.core import events as ev
+from rig.core.devices import CannonStatus, GateConfig
+from rig.core.events import RunEvent
+
+
+@dataclass
+class LiveShot:
+    """The shot in progress or the last one: speeds as soon as known, then its outcome."""
+
+    index: int
+    purpose: str = ""
+    location_in: float | None = None
+    status: str = "requested"  # requested | fired | valid | invalid | lost
+    inbound: float | None = None
+    rebound: float | None = None
+    metric: float | None = None
+    u: float | None = None
+    reasons: list[str] = field(default_factory=list)
+    crossings: list[tuple[int, int]] = field(default_factory=list)  # (gate, tick) as they came
+
+
+@dataclass
+class LiveRun:
+    """The state of the run screen."""
+
+    metric_name: str = ""
+    limit: float | None = None
+    scan_locations: list[float] = field(default_factory=list)
+    hits_needed: int = 0
+    cannon: CannonStatus | None = None
+    cannon_error: str = ""
+    gate_config: GateConfig | None = None
+    pressure_kpa: float | None = None  # at the last shot
+    environment: str = ""
+    moi: float | None = None
+    shot: LiveShot | None = None
+    shots: dict[int, LiveShot] = field(default_factory=dict)
+    best_location_in: float | None = None
+    prediction: float | None = None
+    prediction_note: str = ""
+    verdict: dict[str, Any] | None = None
+    interrupted: str = ""
+    paused: bool = False
+    log: list[str] = field(default_factory=list)
+
+    # -- derived views ------------------------------------------------------------------------
+    def scan_means(self) -> dict[float, float]:
+        """Mean metric of the valid scan shots at each location so far."""
+        acc: dict[float, list[float]] = {}
+        for s in self.shots.values():
+            if s.purpose == "scan" and s.status == "valid" and s.metric is not None:
+                acc.setdefault(s.location_in or 0.0, []).append(s.metric)
+        return {loc: sum(v) / len(v) for loc, v in sorted(acc.items())}
+
+    def hits(self) -> list[float]:
+        """The valid hits at the chosen location, in order."""
+        return [
+            s.metric
+            for _, s in sorted(self.shots.items())
+            if s.purpose == "valid" and s.status == "valid" and s.metric is not None
+        ]
+
+    def average(self) -> float | None:
+        """The running average of the valid hits."""
+        hits = self.hits()
+        return sum(hits) / len(hits) if hits else None
+
+    def set_procedure(self, p: Procedure) -> None:
+        """Take the metric, the limit, the scan and the number of hits from the procedure."""
+        self.metric_name, self.limit = p.standard.value, p.limit
+        self.scan_locations, self.hits_needed = p.scan.locations_in(), p.hits.valid_hits
+
+    # -- the fold -----------------------------------------------------------------------------
+    def apply(self, event: RunEvent) -> None:
+        """Update from one event (live or recorded)."""
+        d, kind = event.data, event.kind
+        handler = _HANDLERS.get(kind)
+        if handler is not None:
+            handler(self, d)
+
+    def _shot(self, index: int) -> LiveShot:
+        shot = self.shots.setdefault(index, LiveShot(index))
+        self.shot = shot
+        return shot
+
+    def note(self, line: str) -> None:
+        """Add a line to the run's log."""
+        self.log.append(line)
+
+
+def _started(r: LiveRun, d: dict[str, Any]) -> None:
+    p = Procedure.model_validate(d["procedure"])
+    r.set_procedure(p)
+    r.note(f"{p.name} on bat {d['bat']['id']}")
+
+
+def _resumed(r: LiveRun, d: dict[str, Any]) -> None:
+    r.interrupted = ""
+    r.note(f"resumed after {d['shots_so_far']} shot(s)")
+
+
+def _environment(r: LiveRun, d: dict[str, Any]) -> None:
+    r.environment = f"{d['temperature_c']:.1f} C, {d['humidity_pct']:.0f} % RH" + (
+        "" if d["ok"] else " OUT OF LIMITS"
+    )
+    r.note(f"lab {r.environment}")
+
+
+def _moi(r: LiveRun, d: dict[str, Any]) -> None:
+    r.moi = float(d["moi_kgm2"])
+    r.note(f"MOI {r.moi:.5f} kg m^2 ({d['source']})")
+
+
+def _requested(r: LiveRun, d: dict[str, Any]) -> None:
+    shot = r._shot(int(d["index"]))
+    shot.purpose, shot.location_in, shot.status = d["purpose"], float(d["location_in"]), "requested"
+
+
+def _crossed(r: LiveRun, d: dict[str, Any]) -> None:
+    r._shot(int(d["index"])).crossings.append((int(d["gate"]), int(d["tick"])))
+
+
+def _inbound(r: LiveRun, d: dict[str, Any]) -> None:
+    r._shot(int(d["index"])).inbound = float(d["speed_m_s"])
+
+
+def _rebound(r: LiveRun, d: dict[str, Any]) -> None:
+    r._shot(int(d["index"])).rebound = float(d["speed_m_s"])
+
+
+def _fired(r: LiveRun, d: dict[str, Any]) -> None:
+    shot = r._shot(int(d["index"]))
+    shot.status = "fired"
+    if not shot.crossings:  # a recorded shot (resume): the raw ticks stand in for the live ones
+        shot.crossings = [(int(c["gate"]), int(c["tick"])) for c in d.get("crossings", [])]
+    if d.get("pressure_kpa") is not None:
+        r.pressure_kpa = float(d["pressure_kpa"])
+    if isinstance(d.get("gate_config"), dict):
+        r.gate_config = GateConfig(**d["gate_config"])
+
+
+def _measured(r: LiveRun, d: dict[str, Any], valid: bool) -> None:
+    shot = r._shot(int(d["index"]))
+    shot.status = "valid" if valid else "invalid"
+    shot.inbound = d.get("inbound_speed_m_s", shot.inbound)
+    shot.rebound = d.get("rebound_speed_m_s", shot.rebound)
+    shot.metric, shot.u = d.get("metric"), d.get("u")
+    shot.reasons = [
+        f"{x['code']}: {x.get('message', '')}" for x in d.get("reasons", []) if x.get("invalidates", True)
+    ]
+    if valid:
+        r.note(f"shot {shot.index} valid: {r.metric_name} {shot.metric:.4f} +- {shot.u:.4f}")
+    else:
+        codes = ", ".join(x.split(":")[0] for x in shot.reasons) or "invalid"
+        r.note(f"shot {shot.index} invalid ({codes}): re-shoot")
+
+
+def _lost(r: LiveRun, d: dict[str, Any]) -> None:
+    shot = r._shot(int(d["index"]))
+    shot.status, shot.reasons = "lost", [str(d.get("reason", ""))]
+    r.note(f"shot {shot.index} lost: {d.get('reason', '')}")
+
+
+def _chosen(r: LiveRun, d: dict[str, Any]) -> None:
+    r.best_location_in = float(d["from_barrel_end_in"])
+    r.note(f"location of maximum performance: {r.best_location_in:g} in from the tip")
+
+
+def _ball(r: LiveRun, d: dict[str, Any]) -> None:
+    r.note(f"ball replaced: ball {d['ball_number']}")
+
+
+def _answered(r: LiveRun, d: dict[str, Any]) -> None:
+    if not d["prompt_id"].startswith("fire-"):
+        r.note(f"{d['prompt_id']}: {'yes' if d['answer'] else 'NO'}")
+
+
+def _finished(r: LiveRun, d: dict[str, Any]) -> None:
+    r.verdict = dict(d)
+    cc = d.get("cross_check") or {}
+    if cc.get("predicted") is not None:
+        r.prediction = float(cc["predicted"])
+        r.prediction_note = "FLAGGED: out of line" if cc.get("flagged") else "consistent (run's check)"
+    r.note(f"verdict: {d['verdict']}" + (f" ({d['zone']})" if d.get("zone") else ""))
+
+
+def _interrupted(r: LiveRun, d: dict[str, Any]) -> None:
+    r.interrupted = str(d.get("reason", ""))
+    r.note(f"interrupted: {r.interrupted}")
+
+
+def _paused(r: LiveRun, d: dict[str, Any]) -> None:
+    r.paused = True
+    r.note("paused before the next shot")
+
+
+def _continued(r: LiveRun, d: dict[str, Any]) -> None:
+    r.paused = False
+    r.note("continued")
+
+
+_HANDLERS = {
+    ev.RUN_STARTED: _started,
+    ev.RUN_RESUMED: _resumed,
+    ev.ENVIRONMENT_CHECKED: _environment,
+    ev.MOI_MEASURED: _moi,
+    ev.SHOT_REQUESTED: _requested,
+    ev.GATE_CROSSED: _crossed,
+    ev.INBOUND_MEASURED: _inbound,
+    ev.REBOUND_MEASURED: _rebound,
+    ev.SHOT_FIRED: _fired,
+    ev.SHOT_MEASURED: lambda r, d: _measured(r, d, True),
+    ev.SHOT_REJECTED: lambda r, d: _measured(r, d, False),
+    ev.SHOT_LOST: _lost,
+    ev.LOCATION_CHOSEN: _chosen,
+    ev.BALL_REPLACED: _ball,
+    ev.OPERATOR_ANSWERED: _answered,
+    ev.RUN_FINISHED: _finished,
+    ev.RUN_INTERRUPTED: _interrupted,
+    ev.RUN_PAUSED: _paused,
+    ev.RUN_CONTINUED: _continued,
+}

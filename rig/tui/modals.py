@@ -1,0 +1,90 @@
+"""Modal screens: a yes/no confirmation and the help overlay."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+from textual.app import ComposeResult
+from textual.binding import Binding, BindingType
+from textual.containers import Horizontal, Vertical
+from textual.screen import ModalScreen
+from textual.widgets import Button, Static
+
+HELP = """\
+[b]Set-up[/b]
+  Tab / Shift+Tab  move between fields         Esc  leave a field
+  Enter in the bat file field loads the file into the form
+  s  start the run      r  read the devices again      h  history
+[b]Run[/b]
+  f  fire the waiting shot: asks to confirm; off while an interlock is open
+  y / n  answer a prompt (ring check, ball replaced)
+  p  pause / go on before the next shot   a  abort (it stays resumable)
+  r  resume an interrupted run            b  back to set-up once it ended
+[b]History[/b]
+  Up / Down  choose a run (report below)   r  resume it   Esc  back
+[b]Anywhere[/b]
+  ?  this help (Esc closes it)    q  quit (asks first during a run)
+
+The run works in a thread of its own: the screen only listens to its events
+and sends commands, so it never freezes while a device is slow."""
+
+
+class ConfirmScreen(ModalScreen[bool]):
+    """Ask a yes/no question; y confirms, n or Esc cancels. Focus starts on the safe answer."""
+
+    DEFAULT_CSS = """
+    ConfirmScreen { align: center middle; }
+    ConfirmScreen > Vertical {
+        width: 60; height: auto; border: thick $warning; background: $surface; padding: 1 2;
+    }
+    ConfirmScreen Horizontal { height: auto; align-horizontal: center; margin-top: 1; }
+    ConfirmScreen Button { margin: 0 2; }
+    """
+    BINDINGS: ClassVar[list[BindingType]] = [
+        Binding("y", "answer(True)", "Yes"),
+        Binding("n,escape", "answer(False)", "No"),
+    ]
+
+    def __init__(self, question: str, yes: str = "Yes (y)", no: str = "No (n)") -> None:
+        super().__init__()
+        self.question, self.yes, self.no = question, yes, no
+
+    def compose(self) -> ComposeResult:
+        with Vertical():
+            yield Static(self.question, id="question")
+            with Horizontal():
+                yield Button(self.yes, variant="error", id="yes")
+                yield Button(self.no, variant="primary", id="no")
+
+    def on_mount(self) -> None:
+        self.query_one("#no", Button).focus()
+
+    def on_button_pressed(self, event: Button.Pressed) -> None:
+        self.dismiss(event.button.id == "yes")
+
+    def action_answer(self, value: bool) -> None:
+        """Close with the answer."""
+        self.dismiss(value)
+
+
+class HelpScreen(ModalScreen[None]):
+    """Every key of every screen, over the current screen."""
+
+    DEFAULT_CSS = """
+    HelpScreen { align: center middle; }
+    HelpScreen > Static {
+        width: 80; height: auto; max-height: 22; border: round $accent; background: $surface;
+        padding: 0 1;
+    }
+    """
+    BINDINGS: ClassVar[list[BindingType]] = [Binding("escape,question_mark,q,f1", "close", "Close")]
+
+    def compose(self) -> ComposeResult:
+        yield Static(HELP, id="help")
+
+    def on_mount(self) -> None:
+        self.query_one("#help", Static).border_title = "Operator console: keys"
+
+    def action_close(self) -> None:
+        """Back to the screen below."""
+        self.dismiss(None)

@@ -1,0 +1,139 @@
+"""The console's side of the runner's Operator interface: prompts wait for the operator's keys.
+
+The runner calls `ask` on its worker thread; the call blocks on a threading.Event until the UI
+thread answers (or cancels). While it waits the runner is idle, so the same thread may read the
+cannon's status through the open session: that is how the console shows the interlocks live
+without ever touching a device from the UI thread.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import getpass
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from protocols.runner import RunAborted
+from rig.core.devices import CannonStatus, GateConfig
+from rig.core.errors import RigError
+from rig.session import RigSession
+
+
+@dataclass(frozen=True)
+class PromptPending:
+    """The runner asks the operator something; `prompt_id` as in protocols.runner."""
+
+    prompt_id: str
+    text: str
+
+    @property
+    def is_fire(self) -> bool:
+        """Whether this prompt is the confirmation of a shot (answered with the fire key)."""
+        return self.prompt_id.startswith("fire-")
+
+
+@dataclass(frozen=True)
+class PromptClosed:
+    """The pending prompt was answered (or cancelled)."""
+
+    prompt_id: str
+
+
+@dataclass(frozen=True)
+class CannonRead:
+    """The cannon's status as read while the runner waited; `error` when the read failed."""
+
+    status: CannonStatus | None
+    error: str = ""
+
+
+@dataclass(frozen=True)
+class GatesRead:
+    """The gates' counter configuration, read once when the session opened."""
+
+    config: GateConfig
+
+
+Notice = PromptPending | PromptClosed | CannonRead | GatesRead
+
+
+def _who() -> str:
+    try:
+        return f"console ({getpass.getuser()})"
+    except (KeyError, OSError):  # no login name in some containers
+        return "console"
+
+
+class ConsoleOperator:
+    """Blocks the runner's thread on each prompt until the UI answers; polls the cannon meanwhile."""
+
+    def __init__(self, publish: Callable[[Notice], None], poll_s: float = 0.5) -> None:
+        self.who = _who()
+        self._publish = publish
+        self._poll_s = poll_s
+        self._lock = threading.Lock()
+        self._done = threading.Event()
+        self._pending: PromptPending | None = None
+        self._answer = False
+        self._cancel_reason = ""
+        self._read_status: Callable[[], CannonStatus] | None = None
+
+    # -- runner side (worker thread) ---------------------------------------------------------
+    def attach(self, session: RigSession) -> None:
+        """Called by certify with the open session: remember how to read the cannon's status."""
+        self._read_status = session.cannon.status
+        with contextlib.suppress(RigError):  # the runner reads it again and reports a failure
+            self._publish(GatesRead(session.gates.config()))
+        self.poll()
+
+    def poll(self) -> None:
+        """Read the cannon's status and publish it (only on the runner's thread, while it waits)."""
+        if self._read_status is None:
+            return
+        try:
+            self._publish(CannonRead(self._read_status()))
+        except RigError as exc:
+            self._publish(CannonRead(None, str(exc)))
+
+    def ask(self, prompt_id: str, text: str) -> bool:
+        """Publish the prompt and wait for the operator's answer; a cancel stops the run (resumable)."""
+        prompt = PromptPending(prompt_id, text)
+        with self._lock:
+            if self._cancel_reason:
+                raise RunAborted(self._cancel_reason)
+            self._pending, self._answer = prompt, False
+            self._done.clear()
+        self._publish(prompt)
+        self.poll()
+        while not self._done.wait(self._poll_s):
+            self.poll()
+        with self._lock:
+            self._pending = None
+            answer, reason = self._answer, self._cancel_reason
+        self._publish(PromptClosed(prompt_id))
+        if reason:
+            raise RunAborted(reason)
+        return answer
+
+    # -- UI side -----------------------------------------------------------------------------
+    @property
+    def pending(self) -> PromptPending | None:
+        """The prompt waiting for an answer, if any."""
+        return self._pending
+
+    def answer(self, prompt_id: str, value: bool) -> bool:
+        """Answer the pending prompt if it is still `prompt_id`; False if it is not pending."""
+        with self._lock:
+            if self._pending is None or self._pending.prompt_id != prompt_id or self._done.is_set():
+                return False
+            self._answer = value
+            self._done.set()
+            return True
+
+    def cancel(self, reason: str) -> None:
+        """Stop waiting: the pending (and any later) prompt raises RunAborted with `reason`."""
+        with self._lock:
+            if not self._cancel_reason:
+                self._cancel_reason = reason
+            self._done.set()

@@ -1,0 +1,123 @@
+"""The console's settings, the rig choices, a run's job, and the device check of the set-up screen.
+
+Every function here that opens ports blocks: the screens call them from thread workers only.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+from typing import TypeVar
+
+from protocols.procedure import Procedure
+from rig.core.bat import BatSpec
+from rig.core.config import RigConfig
+from rig.core.devices import CannonStatus, ClampStatus, Environment, GateConfig
+from rig.core.errors import RigError
+from rig.session import RigSession, sim_config
+
+SCENES = ("ideal", "lab", "faulty")
+T = TypeVar("T")
+PROCEDURES = (("NCAA BBCOR", "bbcor"), ("NCAA BESR", "besr"), ("BBS (batted-ball speed)", "bbs"))
+
+
+@dataclass(frozen=True)
+class RigChoice:
+    """A simulated scene or a rig config file."""
+
+    kind: str  # "sim" | "config"
+    ref: str  # scene name or path, config path
+
+    @property
+    def label(self) -> str:
+        """What the rig selector shows."""
+        return f"SIMULATED: {self.ref}" if self.kind == "sim" else f"rig: {self.ref}"
+
+    @property
+    def key(self) -> str:
+        """A stable id for the selector."""
+        return f"{self.kind}:{self.ref}"
+
+    def config(self, bat: BatSpec | None = None) -> RigConfig:
+        """The rig config: a fresh simulated rig (with the bat's true properties), or the file."""
+        if self.kind == "sim":
+            return sim_config(self.ref, bat=bat)
+        return RigConfig.load(self.ref)
+
+
+@dataclass
+class ConsoleSettings:
+    """How the console was started (rig tui's options), plus test knobs."""
+
+    db: Path
+    rigs: tuple[RigChoice, ...]
+    bat_path: str = ""
+    procedure: str = "bbcor"
+    poll_s: float = 0.5  # how often the cannon is read while the runner waits on the operator
+    clock: Callable[[], datetime] | None = None  # the store's clock (tests freeze it)
+    device_lock: threading.Lock = field(default_factory=threading.Lock)  # one session at a time
+
+    @classmethod
+    def from_args(
+        cls, sim: str | None, config: str | None, db: str | Path, bat: str = "", procedure: str = ""
+    ) -> ConsoleSettings:
+        """Settings for `rig tui --sim [SCENE]` or `rig tui --config RIG.toml`."""
+        if config:
+            rigs: tuple[RigChoice, ...] = (RigChoice("config", config),)
+        else:
+            first = sim or "ideal"
+            rigs = (RigChoice("sim", first), *(RigChoice("sim", s) for s in SCENES if s != first))
+        return cls(Path(db), rigs, bat_path=bat or "", procedure=procedure or "bbcor")
+
+
+@dataclass(frozen=True)
+class RunJob:
+    """Everything a certification run needs; `run_id` set to resume one."""
+
+    procedure: Procedure
+    bat: BatSpec
+    config: RigConfig
+    rig_label: str
+    run_id: str | None = None
+
+
+@dataclass(frozen=True)
+class DeviceReport:
+    """What the devices said when asked; `errors` names every device that did not answer."""
+
+    cannon: CannonStatus | None = None
+    clamp: ClampStatus | None = None
+    gates: GateConfig | None = None
+    environment: Environment | None = None
+    errors: tuple[str, ...] = ()
+
+
+def read_devices(config: RigConfig, lock: threading.Lock) -> DeviceReport:
+    """Open the rig, read every device's status, close it (blocking; skipped while a run holds it)."""
+    if not lock.acquire(timeout=5.0):
+        return DeviceReport(errors=("a run is using the devices",))
+    try:
+        try:
+            session = RigSession.open(config)
+        except RigError as exc:
+            return DeviceReport(errors=(str(exc),))
+        errors: list[str] = []
+
+        def read(what: Callable[[], T]) -> T | None:
+            try:
+                return what()
+            except RigError as exc:
+                errors.append(str(exc))
+                return None
+
+        with session:
+            cannon = read(session.cannon.status)
+            clamp = read(session.clamp.status)
+            gates = read(session.gates.config)
+            environment = read(session.cannon.environment)
+        return DeviceReport(cannon, clamp, gates, environment, tuple(errors))
+    finally:
+        lock.release()

@@ -1,0 +1,241 @@
+"""Run screen: the certification live, with the operator's keys (fire, answer, pause, abort).
+
+The run itself is `rig.certification.certify` in a thread worker. Its events and the operator's
+prompts come back through `app.call_from_thread`; the keys only send commands (RunControl, the
+operator's answers). Nothing here touches a device.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import replace
+from typing import Any, ClassVar
+
+from textual import work
+from textual.app import ComposeResult
+from textual.binding import Binding, BindingType
+from textual.containers import Grid
+from textual.screen import Screen
+from textual.widgets import Footer, Header, RichLog, Static
+from textual.worker import Worker
+
+from protocols.runner import RunControl
+from rig.certification import Outcome
+from rig.core import events as ev
+from rig.core.events import RunEvent
+from rig.tui import render, situation
+from rig.tui.jobs import JobResult, predict, run_job
+from rig.tui.live import LiveRun
+from rig.tui.operator import CannonRead, ConsoleOperator, GatesRead, Notice, PromptPending
+from rig.tui.rigs import ConsoleSettings, RunJob
+from rig.tui.run_keys import RunKeys
+from rig.tui.situation import Situation
+
+log = logging.getLogger(__name__)
+
+
+class RunScreen(RunKeys, Screen[None]):
+    """One certification run, live."""
+
+    DEFAULT_CSS = """
+    RunScreen #title { height: 1; padding: 0 1; background: $boost; text-style: bold; }
+    RunScreen #panels { grid-size: 2 2; grid-columns: 38 1fr; grid-rows: 6 6; height: 12; }
+    RunScreen .box { border: round $primary; padding: 0 1; height: 6; }
+    RunScreen #prompt { height: 1; padding: 0 1; background: $warning 30%; }
+    RunScreen #message { height: auto; max-height: 2; padding: 0 1; }
+    RunScreen #log { height: 1fr; border: round $primary-darken-2; padding: 0 1; }
+    """
+    BINDINGS: ClassVar[list[BindingType]] = [
+        Binding("f", "fire", "Fire"),
+        Binding("y", "answer(True)", "Yes"),
+        Binding("n", "answer(False)", "No"),
+        Binding("p", "pause", "Pause"),
+        Binding("a", "abort", "Abort"),
+        Binding("r", "resume", "Resume"),
+        Binding("b", "back", "Back"),
+        Binding("h", "history", "History"),
+    ]
+
+    def __init__(self, settings: ConsoleSettings, job: RunJob, past: list[RunEvent] | None = None) -> None:
+        super().__init__()
+        self.settings, self.job = settings, job
+        self.live = LiveRun()
+        self.live.set_procedure(job.procedure)
+        for event in past or []:  # a resumed run shows its scan and hits from the start
+            self.live.apply(event)
+        self.running = False
+        self.outcome: Outcome | None = None
+        self.failure = ""
+        self._closing = False
+        self._logged = 0
+        self._keys_state: tuple[object, ...] = ()
+        self.control = RunControl()
+        self.operator = ConsoleOperator(self._notice, poll_s=settings.poll_s)
+        self._worker: Worker[None] | None = None
+
+    def compose(self) -> ComposeResult:
+        yield Header()
+        p, bat = self.job.procedure, self.job.bat
+        yield Static(f"{p.name} · bat {bat.id} · {self.job.rig_label}", id="title")
+        with Grid(id="panels"):
+            for name in ("cannon", "shot", "gates", "progress"):
+                yield Static(id=name, classes="box")
+        yield Static(id="prompt")
+        yield Static(id="message")
+        yield RichLog(id="log", wrap=True, markup=False, max_lines=500)
+        yield Footer()
+
+    def on_mount(self) -> None:
+        self.sub_title = "run"
+        titles = {"cannon": "Cannon", "shot": "Live shot", "gates": "Gates", "progress": "Scan and hits"}
+        for name, title in titles.items():
+            self.query_one(f"#{name}", Static).border_title = title
+        self.query_one("#log", RichLog).border_title = "Log"
+        self.start()
+
+    # -- the worker ---------------------------------------------------------------------------
+    def start(self) -> None:
+        """Start (or resume) the run in a thread worker."""
+        self.running, self.failure, self.outcome = True, "", None
+        self.control = RunControl()
+        self.operator = ConsoleOperator(self._notice, poll_s=self.settings.poll_s)
+        self.live.interrupted = ""
+        self._predict_soon()
+        self._worker = self._certify(self.job)
+        self.refresh_view()
+
+    @work(thread=True, exclusive=True, group="certify", exit_on_error=False)
+    def _certify(self, job: RunJob) -> None:
+        result = run_job(self.settings, job, self.operator, self.control, self._event)
+        self._post(self._ended, result)
+
+    def _post(self, callback: Any, *args: Any) -> None:
+        """Run `callback` on the UI thread; dropped once the screen is closing."""
+        if self._closing:
+            return
+        try:
+            self.app.call_from_thread(callback, *args)
+        except Exception:
+            if not self.app.is_running:  # it stopped between the check and the call
+                self._closing = True
+            else:  # a display bug must not stop a certification: log it and go on
+                log.exception("the run screen could not show %s", getattr(callback, "__name__", callback))
+
+    def _notice(self, notice: Notice) -> None:
+        self._post(self._on_notice, notice)
+
+    def _event(self, event: RunEvent) -> None:
+        self._post(self._on_event, event)
+
+    # -- from the worker (UI thread) -----------------------------------------------------------
+    def _on_event(self, event: RunEvent) -> None:
+        self.live.apply(event)
+        if event.kind == ev.SHOT_LOST:
+            self.notify(
+                str(event.data.get("reason", "")),
+                title=f"Shot {event.data['index']} lost",
+                severity="warning",
+            )
+        if event.kind in (ev.MOI_MEASURED, ev.LOCATION_CHOSEN):
+            self._predict_soon()
+        self.refresh_view()
+
+    def _on_notice(self, notice: Notice) -> None:
+        if isinstance(notice, CannonRead):
+            if notice.status is not None:
+                self.live.cannon = notice.status
+            self.live.cannon_error = notice.error
+        elif isinstance(notice, GatesRead):
+            self.live.gate_config = notice.config
+        elif isinstance(notice, PromptPending) and not notice.is_fire:
+            self.app.bell()
+        self.refresh_view()
+
+    def _ended(self, result: JobResult) -> None:
+        outcome = result.outcome
+        self.running, self.outcome, self.failure = False, outcome, result.failure
+        self.job = replace(self.job, run_id=result.run_id)
+        if outcome is None:
+            self.live.note(f"stopped by a fault: {result.failure}")
+            self.notify(result.failure, title="Device fault: run stopped", severity="error", timeout=10)
+        elif outcome.status == "finished":
+            if self.live.verdict is None and outcome.verdict:
+                self.live.verdict = dict(outcome.verdict)
+            self.notify(f"verdict: {(outcome.verdict or {}).get('verdict')}", title="Run finished")
+        else:
+            self.notify(outcome.reason, title="Run interrupted (resumable)", severity="warning")
+        if result.run_id:
+            self.live.note(f"run {result.run_id[:8]}; records in {self.settings.db.name}")
+        self.refresh_view()
+
+    # -- the model's prediction -----------------------------------------------------------------
+    def _predict_soon(self) -> None:
+        moi = self.live.moi if self.live.moi is not None else self.job.bat.moi_kgm2
+        if self.live.verdict is not None:
+            return
+        if moi is None:
+            self.live.prediction_note = "after the MOI is measured"
+            return
+        locs = self.live.scan_locations or [6.0]
+        self._predict(moi, self.live.best_location_in or locs[len(locs) // 2])
+
+    @work(thread=True, exclusive=True, group="predict", exit_on_error=False)
+    def _predict(self, moi: float, loc: float) -> None:
+        self._post(self._predicted, *predict(self.job, moi, loc))
+
+    def _predicted(self, value: float | None, note: str) -> None:
+        if self.live.verdict is None:  # the run's own cross-check wins
+            self.live.prediction, self.live.prediction_note = value, note
+            self.refresh_view()
+
+    # -- the view ------------------------------------------------------------------------------
+    def situation(self) -> Situation:
+        """The state the keys and the prompt line depend on."""
+        return Situation(
+            running=self.running,
+            prompt=self.operator.pending if self.running else None,
+            paused=self.control.paused,
+            aborting=self.control.aborted,
+            cannon=self.live.cannon,
+            cannon_error=self.live.cannon_error,
+            ended=self.outcome.status if self.outcome else "",
+            reason=self.outcome.reason if self.outcome else "",
+            failure=self.failure,
+        )
+
+    def fire_block(self) -> str:
+        """Why the fire key is off now ('' when the waiting shot may be fired)."""
+        return situation.fire_block(self.situation())
+
+    def refresh_view(self) -> None:
+        """Redraw every panel from the folded state, append new log lines, re-check the keys."""
+        if not self.is_mounted:
+            return
+        panels = {
+            "cannon": render.cannon_panel,
+            "gates": render.gates_panel,
+            "shot": render.shot_panel,
+            "progress": render.progress_panel,
+        }
+        for name, draw in panels.items():
+            self.query_one(f"#{name}", Static).update(draw(self.live))
+        now = self.situation()
+        self.query_one("#prompt", Static).update(situation.prompt_text(now))
+        self.query_one("#message", Static).update(situation.message_text(now, self.live))
+        log = self.query_one("#log", RichLog)
+        for line in self.live.log[self._logged :]:
+            log.write(line)
+        self._logged = len(self.live.log)
+        keys = tuple(situation.allowed(now, action) for action in situation.RUN_KEYS)
+        if keys != self._keys_state:  # the footer redraws on every refresh: only when keys change
+            self._keys_state = keys
+            self.refresh_bindings()
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        return situation.allowed(self.situation(), action)
+
+    def on_unmount(self) -> None:
+        # never leave the worker blocked on a prompt: the process could not exit
+        self.control.abort()
+        self.operator.cancel("the console closed")
+        self._closing = True

@@ -1,0 +1,120 @@
+"""The run screen's keys: each one sends a command (an answer, pause, abort), none touches a device."""
+
+from __future__ import annotations
+
+import contextlib
+from typing import TYPE_CHECKING, Any
+
+from textual.worker import Worker, WorkerCancelled, WorkerFailed
+
+from protocols.runner import RunControl
+from rig.tui.modals import ConfirmScreen
+from rig.tui.operator import ConsoleOperator
+from rig.tui.rigs import ConsoleSettings
+
+if TYPE_CHECKING:
+    from textual.app import App
+
+
+class RunKeys:
+    """Actions of the run screen (mixed into RunScreen, which owns the state they use)."""
+
+    if TYPE_CHECKING:  # provided by RunScreen and Screen; nothing is defined here at run time
+        app: App[Any]
+        settings: ConsoleSettings
+        operator: ConsoleOperator
+        control: RunControl
+        running: bool
+        _worker: Worker[None] | None
+
+        def fire_block(self) -> str: ...
+        def refresh_view(self) -> None: ...
+        def start(self) -> None: ...
+        def notify(self, message: str, **kw: Any) -> None: ...
+        def dismiss(self, result: None = None) -> Any: ...
+
+    def action_fire(self) -> None:
+        """Confirm, then answer the pending fire prompt."""
+        prompt = self.operator.pending
+        if prompt is None or self.fire_block():
+            return
+
+        def confirmed(yes: bool | None) -> None:
+            blocked = self.fire_block()
+            if yes and not blocked and self.operator.pending == prompt:
+                self.operator.answer(prompt.prompt_id, True)
+            elif yes:
+                self.notify(f"not fired: {blocked}", severity="error")
+
+        self.app.push_screen(
+            ConfirmScreen(f"{prompt.text}\n\nThe cannon arms and fires.", "Fire (y)", "Cancel (n)"), confirmed
+        )
+
+    def action_answer(self, value: bool) -> None:
+        """Answer the pending yes/no prompt; a failed ring check (it fails the bat) asks first."""
+        prompt = self.operator.pending
+        if prompt is None or prompt.is_fire:
+            return
+        if value or not prompt.prompt_id.startswith("ring-"):
+            self.operator.answer(prompt.prompt_id, value)
+            return
+
+        def confirmed(yes: bool | None) -> None:
+            if yes:
+                self.operator.answer(prompt.prompt_id, False)
+
+        self.app.push_screen(
+            ConfirmScreen("The ring does not pass: the run ends with FAIL (barrel deformed). Record that?"),
+            confirmed,
+        )
+
+    def action_pause(self) -> None:
+        """Hold before the next shot, or go on."""
+        if self.control.paused:
+            self.control.resume()
+        else:
+            self.control.pause()
+            self.notify("the run holds before the next shot", title="Pause")
+        self.refresh_view()
+
+    def action_abort(self) -> None:
+        """Stop before the next shot (asks first); the run stays resumable."""
+
+        def confirmed(yes: bool | None) -> None:
+            if yes and self.running:
+                self.stop("aborted by the operator")
+                self.refresh_view()
+
+        self.app.push_screen(
+            ConfirmScreen("Abort the run? It stops before the next shot and can be resumed later."), confirmed
+        )
+
+    def stop(self, reason: str) -> None:
+        """Abort: the runner stops at its next hold; a prompt before a shot is withdrawn now."""
+        self.control.abort()
+        prompt = self.operator.pending
+        if prompt is None or not prompt.prompt_id.startswith("ring-after-"):
+            self.operator.cancel(reason)  # the ring check after a hit is still worth answering
+
+    def action_resume(self) -> None:
+        """Resume the interrupted (or faulted) run from its record."""
+        if not self.running:
+            self.start()
+
+    def action_back(self) -> None:
+        """Back to the set-up screen."""
+        self.dismiss(None)
+
+    def action_history(self) -> None:
+        """Past runs (the run goes on underneath)."""
+        from rig.tui.history import HistoryScreen
+
+        self.app.push_screen(HistoryScreen(self.settings))
+
+    async def finish(self, reason: str) -> None:
+        """Stop the run and wait for its worker (the app is quitting)."""
+        if self.running and self._worker is not None:
+            self.operator.cancel(reason)
+            self.stop(reason)
+            with contextlib.suppress(WorkerCancelled, WorkerFailed):
+                await self._worker.wait()

@@ -1,0 +1,117 @@
+"""`rig modal analyze|simulate` and `rig study`: JSON shapes, files written, one-line errors."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from rig.cli import main
+from rig.modal import ModalResult
+
+
+def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_analyze_json_shape(csv_file: Path, result: ModalResult, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "modal", "analyze", str(csv_file), "--json")
+    assert code == 0
+    d = json.loads(out)
+    assert d["hoop_hz"] == pytest.approx(result.hoop_hz)
+    assert isinstance(d["bending_hz"], list) and len(d["bending_hz"]) == 3
+    assert d["hoop_expanded_uncertainty_hz"] == pytest.approx(2 * d["hoop_u_hz"])
+    keys = {
+        "frequency_hz",
+        "damping_ratio",
+        "kind",
+        "accelerometers",
+        "magnitude_ratio",
+        "coherence",
+        "u_hz",
+        "expanded_uncertainty_hz",
+        "u_resolution_hz",
+        "u_fit_hz",
+        "u_spread_hz",
+    }
+    for mode in d["modes"]:
+        assert keys <= mode.keys()
+    hoops = [m for m in d["modes"] if m["kind"] == "hoop"]
+    assert hoops[0]["frequency_hz"] == d["hoop_hz"] and hoops[0]["accelerometers"] == ["accel1", "accel2"]
+    assert d["n_hits"] == 5 and d["resolution_hz"] > 0 and d["settings"]["max_resolution_hz"] == 20.0
+
+
+def test_analyze_table_and_plot(csv_file: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(capsys, "modal", "analyze", str(csv_file), "--plot", str(tmp_path / "frf.png"))
+    assert code == 0
+    assert "first hoop frequency: 2100.0" in out and "bending: 175.0" in out
+    assert (tmp_path / "frf.png").stat().st_size > 10_000 and (tmp_path / "frf.svg").exists()
+    assert "wrote" in err
+
+
+def test_simulate_then_analyze_uff(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "t.uff"
+    code, _, err = run(
+        capsys, "modal", "simulate", str(path), "--hoop", "2400", "--hits", "2", "--interval", "0.15"
+    )
+    assert code == 0 and "hoop 2400 Hz" in err
+    code, out, _ = run(capsys, "modal", "analyze", str(path), "--json")
+    assert code == 0 and json.loads(out)["hoop_hz"] == pytest.approx(2400.0, abs=0.5)
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        (["--double-hit", "2"], "double hit: hit 2"),
+        (["--clip-force", "0.7"], "force is clipped"),
+    ],
+)
+def test_bad_recordings_give_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], extra: list[str], needle: str
+) -> None:
+    path = tmp_path / "bad.csv"
+    assert run(capsys, "modal", "simulate", str(path), "--hits", "3", "--interval", "0.15", *extra)[0] == 0
+    code, out, err = run(capsys, "modal", "analyze", str(path), "--json")
+    assert code == 2 and out == ""
+    assert err.startswith("rig: ") and needle in err and err.count("\n") == 1
+
+
+def test_analyze_refuses_db_without_bat_and_bad_settings(
+    csv_file: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, _, err = run(capsys, "modal", "analyze", str(csv_file), "--db", "x.db")
+    assert code == 2 and "give --bat" in err
+    code, _, err = run(capsys, "modal", "analyze", str(csv_file), "--min-coherence", "2")
+    assert code == 2 and "min_coherence" in err
+    code, _, err = run(capsys, "modal", "analyze", "no-such.csv")
+    assert code == 2 and "no such file" in err
+
+
+def test_study_json_and_plots(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(capsys, "study", "--json", "--plot-dir", str(tmp_path))
+    assert code == 0 and "SYNTHETIC" in err
+    d = json.loads(out)
+    assert d["synthetic"] is True and d["n_bats"] == 48
+    assert {"aluminium", "composite"} == set(d["materials"])
+    assert len(d["fig5"]) == 48
+    assert d["fig6"]["bin_width_hz"] == 50.0 and d["fig6"]["half_width_hz"] == 25.0
+    for name in ("besr", "bbs", "bbcor"):
+        bins = d["fig6"]["metrics"][name]
+        assert all({"center_hz", "n", "mean", "std"} <= b.keys() for b in bins)
+        assert len(d["model"][name]) == len(d["model"]["hoop_hz"])
+    for name in ("fig5-hoop-vs-bending", "fig6-metrics-vs-hoop"):
+        assert (tmp_path / f"{name}.png").exists() and (tmp_path / f"{name}.svg").exists()
+
+
+def test_study_table_and_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(capsys, "study")
+    assert code == 0 and "SYNTHETIC" in out and "per 1000 Hz" in out
+    empty = tmp_path / "e.csv"
+    empty.write_text("bat_id,barrel,hoop_hz\n")
+    code, _, err = run(capsys, "study", "--data", str(empty))
+    assert code == 2 and "no bats" in err
+    code, _, err = run(capsys, "study", "--db", str(tmp_path / "absent.db"))
+    assert code == 2 and err.startswith("rig: ")

@@ -1,0 +1,165 @@
+"""Reading recordings: the CSV format and its refusals, UFF (dataset 58) through pyuff."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rig.modal import (
+    CSV_HEADER,
+    Recording,
+    RecordingFormatError,
+    analyze,
+    read_csv,
+    read_recording,
+    write_csv,
+)
+from rig.modal.uff import read_uff, write_uff
+
+GOOD_ROWS = [f"{i / 1000:.3f},{0.0},{0.0},{0.0}" for i in range(20)]
+
+
+def write(tmp_path: Path, text: str, name: str = "r.csv") -> Path:
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_csv_round_trip_keeps_every_sample(recording: Recording, csv_file: Path) -> None:
+    back = read_csv(csv_file)
+    assert back.n == recording.n
+    assert back.fs == pytest.approx(recording.fs, rel=1e-9)
+    for name in ("force", "accel1", "accel2"):
+        np.testing.assert_allclose(back.channel(name), recording.channel(name), rtol=1e-7, atol=1e-6)
+    assert csv_file.read_text().splitlines()[1] == CSV_HEADER  # after the comment line
+
+
+@pytest.mark.parametrize(
+    ("header", "needle"),
+    [
+        ("time,force_N,accel1_ms2,accel2_ms2", "missing time_s; unexpected time"),
+        ("time_s,force_N,accel1_ms2", "missing accel2_ms2"),
+        ("time_s,force_N,accel1_ms2,accel2_ms2,accel3_ms2", "unexpected accel3_ms2"),
+        ("time_s,force_N,accel2_ms2,accel1_ms2", "columns out of order"),
+        ("time_s,force_N,accel1_g,accel2_ms2", "missing accel1_ms2; unexpected accel1_g"),
+    ],
+)
+def test_csv_header_must_be_exact(tmp_path: Path, header: str, needle: str) -> None:
+    path = write(tmp_path, "\n".join([header, *GOOD_ROWS]))
+    with pytest.raises(RecordingFormatError, match="must be exactly") as err:
+        read_csv(path)
+    assert needle in str(err.value)
+    assert "line 1" in str(err.value)
+
+
+@pytest.mark.parametrize(
+    ("row", "needle"),
+    [
+        ("0.0205,1.0,oops,0.0", "line 23: accel1_ms2 'oops' is not a number"),
+        ("0.0205,1.0,0.0", "line 23: 3 values, expected 4"),
+        ("0.0205,1.0,0.0,0.0,9", "line 23: 5 values, expected 4"),
+        ("0.0205,nan,0.0,0.0", "force_N is nan at sample 23"),
+        ("0.0205,1.0,inf,0.0", "accel1_ms2 is inf at sample 23"),
+    ],
+)
+def test_csv_bad_rows_are_named(tmp_path: Path, row: str, needle: str) -> None:
+    path = write(tmp_path, "\n".join(["# comment", CSV_HEADER, *GOOD_ROWS, row]))
+    with pytest.raises(RecordingFormatError) as err:
+        read_csv(path)
+    assert needle in str(err.value)
+
+
+def test_csv_time_must_increase_evenly(tmp_path: Path) -> None:
+    rows = list(GOOD_ROWS)
+    rows[5] = "0.003,0,0,0"  # back in time
+    with pytest.raises(RecordingFormatError, match="not strictly increasing at sample 7"):
+        read_csv(write(tmp_path, "\n".join([CSV_HEADER, *rows])))
+    rows = list(GOOD_ROWS)
+    rows[5] = "0.0055,0,0,0"  # a late sample: uneven sampling
+    with pytest.raises(RecordingFormatError, match="sampling is not even"):
+        read_csv(write(tmp_path, "\n".join([CSV_HEADER, *rows])))
+
+
+def test_csv_empty_short_and_missing_files(tmp_path: Path) -> None:
+    with pytest.raises(RecordingFormatError, match="empty"):
+        read_csv(write(tmp_path, "# only a comment\n"))
+    with pytest.raises(RecordingFormatError, match="no samples after the header"):
+        read_csv(write(tmp_path, CSV_HEADER + "\n"))
+    with pytest.raises(RecordingFormatError, match="at least 16"):
+        read_csv(write(tmp_path, "\n".join([CSV_HEADER, *GOOD_ROWS[:5]])))
+    with pytest.raises(RecordingFormatError, match="no such file"):
+        read_recording(tmp_path / "absent.csv")
+
+
+def test_uff_round_trip_and_same_hoop(recording: Recording, tmp_path: Path) -> None:
+    path = write_uff(recording, tmp_path / "rec.uff")
+    back = read_recording(path)
+    assert back.n == recording.n
+    assert back.fs == pytest.approx(recording.fs, rel=1e-5)  # UFF keeps 6 digits of the step
+    for name in ("force", "accel1", "accel2"):
+        np.testing.assert_allclose(back.channel(name), recording.channel(name), rtol=1e-9, atol=1e-9)
+    assert analyze(back).hoop_hz == pytest.approx(analyze(recording).hoop_hz, abs=0.05)
+
+
+def _uff_sets(rec: Recording, **changes: dict) -> list[dict]:
+    import pyuff
+
+    base = {
+        "binary": 0,
+        "func_type": 1,
+        "rsp_node": 1,
+        "ref_node": 1,
+        "ref_dir": 3,
+        "abscissa_spacing": 1,
+        "abscissa_spec_data_type": 17,
+        "orddenom_spec_data_type": 0,
+        "z_axis_spec_data_type": 0,
+        "x": rec.time_s,
+    }
+    chans = {
+        "force": {"rsp_dir": 3, "ordinate_spec_data_type": 4, "data": rec.force},
+        "a1": {"rsp_dir": 3, "ordinate_spec_data_type": 12, "data": rec.accel1},
+        "a2": {"rsp_dir": 1, "ordinate_spec_data_type": 12, "data": rec.accel2},
+    }
+    for key, extra in changes.items():
+        chans[key] = {**chans[key], **extra}
+    return [pyuff.prepare_58(**base, id1=k, **v) for k, v in chans.items()]
+
+
+def test_uff_accelerometer_1_is_the_one_in_line_with_the_hammer(recording: Recording, tmp_path: Path) -> None:
+    import pyuff
+
+    sets = _uff_sets(recording)
+    path = tmp_path / "swapped.uff"
+    pyuff.UFF(str(path)).write_sets([sets[0], sets[2], sets[1]], mode="overwrite")  # accel 2 first in file
+    back = read_uff(path)
+    np.testing.assert_allclose(back.accel1, recording.accel1, rtol=1e-9, atol=1e-9)
+
+
+def test_uff_g_units_are_converted(recording: Recording, tmp_path: Path) -> None:
+    import pyuff
+
+    sets = _uff_sets(recording, a2={"data": recording.accel2 / 9.80665, "ordinate_axis_units_lab": "g"})
+    path = tmp_path / "g.uff"
+    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+    np.testing.assert_allclose(read_uff(path).accel2, recording.accel2, rtol=1e-9, atol=1e-9)
+
+
+def test_uff_needs_one_force_and_two_accelerations(recording: Recording, tmp_path: Path) -> None:
+    import pyuff
+
+    sets = _uff_sets(recording, a2={"ordinate_spec_data_type": 8})  # a displacement, not an acceleration
+    path = tmp_path / "bad.uff"
+    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+    with pytest.raises(RecordingFormatError, match="found 1 and 1"):
+        read_uff(path)
+    (tmp_path / "junk.uff").write_text("not a universal file\n")
+    with pytest.raises(RecordingFormatError, match=r"junk\.uff"):
+        read_recording(tmp_path / "junk.uff")
+
+
+def test_write_csv_then_analyze_gives_the_same_result(recording: Recording, tmp_path: Path) -> None:
+    path = write_csv(recording, tmp_path / "x.csv")
+    assert analyze(read_csv(path)).hoop_hz == pytest.approx(analyze(recording).hoop_hz, abs=1e-3)
