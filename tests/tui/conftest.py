@@ -29,7 +29,7 @@ def make_settings(tmp_path: Path) -> Callable[..., ConsoleSettings]:
         settings = ConsoleSettings.from_args(
             scene, None, tmp_path / "records.db", bat=str(SAMPLE_BAT), procedure=procedure
         )
-        settings.poll_s = 0.1
+        settings.poll_s = 0.25
         for key, value in kw.items():
             setattr(settings, key, value)
         return settings

@@ -13,6 +13,7 @@ from rig.store import Store
 from rig.tui import ConsoleSettings, RigChoice, RigConsole
 from rig.tui.history import HistoryScreen
 from rig.tui.modals import ConfirmScreen, HelpScreen
+from rig.tui.run import RunScreen
 from rig.tui.setup import SetupScreen
 from simulators.urlhandler import get_world
 from tests.tui.conftest import QUICK, SAMPLE_BAT, answer_prompts, start_run, until
@@ -223,6 +224,21 @@ def test_quit_during_a_run_asks_and_leaves_it_resumable(
         (run,) = store.runs()
         assert run.status == "running"  # not finished: resumable
         assert store.entries(run.run_id, kinds=["RunInterrupted"])
+
+    async def resume_from_history() -> None:
+        app = RigConsole(settings)
+        async with app.run_test(size=SIZE) as pilot:
+            await until(pilot, lambda: app.screen.query("#devices"), "the set-up screen")
+            await pilot.press("h")
+            await until(pilot, lambda: isinstance(app.screen, HistoryScreen), "the history")
+            await pilot.press("r")
+            await until(pilot, lambda: isinstance(app.screen, RunScreen), "the resumed run")
+            screen = app.screen
+            assert isinstance(screen, RunScreen) and screen.job.run_id == run.run_id
+            await until(pilot, lambda: screen.operator.pending is not None, "its next prompt")
+            assert any(line.startswith("resumed after") for line in screen.live.log)
+
+    asyncio.run(resume_from_history())
 
 
 def test_bat_form_checks_its_values(make_settings: Callable[..., ConsoleSettings]) -> None:
