@@ -1,0 +1,226 @@
+"""`rig model ...`: the collision model from the command line."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+import numpy as np
+
+from rig.cli.common import (
+    emit,
+    param_override,
+    positive_int,
+)
+
+
+def _model_parent() -> argparse.ArgumentParser:
+    parent = argparse.ArgumentParser(add_help=False)
+    parent.add_argument(
+        "--set",
+        dest="overrides",
+        metavar="NAME=VALUE",
+        type=param_override,
+        action="append",
+        default=[],
+        help="override a model constant (m1, k1, c1, a, b, m2, c2), e.g. --set m2=0.1",
+    )
+    parent.add_argument("--rtol", type=float, default=None, help="solver relative tolerance")
+    parent.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    return parent
+
+
+def _params(args: argparse.Namespace) -> Any:
+    from rig.physics.params import CollisionParams
+
+    return CollisionParams.build(**dict(args.overrides))
+
+
+def _rtol(args: argparse.Namespace, default: float) -> float:
+    return default if args.rtol is None else args.rtol
+
+
+def cmd_cor(args: argparse.Namespace) -> int:
+    """rig model cor: COR of one ball-barrel collision."""
+    from rig.physics import fast
+    from rig.physics.curve import rigid_cor
+    from rig.physics.equations import Impact
+
+    params = _params(args)
+    rtol = _rtol(args, fast.DEFAULT_RTOL)
+    hoop = None if args.rigid else args.hoop
+    res = fast.solve(Impact(params, args.speed, hoop), rtol=rtol)
+    e_rigid = res.cor if hoop is None else rigid_cor(params, args.speed)
+    payload = {
+        "speed_m_s": args.speed,
+        "hoop_hz": hoop,
+        "model": "rigid" if hoop is None else "barrel",
+        "cor": res.cor,
+        "cor_rigid": e_rigid,
+        "efficiency": res.cor / e_rigid,
+        "contact_time_s": res.contact_time_s,
+        "rtol": rtol,
+        "nfev": res.nfev,
+        "params": params.model_dump(),
+    }
+    emit(args, payload, "Ball-barrel collision")
+    return 0
+
+
+def cmd_curve(args: argparse.Namespace) -> int:
+    """rig model curve: normalized collision efficiency against hoop frequency."""
+    from rig.physics import fast
+    from rig.physics.curve import efficiency_curve
+
+    params = _params(args)
+    curve = efficiency_curve(
+        params, args.speed, args.hoop_min, args.hoop_max, args.points, rtol=_rtol(args, fast.DEFAULT_RTOL)
+    )
+    if args.plot:
+        from rig.report.model_plots import plot_efficiency_curve
+
+        for path in plot_efficiency_curve(curve, args.plot):
+            print(f"wrote {path}", file=sys.stderr)
+    payload = {
+        "speed_m_s": curve.speed,
+        "cor_rigid": curve.cor_rigid,
+        "optimum_hz": curve.optimum_hz,
+        "optimum_efficiency": curve.optimum_efficiency,
+        "optimum_interior": curve.optimum_interior,
+        "rtol": curve.rtol,
+        "hoop_hz": curve.hoop_hz.tolist(),
+        "efficiency": curve.efficiency.tolist(),
+        "cor": curve.cor.tolist(),
+        "contact_time_s": curve.contact_time_s.tolist(),
+    }
+    if args.json:
+        emit(args, payload, "")
+    else:
+        _print_curve(curve)
+    return 0
+
+
+def _print_curve(curve: Any, rows: int = 16) -> None:
+    """A readable digest of the curve: a sample of the grid with a bar per point, and the optimum."""
+    from rich.console import Console
+    from rich.table import Table
+
+    idx = sorted(
+        set(np.linspace(0, curve.hoop_hz.size - 1, min(rows, curve.hoop_hz.size)).round().astype(int))
+    )
+    lo, hi = float(curve.efficiency.min()), float(curve.efficiency.max())
+    table = Table(
+        title=f"Normalized collision efficiency at {curve.speed:g} m/s (COR_rigid = {curve.cor_rigid:.4f})"
+    )
+    for col in ("hoop Hz", "COR", "eta", ""):
+        table.add_column(col, justify="right" if col else "left")
+    for i in idx:
+        eta = float(curve.efficiency[i])
+        bar = "#" * (1 + int(30 * (eta - lo) / (hi - lo or 1.0)))
+        table.add_row(f"{curve.hoop_hz[i]:.0f}", f"{curve.cor[i]:.4f}", f"{eta:.4f}", bar)
+    console = Console()
+    console.print(table)
+    where = "between grid points" if curve.optimum_interior else "at the end of the grid"
+    console.print(
+        f"optimum: {curve.optimum_hz:.1f} Hz, eta = {curve.optimum_efficiency:.4f} ({where}); "
+        f"{curve.hoop_hz.size} points, rtol {curve.rtol:g}"
+    )
+
+
+def cmd_bat(args: argparse.Namespace) -> int:
+    """rig model bat: e_A and BBCOR predicted for a bat on the pivot."""
+    from rig.physics import fast
+    from rig.physics.bat import PivotedBat, predict_bat
+
+    params = _params(args)
+    bat = PivotedBat.build(moi_kgm2=args.moi, impact_from_pivot_m=args.impact_from_pivot)
+    hoop = None if args.rigid else args.hoop
+    pred = predict_bat(params, args.speed, hoop, bat, rtol=_rtol(args, fast.DEFAULT_RTOL))
+    payload = {
+        "speed_m_s": pred.speed,
+        "hoop_hz": pred.hoop_hz,
+        "moi_kgm2": bat.moi_kgm2,
+        "impact_from_pivot_m": bat.impact_from_pivot_m,
+        "e_a": pred.e_a,
+        "bbcor": pred.bbcor,
+        "besr": pred.besr,
+        "k": pred.k,
+        "effective_mass_kg": pred.effective_mass_kg,
+        "contact_time_s": pred.contact_time_s,
+        "definitions": {
+            "e_a": "rebound speed / inbound speed, bat initially at rest",
+            "bbcor": "e_a (1 + k) + k, k = m_ball Q^2 / I (founding paper Eq. 5)",
+            "besr": "e_a + 1/2",
+        },
+    }
+    emit(args, payload, "Pivoted-bat prediction")
+    return 0
+
+
+def cmd_accuracy(args: argparse.Namespace) -> int:
+    """rig model accuracy: the work-precision study of the collision solvers."""
+    from rig.physics.precision import work_precision
+
+    study = work_precision(quick=args.quick, repeats=args.repeats)
+    if args.plot:
+        from rig.report.precision_plots import plot_work_precision
+
+        for path in plot_work_precision(study, args.plot):
+            print(f"wrote {path}", file=sys.stderr)
+    if args.json:
+        json.dump([row.as_dict() for row in study.rows], sys.stdout, indent=2, allow_nan=False)
+        sys.stdout.write("\n")
+    else:
+        from rich.console import Console
+
+        from rig.report.precision_plots import precision_table
+
+        Console().print(precision_table(study))
+    return 0
+
+
+MODEL_DOC = "The ball-barrel collision model (founding paper, Eqs. 1-2)."
+
+
+def add_parsers(sub: Any) -> None:
+    """`rig model cor|curve|bat|accuracy`."""
+    model = sub.add_parser(
+        "model",
+        help="the ball-barrel collision model",
+        description="The ball-barrel collision model (founding paper, Eqs. 1-2).",
+    )
+    msub = model.add_subparsers(dest="model_command", required=True, metavar="MODEL_COMMAND")
+    parent = _model_parent()
+
+    p = msub.add_parser("cor", parents=[parent], help="COR of one collision")
+    p.add_argument("--speed", type=float, required=True, help="inbound ball speed, m/s")
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--hoop", type=float, help="hoop frequency of the barrel, Hz")
+    g.add_argument("--rigid", action="store_true", help="a rigid barrel (f_hoop -> infinity)")
+    p.set_defaults(handler=cmd_cor)
+
+    p = msub.add_parser("curve", parents=[parent], help="efficiency eta(f) = COR(f)/COR_rigid")
+    p.add_argument("--speed", type=float, required=True, help="inbound ball speed, m/s")
+    p.add_argument("--hoop-min", type=float, required=True, help="lowest hoop frequency, Hz")
+    p.add_argument("--hoop-max", type=float, required=True, help="highest hoop frequency, Hz")
+    p.add_argument("--points", type=positive_int, default=200, help="grid points, evenly spaced")
+    p.add_argument("--plot", metavar="FILE", help="write a plot (PNG and SVG beside it)")
+    p.set_defaults(handler=cmd_curve)
+
+    p = msub.add_parser("bat", parents=[parent], help="e_A and BBCOR of a bat on the pivot")
+    p.add_argument("--speed", type=float, required=True, help="inbound ball speed, m/s")
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--hoop", type=float, help="hoop frequency of the barrel, Hz")
+    g.add_argument("--rigid", action="store_true", help="a rigid barrel (a wood bat)")
+    p.add_argument("--moi", type=float, required=True, help="MOI about the pivot, kg m^2")
+    p.add_argument("--impact-from-pivot", type=float, required=True, help="pivot-to-impact distance Q, m")
+    p.set_defaults(handler=cmd_bat)
+
+    p = msub.add_parser("accuracy", help="work-precision study: error against cost of each solver")
+    p.add_argument("--plot", metavar="FILE", help="write the plots (PNG and SVG)")
+    p.add_argument("--json", action="store_true", help="print the rows as JSON")
+    p.add_argument("--quick", action="store_true", help="fewer tolerances and methods (a smoke run)")
+    p.add_argument("--repeats", type=positive_int, default=5, help="timed repeats (best of N)")
+    p.set_defaults(handler=cmd_accuracy)

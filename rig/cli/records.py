@@ -1,0 +1,199 @@
+"""`rig certify`, `runs`, `report`, `verify`, `tui`: certification runs and their records."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from rig.cli.common import (
+    ConfigError,
+    add_rig_options,
+    default_db,
+    open_db,
+    resolve_run,
+)
+
+
+def cmd_certify(args: argparse.Namespace) -> int:
+    """rig certify: run a certification procedure on a bat, live, recording everything."""
+    from protocols.procedure import Procedure
+    from protocols.runner import ScriptedOperator, dry_run
+    from rig.certification import certify
+    from rig.core.bat import BatSpec
+    from rig.core.config import RigConfig
+    from rig.report.live import LiveConsole
+    from rig.report.record import run_record
+
+    args.create_db = True
+    with open_db(args) as store:
+        if args.resume:
+            run_id = resolve_run(store, args.resume)
+            started = store.entries(run_id, kinds=["RunStarted"])
+            if not started:
+                raise ConfigError(f"run {run_id} never started; start a new one", source="--resume")
+            payload = started[0].payload
+            procedure = Procedure.model_validate(payload["procedure"])
+            bat = BatSpec.model_validate(payload["bat"])
+        else:
+            if not args.procedure or not args.bat:
+                raise ConfigError("give --procedure and --bat (or --resume RUN)", source="command line")
+            procedure, bat = Procedure.load(args.procedure), BatSpec.load(args.bat)
+            from rig.modal.link import with_measured_hoop
+
+            bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
+            run_id = None
+        if args.sim is not None:
+            from rig.session import sim_config
+
+            config = sim_config(args.sim, bat=bat)
+        elif args.config:
+            config = RigConfig.load(args.config)
+        else:
+            raise ConfigError("give --sim [SCENE] or --config RIG.toml", source="command line")
+        problems = dry_run(procedure, bat, config)
+        if problems or args.dry_run:
+            for line in problems or ["dry run: the procedure fits this rig and this bat"]:
+                print(line, file=sys.stderr)
+            if problems:
+                raise ConfigError("; ".join(problems), source="dry run")
+            return 0
+        live = LiveConsole(quiet=args.json)
+        outcome = certify(
+            store,
+            procedure,
+            bat,
+            config,
+            run_id=run_id,
+            operator=ScriptedOperator(who="script (--sim or scripted run)"),
+            subscribers=[live],
+        )
+        live.close()
+        if args.json:
+            json.dump(run_record(store, outcome.run_id), sys.stdout, indent=2, allow_nan=False)
+            sys.stdout.write("\n")
+        else:
+            live.summary(outcome)
+    if outcome.status != "finished":
+        print(
+            f"rig: run {outcome.run_id} interrupted: {outcome.reason}; "
+            f"resume with: rig certify --resume {outcome.run_id}",
+            file=sys.stderr,
+        )
+        return 3
+    return 0 if outcome.verdict and outcome.verdict.get("verdict") == "PASS" else 1
+
+
+def cmd_runs(args: argparse.Namespace) -> int:
+    """rig runs: the recorded runs, newest last."""
+    from rich.console import Console
+    from rich.table import Table
+
+    with open_db(args) as store:
+        runs = store.runs()
+    if args.json:
+        json.dump([r.__dict__ for r in runs], sys.stdout, indent=2)
+        sys.stdout.write("\n")
+        return 0
+    table = Table(title=f"Runs in {args.db or 'rig-records.db'}")
+    for col in ("run", "procedure", "bat", "started (UTC)", "status", "verdict"):
+        table.add_column(col)
+    for r in runs:
+        table.add_row(r.run_id[:12], r.procedure, r.bat_id, r.started_utc[:19], r.status, r.verdict or "")
+    Console().print(table)
+    return 0
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """rig report: a run's record as JSON, or its certificate as Markdown or HTML."""
+    from rig.report.record import run_record
+
+    with open_db(args) as store:
+        record = run_record(store, resolve_run(store, args.run))
+    if args.format == "json":
+        text = json.dumps(record, indent=2, allow_nan=False) + "\n"
+    else:
+        from rig.report.certificate import render
+
+        text = render(record, args.format, figures_dir=args.figures, output=args.output)
+    if args.output:
+        Path(args.output).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.output).write_text(text, encoding="utf-8")
+        print(f"wrote {args.output}", file=sys.stderr)
+    else:
+        sys.stdout.write(text)
+    return 0
+
+
+def cmd_tui(args: argparse.Namespace) -> int:
+    """rig tui: the operator's console (set-up, live run, history) in the terminal."""
+    from rig.tui import ConsoleSettings, RigConsole
+
+    if args.sim is None and not args.config:
+        raise ConfigError("give --sim [SCENE] or --config RIG.toml", source="command line")
+    settings = ConsoleSettings.from_args(
+        args.sim, args.config, args.db or default_db(), bat=args.bat or "", procedure=args.procedure or ""
+    )
+    RigConsole(settings).run()
+    return 0
+
+
+def cmd_verify(args: argparse.Namespace) -> int:
+    """rig verify: recompute the hash chain; non-zero exit if any record was altered."""
+    from rig.store import Anchor
+
+    anchors = []
+    if args.anchor:
+        seq, _, digest = args.anchor.partition(":")
+        anchors.append(Anchor(int(seq), digest))
+    with open_db(args) as store:
+        report = store.verify(anchors)
+    if report.ok:
+        print(
+            f"ok: {report.entries_checked} entries, chain intact; head {report.head.seq}:{report.head.hash}"
+        )
+        return 0
+    print(f"ALTERED: first broken entry {report.first_broken_seq}: {report.reason}")
+    for problem in report.problems:
+        print(f"  {problem}")
+    return 1
+
+
+def add_parsers(sub: Any) -> None:
+    """`rig certify|runs|report|tui|verify`."""
+    p = sub.add_parser("certify", help="certify a bat (BBCOR, BESR, BBS)", description=cmd_certify.__doc__)
+    p.add_argument("--procedure", help="bbcor, besr, bbs, or a procedure TOML file")
+    p.add_argument("--bat", metavar="BAT.toml", help="bat file (table [bat])")
+    add_rig_options(p)
+    p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    p.add_argument("--resume", metavar="RUN", help="resume an interrupted run")
+    p.add_argument("--dry-run", action="store_true", help="check the procedure against rig and bat only")
+    p.add_argument("--json", action="store_true", help="print the run record as JSON")
+    p.set_defaults(handler=cmd_certify)
+
+    p = sub.add_parser("runs", help="list recorded runs", description=cmd_runs.__doc__)
+    p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(handler=cmd_runs)
+
+    p = sub.add_parser("report", help="a run's record or certificate", description=cmd_report.__doc__)
+    p.add_argument("run", metavar="RUN", help="run id (a unique prefix will do), or 'last'")
+    p.add_argument("--format", choices=("json", "md", "html"), default="md", help="output format")
+    p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    p.add_argument("--output", "-o", metavar="FILE", help="write to a file instead of stdout")
+    p.add_argument("--figures", metavar="DIR", help="where the certificate's plots go (md/html)")
+    p.set_defaults(handler=cmd_report)
+
+    p = sub.add_parser("tui", help="the operator's console (terminal UI)", description=cmd_tui.__doc__)
+    add_rig_options(p)
+    p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    p.add_argument("--bat", metavar="BAT.toml", help="preselect this bat file")
+    p.add_argument("--procedure", help="preselect bbcor, besr, bbs or a procedure TOML file")
+    p.set_defaults(handler=cmd_tui)
+
+    p = sub.add_parser("verify", help="check the records' hash chain", description=cmd_verify.__doc__)
+    p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    p.add_argument("--anchor", metavar="SEQ:HASH", help="a head hash printed on a certificate")
+    p.set_defaults(handler=cmd_verify)
