@@ -130,6 +130,7 @@ class Runner:
         drain_traffic: Callable[[], list[dict[str, Any]]] | None = None,
         control: RunControl | None = None,
         confirm_fire: bool = False,
+        review_shots: bool = False,
     ) -> None:
         self.p, self.bat, self.config = procedure, bat, config
         self.cannon, self.gates, self.clamp = cannon, gates, clamp
@@ -141,6 +142,7 @@ class Runner:
         self.gate_config: GateConfig | None = None
         self.control = control or RunControl()
         self.confirm_fire = confirm_fire  # the operator confirms every shot (the UI's fire key)
+        self.review_shots = review_shots  # the operator may reject a valid shot (never accept an invalid one)
 
     # -- events -----------------------------------------------------------------------------
     def emit(self, kind: str, **data: Any) -> None:
@@ -341,6 +343,15 @@ class Runner:
             return
         result = evaluate.shot(record, self.p, self.bat, self.state, failure)
         self.emit(ev.SHOT_MEASURED if result["valid"] else ev.SHOT_REJECTED, index=index, **result)
+        if result["valid"] and self.review_shots:
+            metric = f"{self.p.standard.value} {result['metric']:.4f}"
+            if not self._prompt(f"review-{index}", f"Accept shot {index} ({metric})? n rejects it: re-shoot"):
+                self.emit(
+                    ev.SHOT_OVERRULED,
+                    index=index,
+                    reason="rejected by the operator on review",
+                    who=getattr(self.operator, "who", "operator"),
+                )
         if self.p.ring_check and not self._prompt(
             f"ring-after-{index}", "Ring check after the hit: does the ring still pass?"
         ):

@@ -88,6 +88,8 @@ def fold(events: Iterable[RunEvent]) -> RunState:
             s.valid = False
             s.metric = d.get("metric")
             st.aim_factor = d.get("aim_factor", st.aim_factor)
+        elif e.kind == ev.SHOT_OVERRULED:
+            by_index[d["index"]].valid = False
         elif e.kind == ev.SHOT_LOST:
             by_index[d["index"]].lost = True
         elif e.kind == ev.BALL_REPLACED:

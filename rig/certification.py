@@ -64,6 +64,7 @@ def certify(
     subscribers: Iterable[Subscriber] = (),
     control: RunControl | None = None,
     confirm_fire: bool = False,
+    review_shots: bool = False,
     on_open: Callable[[RigSession], None] | None = None,
 ) -> Outcome:
     """Run (or with `run_id`, resume) a certification; returns its outcome.
@@ -107,6 +108,7 @@ def certify(
             drain_traffic=_traffic_drain(session),
             control=control,
             confirm_fire=confirm_fire,
+            review_shots=review_shots,
         )
         try:
             verdict = runner.run()

@@ -23,6 +23,7 @@ SHOT_FIRED = "ShotFired"  # raw gate ticks, recoil, device traffic: committed be
 SHOT_MEASURED = "ShotMeasured"
 SHOT_REJECTED = "ShotRejected"
 SHOT_LOST = "ShotLost"
+SHOT_OVERRULED = "ShotOverruled"  # the operator rejected a valid shot on review
 BALL_REPLACED = "BallReplaced"
 LOCATION_CHOSEN = "LocationChosen"
 RUN_FINISHED = "RunFinished"
@@ -51,6 +52,7 @@ PERSISTED = frozenset(
         SHOT_MEASURED,
         SHOT_REJECTED,
         SHOT_LOST,
+        SHOT_OVERRULED,
         BALL_REPLACED,
         LOCATION_CHOSEN,
         RUN_FINISHED,

@@ -6,7 +6,7 @@ from typing import Any
 
 from rig.store import Store
 
-SHOT_KINDS = ("ShotRequested", "ShotFired", "ShotMeasured", "ShotRejected", "ShotLost")
+SHOT_KINDS = ("ShotRequested", "ShotFired", "ShotMeasured", "ShotRejected", "ShotLost", "ShotOverruled")
 
 
 def run_record(store: Store, run_id: str) -> dict[str, Any]:
@@ -95,6 +95,15 @@ def _merge_shot(shot: dict[str, Any], kind: str, d: dict[str, Any], t_utc: str) 
             u=d.get("u"),
             reasons=d.get("reasons", []),
             budget=d.get("budget"),
+        )
+    elif kind == "ShotOverruled":
+        shot.update(status="invalid", valid=False)
+        shot.setdefault("reasons", []).append(
+            {
+                "code": "OPERATOR_REJECTED",
+                "message": f"{d.get('reason', '')} ({d.get('who', '')})",
+                "invalidates": True,
+            }
         )
     elif kind == "ShotLost":
         shot.update(status="lost", valid=False, reasons=[{"code": "LOST", "message": d.get("reason", "")}])

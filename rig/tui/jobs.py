@@ -49,6 +49,7 @@ def run_job(
                     subscribers=[on_event],
                     control=control,
                     confirm_fire=True,
+                    review_shots=True,
                     on_open=operator.attach,
                 )
             finally:  # a run that failed is resumed by its id, even one that never started

@@ -173,6 +173,13 @@ def _lost(r: LiveRun, d: dict[str, Any]) -> None:
     r.note(f"shot {shot.index} lost: {d.get('reason', '')}")
 
 
+def _overruled(r: LiveRun, d: dict[str, Any]) -> None:
+    shot = r._shot(int(d["index"]))
+    shot.status = "invalid"
+    shot.reasons = [f"OPERATOR_REJECTED: {d.get('reason', '')}"]
+    r.note(f"shot {shot.index} rejected on review: re-shoot")
+
+
 def _chosen(r: LiveRun, d: dict[str, Any]) -> None:
     r.best_location_in = float(d["from_barrel_end_in"])
     r.note(f"location of maximum performance: {r.best_location_in:g} in from the tip")
@@ -224,6 +231,7 @@ _HANDLERS = {
     ev.SHOT_MEASURED: lambda r, d: _measured(r, d, True),
     ev.SHOT_REJECTED: lambda r, d: _measured(r, d, False),
     ev.SHOT_LOST: _lost,
+    ev.SHOT_OVERRULED: _overruled,
     ev.LOCATION_CHOSEN: _chosen,
     ev.BALL_REPLACED: _ball,
     ev.OPERATOR_ANSWERED: _answered,

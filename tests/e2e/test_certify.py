@@ -318,3 +318,30 @@ def test_pause_abort_and_fire_confirmation(tmp_path: Path) -> None:
             store, Procedure.load("bbcor"), bat, sim_config("ideal", bat=bat), run_id=out.run_id
         )
         assert resumed.status == "finished"
+
+
+def test_operator_rejects_a_valid_shot_on_review(tmp_path: Path) -> None:
+    """Accept or reject a shot: a rejected valid shot is re-shot and recorded as overruled."""
+
+    class Operator:
+        who = "test operator"
+
+        def ask(self, prompt_id: str, text: str) -> bool:
+            return prompt_id != "review-2"
+
+    bat = BatSpec.load(SAMPLE_BAT)
+    with Store.open(tmp_path / "r.db") as store:
+        out = certify(
+            store,
+            Procedure.load("bbcor"),
+            bat,
+            sim_config("ideal", bat=bat),
+            operator=Operator(),
+            review_shots=True,
+        )
+        rec = run_record(store, out.run_id)
+    shot2 = rec["shots"][1]
+    assert shot2["valid"] is False and shot2["metric"] is not None
+    assert any(r["code"] == "OPERATOR_REJECTED" for r in shot2["reasons"])
+    assert len(rec["shots"]) == 13  # 6 scan locations + 6 hits + the re-shot
+    assert rec["verdict"]["n_hits"] == 6
