@@ -18,6 +18,7 @@ from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError
 from rig.core.events import RunEvent, Subscriber
+from rig.modal.link import with_measured_hoop
 from rig.session import RigSession
 from rig.store import Store
 
@@ -74,6 +75,7 @@ def certify(
     """
     listeners = list(subscribers)
     if run_id is None:
+        bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
         if bat.id not in store.bats():
             store.register_bat(bat.id, bat.model_dump(mode="json"))
         elif store.bats()[bat.id] != bat.model_dump(mode="json"):

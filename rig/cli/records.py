@@ -43,7 +43,8 @@ def cmd_certify(args: argparse.Namespace) -> int:
             procedure, bat = Procedure.load(args.procedure), BatSpec.load(args.bat)
             from rig.modal.link import with_measured_hoop
 
-            bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
+            # before the rig is built, so that a simulated bat takes the measured hoop as its own
+            bat = with_measured_hoop(store, bat)
             run_id = None
         if args.sim is not None:
             from rig.session import sim_config
