@@ -6,14 +6,13 @@ built-in files (protocols/*.toml) with its status.
 
 from __future__ import annotations
 
-import tomllib
 from enum import StrEnum
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from rig.core.errors import ConfigError
+from rig.core.tomlfile import read_toml, table, validate
 
 BUILTIN_DIR = Path(__file__).parent
 BUILTIN = ("bbcor", "besr", "bbs")
@@ -115,22 +114,8 @@ class Procedure(_Model):
     @classmethod
     def load(cls, name_or_path: str | Path) -> Procedure:
         """A built-in procedure by name (bbcor, besr, bbs) or a TOML file; errors name the field."""
-        text_path = Path(name_or_path)
+        path = Path(name_or_path)
         if str(name_or_path) in BUILTIN:
-            text_path = BUILTIN_DIR / f"{name_or_path}.toml"
-        try:
-            data = tomllib.loads(text_path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise ConfigError(
-                f"no such procedure; built-in ones are {', '.join(BUILTIN)}", source=str(name_or_path)
-            ) from None
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"not valid TOML: {exc}", source=str(text_path)) from None
-        if not isinstance(data.get("procedure"), dict):
-            raise ConfigError("needs a [procedure] table", source=str(text_path))
-        try:
-            return cls.model_validate(data["procedure"])
-        except ValidationError as exc:
-            first = exc.errors()[0]
-            where = "procedure." + ".".join(str(p) for p in first["loc"])
-            raise ConfigError(first["msg"], source=str(text_path), field=where) from None
+            path = BUILTIN_DIR / f"{name_or_path}.toml"
+        data = read_toml(path, missing=f"no such procedure; built-in ones are {', '.join(BUILTIN)}")
+        return validate(cls, table(data, "procedure", str(path)), str(path), prefix="procedure.")

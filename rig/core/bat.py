@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import tomllib
 from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field
 
-from rig.core.errors import ConfigError
+from rig.core.tomlfile import read_toml, table, validate
 from rig.core.units import INCH, OUNCE
 
 PIVOT_FROM_KNOB_M = 6.0 * INCH  # NCAA/ASTM F2398 pivot point
@@ -58,18 +57,5 @@ class BatSpec(BaseModel):
     @classmethod
     def load(cls, path: str | Path) -> BatSpec:
         """Read table [bat] of a TOML file; errors name the file and the field."""
-        path = Path(path)
-        try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise ConfigError("no such file", source=str(path)) from None
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"not valid TOML: {exc}", source=str(path)) from None
-        if not isinstance(data.get("bat"), dict):
-            raise ConfigError("needs a [bat] table", source=str(path))
-        try:
-            return cls.model_validate(data["bat"])
-        except ValidationError as exc:
-            first = exc.errors()[0]
-            where = "bat." + ".".join(str(p) for p in first["loc"])
-            raise ConfigError(first["msg"], source=str(path), field=where) from None
+        data = read_toml(path)
+        return validate(cls, table(data, "bat", str(path)), str(path), prefix="bat.")

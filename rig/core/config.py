@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 from typing import Annotated
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from rig.core.errors import ConfigError
+from rig.core.tomlfile import read_toml, validate
 
 
 class _Model(BaseModel):
@@ -88,21 +88,9 @@ class RigConfig(_Model):
     @classmethod
     def load(cls, path: str | Path) -> RigConfig:
         """Read and validate a TOML file; errors name the file and the field."""
-        path = Path(path)
-        try:
-            data = tomllib.loads(path.read_text(encoding="utf-8"))
-        except FileNotFoundError:
-            raise ConfigError("no such file", source=str(path)) from None
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"not valid TOML: {exc}", source=str(path)) from None
-        return cls.from_dict(data, source=str(path))
+        return cls.from_dict(read_toml(path), source=str(path))
 
     @classmethod
     def from_dict(cls, data: dict, source: str = "config") -> RigConfig:
         """Validate a mapping; errors name the source and the field."""
-        try:
-            return cls.model_validate(data)
-        except ValidationError as exc:
-            first = exc.errors()[0]
-            where = ".".join(str(p) for p in first["loc"]) or "(top level)"
-            raise ConfigError(first["msg"], source=source, field=where) from None
+        return validate(cls, data, source)
