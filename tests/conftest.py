@@ -36,3 +36,23 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 def paper_params() -> CollisionParams:
     """The founding paper's constants (ball 0.145 kg, barrel 0.09 kg, a = 0.6495, b = 0.5202)."""
     return DEFAULT_PARAMS
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    """--hardware RIG.toml: also run the tests marked `hardware` against that real rig."""
+    parser.addoption(
+        "--hardware",
+        metavar="RIG.toml",
+        default=None,
+        help="run the hardware tests against the rig this config file describes (never fires)",
+    )
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Hardware tests are opt-in: skipped unless --hardware names a rig config."""
+    if config.getoption("--hardware"):
+        return
+    skip = pytest.mark.skip(reason="needs the real rig: pytest --hardware RIG.toml")
+    for item in items:
+        if "hardware" in item.keywords:
+            item.add_marker(skip)
