@@ -51,17 +51,21 @@ def positive_int(text: str) -> int:
     return value
 
 
-def rig_config(args: argparse.Namespace) -> Any:
-    """The rig config from --sim, --config or the three port URLs."""
+def rig_config(args: argparse.Namespace, bat: Any = None) -> Any:
+    """The rig config from --sim, --config or (where the command has them) the three port URLs.
+
+    With `bat`, a simulated bat takes the bat file's properties as its true ones.
+    """
     from rig.core.config import RigConfig
-    from rig.core.errors import ConfigError
 
     if args.sim is not None:
         from rig.session import sim_config
 
-        return sim_config(args.sim)
+        return sim_config(args.sim, bat=bat)
     if args.config:
         return RigConfig.load(args.config)
+    if not hasattr(args, "cannon"):
+        raise ConfigError("give --sim [SCENE] or --config RIG.toml", source="command line")
     ports = {"cannon": args.cannon, "gates": args.gates, "clamp": args.clamp}
     missing = [f"--{k}" for k, v in ports.items() if not v]
     if missing:

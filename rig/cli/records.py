@@ -14,6 +14,7 @@ from rig.cli.common import (
     default_db,
     open_db,
     resolve_run,
+    rig_config,
 )
 
 
@@ -23,7 +24,6 @@ def cmd_certify(args: argparse.Namespace) -> int:
     from protocols.runner import ScriptedOperator, dry_run
     from rig.certification import certify
     from rig.core.bat import BatSpec
-    from rig.core.config import RigConfig
     from rig.report.live import LiveConsole
     from rig.report.record import run_record
 
@@ -46,14 +46,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
             # before the rig is built, so that a simulated bat takes the measured hoop as its own
             bat = with_measured_hoop(store, bat)
             run_id = None
-        if args.sim is not None:
-            from rig.session import sim_config
-
-            config = sim_config(args.sim, bat=bat)
-        elif args.config:
-            config = RigConfig.load(args.config)
-        else:
-            raise ConfigError("give --sim [SCENE] or --config RIG.toml", source="command line")
+        config = rig_config(args, bat=bat)
         problems = dry_run(procedure, bat, config)
         if problems or args.dry_run:
             for line in problems or ["dry run: the procedure fits this rig and this bat"]:

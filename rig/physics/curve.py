@@ -13,6 +13,7 @@ from rig.core.errors import ParameterError
 from rig.physics import fast
 from rig.physics.equations import Impact
 from rig.physics.params import CollisionParams, check_hoop, check_speed, check_tolerance
+from rig.physics.reference import contact_time_limit
 
 REFINE_RTOL = 1e-12  # tighter than the grid so that solver noise cannot move the optimum
 
@@ -50,8 +51,7 @@ def cor_grid(
     v0 = np.full(n, speed)
     length = np.full(n, params.compression_scale(speed))
     n_active = np.full(n, 4, dtype=np.int64)
-    scale = Impact(params, speed).time_scale()
-    t_max = 500.0 * scale + 20.0 / hoops
+    t_max = contact_time_limit(params, speed, hoops)
     impacts = _LazyImpacts(params, speed, hoops)
     return fast._run_batch(P, v0, length, rtol, n_active, t_max, impacts)
 

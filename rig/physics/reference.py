@@ -8,8 +8,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.integrate import solve_ivp
 
 from rig.core.errors import ParameterError, SolverError
@@ -21,7 +23,7 @@ from rig.physics.equations import (
     relative_motion,
     separation_function,
 )
-from rig.physics.params import check_tolerance
+from rig.physics.params import CollisionParams, check_tolerance
 
 SCIPY_METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
 
@@ -40,16 +42,22 @@ class CollisionResult:
     energy: dict[str, float] = field(default_factory=dict)
 
 
-def _time_limit(imp: Impact) -> float:
-    """A generous bound on the contact time; contact not over by then is an error.
+def contact_time_limit(params: CollisionParams, speed: float, hoop_hz: ArrayLike | None) -> Any:
+    """A generous bound on the contact time, s (per hoop frequency for an array); contact not over
+    by then is an error.
 
     A barrel much lighter than the ball rides its spring with the ball for ~pi sqrt(m1/k2), which
     is sqrt(m1/m2) barrel periods: the bound grows with that ratio.
     """
-    limit = 500.0 * imp.time_scale()
-    if imp.hoop_hz is not None:
-        limit += 20.0 / imp.hoop_hz * max(1.0, math.sqrt(imp.params.m1 / imp.params.m2))
-    return limit
+    limit = 500.0 * params.compression_scale(speed) / speed
+    if hoop_hz is None:
+        return limit
+    return limit + 20.0 / np.asarray(hoop_hz, dtype=float) * max(1.0, math.sqrt(params.m1 / params.m2))
+
+
+def _time_limit(imp: Impact) -> float:
+    """contact_time_limit of one impact."""
+    return float(contact_time_limit(imp.params, imp.speed, imp.hoop_hz))
 
 
 def _first_step(imp: Impact, first_step: float | str) -> dict[str, float]:
