@@ -69,11 +69,12 @@ def test_a_scheme_registered_elsewhere_reaches_the_transport(monkeypatch: pytest
 class Responder:
     """A device on a file descriptor or socket: answers every command OK with T=<seq>."""
 
-    def __init__(self, read, write) -> None:
+    def __init__(self, read, write, drop_on: str | None = None) -> None:
         self.read, self.write = read, write
         self.codec = DeviceCodec(SPECS)
         self.stop = threading.Event()
-        self.drop_on: str | None = None  # close the connection instead of answering this verb
+        # close the connection instead of answering this verb; set before the thread starts
+        self.drop_on = drop_on
         self.thread = threading.Thread(target=self.run, daemon=True)
         self.thread.start()
 
@@ -166,8 +167,8 @@ class TcpDevice:
                 except TimeoutError:
                     return None
 
-            responder = Responder(read, conn.sendall)
-            responder.drop_on, self.drop_on = self.drop_on, None
+            responder = Responder(read, conn.sendall, drop_on=self.drop_on)
+            self.drop_on = None
             self.current = responder
             responder.thread.join()
             conn.close()
