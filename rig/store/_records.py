@@ -13,7 +13,9 @@ RUN_STATUSES: tuple[str, ...] = ("running", "finished", "aborted")
 BAT_REGISTERED = "BatRegistered"
 RUN_CREATED = "RunCreated"
 RUN_STATUS_CHANGED = "RunStatusChanged"
-RESERVED_KINDS = frozenset({BAT_REGISTERED, RUN_CREATED, RUN_STATUS_CHANGED})
+RUN_LOCK_BROKEN = "RunLockBroken"  # a stale runner's lock was broken by the next runner
+RESERVED_KINDS = frozenset({BAT_REGISTERED, RUN_CREATED, RUN_STATUS_CHANGED, RUN_LOCK_BROKEN})
+CLOSED_STATUSES: tuple[str, ...] = ("finished", "aborted")  # a run in one of these is sealed
 
 
 @dataclass(frozen=True)
