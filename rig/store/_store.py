@@ -239,6 +239,12 @@ class Store:
         with self._read() as conn:
             return [_entry(row) for row in conn.execute(sql, params)]
 
+    def entry(self, seq: int) -> LogEntry | None:
+        """The entry at `seq`, or None if there is none."""
+        with self._read() as conn:
+            row = conn.execute(f"SELECT {_ENTRY_COLUMNS} FROM log WHERE seq = ?", (seq,)).fetchone()
+        return _entry(row) if row else None
+
     def runs(self) -> list[RunSummary]:
         """Every run, oldest first."""
         with self._read() as conn:
