@@ -29,7 +29,8 @@ def forge_append(
         material = json.dumps([prev, seq + 1, run_id, kind, t_utc, text], separators=(",", ":"))
         digest = hashlib.sha256(material.encode()).hexdigest()
         db.execute(
-            "INSERT INTO log (seq, run_id, kind, payload, t_utc, prev_hash, hash) VALUES (?, ?, ?, ?, ?, ?, ?)",
+            "INSERT INTO log (seq, run_id, kind, payload, t_utc, prev_hash, hash) "
+            "VALUES (?, ?, ?, ?, ?, ?, ?)",
             (seq + 1, run_id, kind, text, t_utc, prev, digest),
         )
         return seq + 1, digest
@@ -131,7 +132,7 @@ def test_a_report_shows_only_what_the_seal_covers(
 def test_a_report_as_far_as_an_anchor(
     finished: tuple[Path, str, Anchor], capsys: pytest.CaptureFixture[str]
 ) -> None:
-    path, run, seal = finished
+    path, run, _ = finished
     with Store.open(path) as store:
         first_shot = store.entries(run, kinds=["ShotMeasured"])[0]
         record = run_record(store, run, Anchor(first_shot.seq, first_shot.hash))
@@ -193,10 +194,11 @@ def test_verify_flags_a_shot_number_used_twice(store: Store) -> None:
     report = store.verify()
     assert not report.ok and report.first_broken_seq is None
     requested, fired = seqs[("ShotRequested", 2)], seqs[("ShotFired", 2)]
+    why = "two runners at once?"
     assert list(report.problems) == [
-        f"seq {requested[1]}: run {run}: shot 2 requested twice (the first at seq {requested[0]}; two runners at once?)",
-        f"seq {fired[1]}: run {run}: shot 2 fired twice (the first at seq {fired[0]}; two runners at once?)",
-        f"seq {second_verdict}: run {run}: a second RunFinished (the first at seq {first_verdict}; two runners at once?)",
+        f"seq {requested[1]}: run {run}: shot 2 requested twice (the first at seq {requested[0]}; {why})",
+        f"seq {fired[1]}: run {run}: shot 2 fired twice (the first at seq {fired[0]}; {why})",
+        f"seq {second_verdict}: run {run}: a second RunFinished (the first at seq {first_verdict}; {why})",
     ]  # shot 1 in two different runs is no finding
 
 

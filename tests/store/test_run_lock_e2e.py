@@ -1,0 +1,111 @@
+"""Two `rig certify --resume RUN` started together after a kill -9: exactly one runs the run.
+
+Run with two CPU-bound processes beside it, as anything crossing a process boundary must be.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+from collections import Counter
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from rig.store import Store
+
+ROOT = Path(__file__).resolve().parents[2]
+SAMPLE_BAT = ROOT / "protocols" / "examples" / "sample-bat.toml"
+RIG = "import sys; from rig.cli import main; sys.exit(main())"
+
+# A runner that kills itself (SIGKILL) right after its third shot was recorded as fired.
+KILLED_RUNNER = textwrap.dedent("""
+    import os, signal, sys
+    from protocols.procedure import Procedure
+    from rig.certification import certify
+    from rig.core.bat import BatSpec
+    from rig.session import sim_config
+    from rig.store import Store
+
+    db, bat_path = sys.argv[1], sys.argv[2]
+    fired = 0
+
+    def killer(event):
+        global fired
+        if event.kind == "ShotFired":
+            fired += 1
+            if fired == 3:
+                os.kill(os.getpid(), signal.SIGKILL)
+
+    bat = BatSpec.load(bat_path)
+    with Store.open(db) as store:
+        certify(store, Procedure.load("bbcor"), bat, sim_config("lab", bat=bat), subscribers=[killer])
+""")
+
+
+@pytest.fixture
+def burners() -> Iterator[None]:
+    """Two CPU-bound processes for the duration of the test."""
+    procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
+    try:
+        yield
+    finally:
+        for p in procs:
+            p.kill()
+            p.wait()
+
+
+def test_two_resumes_at_once_after_a_kill_only_one_fires(tmp_path: Path, burners: None) -> None:
+    db = tmp_path / "r.db"
+    killed = subprocess.Popen(
+        [sys.executable, "-c", KILLED_RUNNER, str(db), str(SAMPLE_BAT)],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    _, killed_err = killed.communicate(timeout=180)
+    assert killed.returncode == -9, killed_err
+    with Store.open(db) as store:
+        (run,) = store.open_runs()
+        stale = store.run_lock_holder(run.run_id)
+        before = store.entries(run.run_id)
+    assert stale is not None and stale.pid == killed.pid  # the killed runner's lock is left behind
+
+    resume = [sys.executable, "-c", RIG, "certify", "--resume", run.run_id, "--sim", "lab", "--db", str(db)]
+    procs = [
+        subprocess.Popen(resume, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        for _ in range(2)
+    ]
+    outputs = [p.communicate(timeout=300) for p in procs]
+    results = [(p.pid, p.returncode, out, err) for p, (out, err) in zip(procs, outputs, strict=True)]
+
+    codes = sorted(code for _, code, _, _ in results)
+    assert codes[0] in (0, 1) and codes[1] == 2, results
+    (winner,) = [r for r in results if r[1] in (0, 1)]
+    (loser,) = [r for r in results if r[1] == 2]
+    # One clear line naming who holds the run: the winner's host and pid.
+    lines = loser[3].splitlines()
+    assert len(lines) == 1 and "Traceback" not in loser[3], loser[3]
+    assert lines[0].startswith(f"rig: run {run.run_id} is already being run by host ")
+    assert f" pid {winner[0]} since " in lines[0]
+    assert "shot" not in loser[2]  # it never reached the runner: nothing fired
+    assert "PASS" in winner[2] or "FAIL" in winner[2]
+
+    with Store.open(db) as store:
+        assert store.verify().ok  # which includes: no shot number used twice
+        after = store.entries(run.run_id)
+        assert store.run(run.run_id).status == "finished"
+        assert store.run_lock_holder(run.run_id) is None  # released
+    assert after[: len(before)] == before
+    new = after[len(before) :]
+    kinds = Counter(e.kind for e in new)
+    assert kinds["RunResumed"] == 1 and kinds["RunFinished"] == 1 and kinds["RunStatusChanged"] == 1
+    (broken,) = [e.payload for e in new if e.kind == "RunLockBroken"]
+    assert broken["holder"]["pid"] == killed.pid and broken["taken_by"]["pid"] == winner[0]
+    assert broken["reason"].startswith(f"process {killed.pid} no longer runs")
+    fired = Counter(e.payload["index"] for e in after if e.kind == "ShotFired")
+    requested = Counter(e.payload["index"] for e in after if e.kind == "ShotRequested")
+    assert set(fired.values()) == {1} and set(requested.values()) == {1}
