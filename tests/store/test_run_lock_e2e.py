@@ -109,3 +109,56 @@ def test_two_resumes_at_once_after_a_kill_only_one_fires(tmp_path: Path, burners
     fired = Counter(e.payload["index"] for e in after if e.kind == "ShotFired")
     requested = Counter(e.payload["index"] for e in after if e.kind == "ShotRequested")
     assert set(fired.values()) == {1} and set(requested.values()) == {1}
+
+
+def schema(path: Path) -> list[tuple[str, str]]:
+    """The file's tables, indexes and triggers (name and SQL), sorted."""
+    import sqlite3
+
+    conn = sqlite3.connect(path)
+    try:
+        return sorted(conn.execute("SELECT name, sql FROM sqlite_master WHERE sql IS NOT NULL"))
+    finally:
+        conn.close()
+
+
+def test_a_version_1_file_still_resumes_verifies_and_reports(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A run interrupted in a file of schema 1 (no lock table) is resumed by today's software."""
+    import sqlite3
+
+    from rig.cli import main
+    from rig.store import _schema
+
+    db = tmp_path / "r.db"
+    code = main(
+        ["certify", "--procedure", "bbcor", "--bat", str(SAMPLE_BAT), "--sim", "faulty", "--db", str(db)]
+    )
+    assert code == 3, capsys.readouterr().err  # the faulty scene interrupts the run
+    run_id = capsys.readouterr().err.split("rig certify --resume ")[1].split()[0]
+    conn = sqlite3.connect(db)  # back to schema 1, as files written before the lock table are
+    conn.execute("DROP TABLE run_locks")
+    conn.execute("DELETE FROM schema_version WHERE version > 1")
+    conn.commit()
+    conn.close()
+    monkeypatch.setattr(_schema, "MIGRATIONS", _schema.MIGRATIONS[:1])
+    monkeypatch.setattr(_schema, "SCHEMA_VERSION", 1)
+    Store.open(tmp_path / "v1.db").close()  # what the released version 1 makes
+    monkeypatch.undo()
+    assert schema(db) == schema(tmp_path / "v1.db")
+
+    assert main(["verify", "--db", str(db)]) == 0
+    assert main(["report", run_id, "--db", str(db), "--format", "json"]) == 0
+    capsys.readouterr()
+    for _ in range(5):  # the resumed run may meet the faulty rig's next fault too: resume again
+        code = main(["certify", "--resume", run_id, "--sim", "lab", "--db", str(db)])
+        if code != 3:
+            break
+    assert code in (0, 1), capsys.readouterr().err
+    assert main(["verify", "--db", str(db)]) == 0
+    with Store.open(db) as store:
+        assert store.run(run_id).status == "finished"
+    conn = sqlite3.connect(db)
+    assert [v for (v,) in conn.execute("SELECT version FROM schema_version ORDER BY version")] == [1, 2]
+    conn.close()
