@@ -57,6 +57,10 @@ def run_record(store: Store, run_id: str, anchor: Anchor | None = None) -> dict[
             record["location"] = d
         elif e.kind in ("RunInterrupted", "RunResumed"):
             record["interruptions"].append({"kind": e.kind, **d, "t_utc": e.t_utc})
+        elif e.kind == "RunLockBroken":  # a killed runner's lock, broken by the next one
+            holder = d.get("holder") or {}
+            why = f"lock of host {holder.get('host')} pid {holder.get('pid')} broken: {d.get('reason')}"
+            record["interruptions"].append({"kind": e.kind, "reason": why, "t_utc": e.t_utc})
         elif e.kind == "RunFinished":
             record["verdict"] = {k: v for k, v in d.items() if k != "cross_check"}
             record["cross_check"] = d.get("cross_check")

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from rig.report.record import run_record
 from rig.store import Store
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -106,6 +107,11 @@ def test_two_resumes_at_once_after_a_kill_only_one_fires(tmp_path: Path, burners
     (broken,) = [e.payload for e in new if e.kind == "RunLockBroken"]
     assert broken["holder"]["pid"] == killed.pid and broken["taken_by"]["pid"] == winner[0]
     assert broken["reason"].startswith(f"process {killed.pid} no longer runs")
+    with Store.open(db) as store:  # the certificate lists the broken lock among the interruptions
+        events = run_record(store, run.run_id)["interruptions"]
+    assert [i["kind"] for i in events[-2:]] == ["RunLockBroken", "RunResumed"]
+    host = broken["holder"]["host"]
+    assert events[-2]["reason"] == f"lock of host {host} pid {killed.pid} broken: {broken['reason']}"
     fired = Counter(e.payload["index"] for e in after if e.kind == "ShotFired")
     requested = Counter(e.payload["index"] for e in after if e.kind == "ShotRequested")
     assert set(fired.values()) == {1} and set(requested.values()) == {1}
