@@ -58,6 +58,7 @@ def burners() -> Iterator[None]:
             p.wait()
 
 
+@pytest.mark.slow
 def test_two_resumes_at_once_after_a_kill_only_one_fires(tmp_path: Path, burners: None) -> None:
     db = tmp_path / "r.db"
     killed = subprocess.Popen(
