@@ -74,6 +74,7 @@ def certify(
     device status on the runner's thread while the runner waits for the operator.
     """
     listeners = list(subscribers)
+    resuming = run_id is not None
     if run_id is None:
         bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
         if bat.id not in store.bats():
@@ -83,9 +84,6 @@ def certify(
                 f"bat {bat.id} is registered with other properties; give it a new id", source="bat file"
             )
         run_id = store.create_run(procedure.standard.value, bat.id, {"procedure": procedure.name})
-        past: list[RunEvent] = []
-    else:
-        past = history(store, run_id)
 
     def emit(event: RunEvent) -> None:
         if event.persisted:
@@ -93,7 +91,9 @@ def certify(
         for listener in listeners:
             listener(event)
 
-    with RigSession.open(config) as session:
+    # One runner per run: a second one is refused here (RunLocked), before any device opens.
+    with store.run_lock(run_id), RigSession.open(config) as session:
+        past = history(store, run_id) if resuming else []  # read under the lock
         if on_open is not None:
             on_open(session)
         session.traffic.clear()  # opening chatter belongs to no shot
@@ -120,7 +120,7 @@ def certify(
                 return Outcome(run_id, "finished", runner.state.verdict, str(exc))
             emit(RunEvent("RunInterrupted", {"reason": str(exc)}))
             return Outcome(run_id, "interrupted", None, str(exc))
-    store.set_run_status(run_id, "finished", verdict["verdict"])
+        store.set_run_status(run_id, "finished", verdict["verdict"])  # sealed under the lock
     return Outcome(run_id, "finished", verdict)
 
 

@@ -103,9 +103,11 @@ def cmd_runs(args: argparse.Namespace) -> int:
 def cmd_report(args: argparse.Namespace) -> int:
     """rig report: a run's record as JSON, or its certificate as Markdown or HTML."""
     from rig.report.record import run_record
+    from rig.store import Anchor
 
+    anchor = Anchor.parse(args.anchor) if args.anchor else None
     with open_db(args) as store:
-        record = run_record(store, resolve_run(store, args.run))
+        record = run_record(store, resolve_run(store, args.run), anchor)
     if args.format == "json":
         text = json.dumps(record, indent=2, allow_nan=False) + "\n"
     else:
@@ -118,6 +120,8 @@ def cmd_report(args: argparse.Namespace) -> int:
         print(f"wrote {args.output}", file=sys.stderr)
     else:
         sys.stdout.write(text)
+    if record["coverage"]["left_out"]:
+        print(f"rig report: {record['coverage']['text']}", file=sys.stderr)
     return 0
 
 
@@ -135,13 +139,10 @@ def cmd_tui(args: argparse.Namespace) -> int:
 
 
 def cmd_verify(args: argparse.Namespace) -> int:
-    """rig verify: recompute the hash chain; non-zero exit if any record was altered."""
+    """rig verify: recompute the hash chain, check each run and the anchor; exit 1 if anything is wrong."""
     from rig.store import Anchor
 
-    anchors = []
-    if args.anchor:
-        seq, _, digest = args.anchor.partition(":")
-        anchors.append(Anchor(int(seq), digest))
+    anchors = [Anchor.parse(args.anchor)] if args.anchor else []
     with open_db(args) as store:
         report = store.verify(anchors)
     if report.ok:
@@ -149,7 +150,10 @@ def cmd_verify(args: argparse.Namespace) -> int:
             f"ok: {report.entries_checked} entries, chain intact; head {report.head.seq}:{report.head.hash}"
         )
         return 0
-    print(f"ALTERED: first broken entry {report.first_broken_seq}: {report.reason}")
+    if report.first_broken_seq is not None:
+        print(f"ALTERED: first broken entry {report.first_broken_seq}: {report.reason}")
+    else:
+        print(f"ALTERED: the chain links, but {len(report.problems)} problem(s) were found:")
     for problem in report.problems:
         print(f"  {problem}")
     return 1
@@ -178,6 +182,9 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
     p.add_argument("--output", "-o", metavar="FILE", help="write to a file instead of stdout")
     p.add_argument("--figures", metavar="DIR", help="where the certificate's plots go (md/html)")
+    p.add_argument(
+        "--anchor", metavar="SEQ:HASH", help="show the run only as far as this anchor (from a certificate)"
+    )
     p.set_defaults(handler=cmd_report)
 
     p = sub.add_parser("tui", help="the operator's console (terminal UI)", description=cmd_tui.__doc__)

@@ -304,4 +304,5 @@ def anchor_blocks(record: dict[str, Any]) -> list[Block]:
             "since this certificate was issued (add --db FILE to name the store):"
         ),
         Code(f"rig verify --anchor {seq}:{digest}"),
+        *([Para(record["coverage"]["text"])] if record.get("coverage") else []),
     ]

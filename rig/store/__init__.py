@@ -6,6 +6,7 @@ rebuilt from it at will. See docs/records.md for the schema, the chain and its l
 
 from rig.core.errors import RecordRefused, StoreError, StoreFileError, UnknownRecord
 from rig.store._codec import GENESIS_HASH, canonical_json, decode_bytes, encode_bytes, entry_hash
+from rig.store._lock import RunLock, RunLocked
 from rig.store._records import (
     RESERVED_KINDS,
     RUN_STATUSES,
@@ -16,9 +17,10 @@ from rig.store._records import (
     VerifyReport,
 )
 from rig.store._schema import SCHEMA_VERSION
-from rig.store._store import EntrySpec, Store
+from rig.store._store import DEFAULT_LEASE_S, EntrySpec, Store
 
 __all__ = [
+    "DEFAULT_LEASE_S",
     "GENESIS_HASH",
     "RESERVED_KINDS",
     "RUN_STATUSES",
@@ -27,6 +29,8 @@ __all__ = [
     "EntrySpec",
     "LogEntry",
     "RecordRefused",
+    "RunLock",
+    "RunLocked",
     "RunStatus",
     "RunSummary",
     "Store",

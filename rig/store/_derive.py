@@ -7,7 +7,13 @@ from typing import Any
 
 from rig.core.errors import StoreError
 from rig.store._codec import canonical_json, decode_payload
-from rig.store._records import BAT_REGISTERED, RUN_CREATED, RUN_STATUS_CHANGED, RUN_STATUSES
+from rig.store._records import (
+    BAT_REGISTERED,
+    CLOSED_STATUSES,
+    RUN_CREATED,
+    RUN_STATUS_CHANGED,
+    RUN_STATUSES,
+)
 
 RUN_COLUMNS = ("run_id", "procedure", "bat_id", "started_utc", "status", "verdict", "last_seq")
 RunRow = tuple[str, str, str, str, str, str | None, int]
@@ -19,6 +25,7 @@ class Deriver:
     def __init__(self) -> None:
         self.bats: dict[str, str] = {}  # id -> spec as canonical JSON
         self.runs: dict[str, list[Any]] = {}  # run_id -> a RUN_COLUMNS row
+        self.sealed: dict[str, int] = {}  # run_id -> seq of the entry that closed it
         self.problems: list[str] = []
 
     def feed(self, seq: int, run_id: str | None, kind: str, payload: str | None, t_utc: str) -> None:
@@ -39,6 +46,13 @@ class Deriver:
         if row is None:
             self.problems.append(f"seq {seq}: entry of run {run_id}, which was never created")
             return
+        if run_id in self.sealed:
+            # Not applied: a forged verdict must not become the run's status.
+            self.problems.append(
+                f"seq {seq}: {kind} appended to run {run_id} after it was sealed at seq "
+                f"{self.sealed[run_id]} (nothing may follow a finished or aborted run's last entry)"
+            )
+            return
         row[6] = seq
         if kind == RUN_STATUS_CHANGED:
             change = _decoded(payload)
@@ -47,6 +61,8 @@ class Deriver:
                 self.problems.append(f"seq {seq}: run {run_id} set to unknown status {status!r}")
                 return
             row[4], row[5] = status, verdict
+            if status in CLOSED_STATUSES:
+                self.sealed[run_id] = seq
 
     def _bat(self, seq: int, payload: dict[str, Any]) -> None:
         bat_id = payload["bat_id"]

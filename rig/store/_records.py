@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from datetime import datetime
 from typing import Any, Literal
+
+from rig.core.errors import RecordRefused
+
+_HEX64 = re.compile(r"[0-9a-fA-F]{64}")
 
 RunStatus = Literal["running", "finished", "aborted"]
 RUN_STATUSES: tuple[str, ...] = ("running", "finished", "aborted")
@@ -13,7 +18,9 @@ RUN_STATUSES: tuple[str, ...] = ("running", "finished", "aborted")
 BAT_REGISTERED = "BatRegistered"
 RUN_CREATED = "RunCreated"
 RUN_STATUS_CHANGED = "RunStatusChanged"
-RESERVED_KINDS = frozenset({BAT_REGISTERED, RUN_CREATED, RUN_STATUS_CHANGED})
+RUN_LOCK_BROKEN = "RunLockBroken"  # a stale runner's lock was broken by the next runner
+RESERVED_KINDS = frozenset({BAT_REGISTERED, RUN_CREATED, RUN_STATUS_CHANGED, RUN_LOCK_BROKEN})
+CLOSED_STATUSES: tuple[str, ...] = ("finished", "aborted")  # a run in one of these is sealed
 
 
 @dataclass(frozen=True)
@@ -53,6 +60,21 @@ class Anchor:
 
     seq: int
     hash: str
+
+    @classmethod
+    def parse(cls, text: str) -> Anchor:
+        """'SEQ:HASH' as printed on a certificate; anything else raises RecordRefused."""
+        seq, colon, digest = text.strip().partition(":")
+        number = int(seq) if seq.isascii() and seq.isdigit() and len(seq) <= 19 else 0
+        if not (colon and 1 <= number < 2**63 and _HEX64.fullmatch(digest)):
+            raise RecordRefused(
+                f"anchor {text!r}: expected SEQ:HASH as printed on a certificate "
+                "(an entry number from 1, a colon, then 64 hex digits)"
+            )
+        return cls(number, digest.lower())
+
+    def __str__(self) -> str:
+        return f"{self.seq}:{self.hash}"
 
 
 @dataclass(frozen=True)

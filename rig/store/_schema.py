@@ -43,6 +43,18 @@ MIGRATIONS: tuple[tuple[str, ...], ...] = (
             last_seq INTEGER NOT NULL)""",
         "CREATE INDEX runs_by_status ON runs (status, started_utc)",
     ),
+    (
+        # Version 2: one runner per run. A row here is the run's lock: who holds it and until
+        # when its lease runs. Not part of the record (never hashed, never derived from the log).
+        """CREATE TABLE run_locks (
+            run_id TEXT PRIMARY KEY,
+            owner TEXT NOT NULL,
+            host TEXT NOT NULL,
+            pid INTEGER NOT NULL,
+            since_utc TEXT NOT NULL,
+            heartbeat_utc TEXT NOT NULL,
+            lease_s REAL NOT NULL CHECK (lease_s > 0))""",
+    ),
 )
 SCHEMA_VERSION = len(MIGRATIONS)
 APPEND_ONLY_TRIGGERS = ("log_no_update", "log_no_delete")

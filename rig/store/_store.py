@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+import os
 import sqlite3
 import threading
 import uuid
@@ -13,12 +15,14 @@ from types import TracebackType
 from typing import Any, Self
 
 from rig.core.errors import RecordRefused, StoreError, UnknownRecord
-from rig.store import _derive, _verify
+from rig.store import _derive, _lock, _verify
 from rig.store._codec import GENESIS_HASH, check_kind, check_payload, decode_payload, entry_hash
 from rig.store._records import (
     BAT_REGISTERED,
+    CLOSED_STATUSES,
     RESERVED_KINDS,
     RUN_CREATED,
+    RUN_LOCK_BROKEN,
     RUN_STATUS_CHANGED,
     Anchor,
     LogEntry,
@@ -32,7 +36,8 @@ EntrySpec = tuple[str | None, str, dict[str, Any]]  # (run_id, kind, payload) fo
 
 _ENTRY_COLUMNS = "seq, run_id, kind, payload, t_utc, prev_hash, hash"
 _RUN_COLUMNS = ", ".join(_derive.RUN_COLUMNS)
-_CLOSED_STATUSES = ("finished", "aborted")
+_CLOSED_STATUSES = CLOSED_STATUSES
+DEFAULT_LEASE_S = 30.0  # a killed runner on another machine blocks its run this long at most
 
 
 def _utc_now() -> datetime:
@@ -52,6 +57,7 @@ class Store:
         self._path = path
         self._clock = clock
         self._lock = threading.RLock()
+        self._held: dict[str, str] = {}  # run_id -> owner token of the run locks this Store holds
 
     @classmethod
     def open(
@@ -138,6 +144,75 @@ class Store:
             )
         return entry
 
+    # --- one runner per run ----------------------------------------------------------------
+
+    @contextmanager
+    def run_lock(self, run_id: str, *, lease_s: float = DEFAULT_LEASE_S) -> Iterator[_lock.RunLock]:
+        """Hold the run's lock while the block runs (renewed by a heartbeat); see `acquire_run`."""
+        held = self.acquire_run(run_id, lease_s=lease_s)
+        beat = _Heartbeat(self, held, interval_s=lease_s / 4)
+        beat.start()
+        try:
+            yield held
+        finally:
+            beat.stop()
+            self.release_run(held)
+
+    def acquire_run(self, run_id: str, *, lease_s: float = DEFAULT_LEASE_S) -> _lock.RunLock:
+        """Become the run's only runner, or raise RunLocked naming the one who is.
+
+        A sealed (finished or aborted) run is refused. A stale lock (its process gone from this
+        host, or its lease run out) is broken and a 'RunLockBroken' entry records whose it was.
+        While this Store holds the lock, appends to the run from any other runner are refused.
+        """
+        if not isinstance(lease_s, int | float) or not math.isfinite(lease_s) or not 0 < lease_s <= 86400:
+            raise RecordRefused(f"lease_s = {lease_s!r}: must be a number of seconds in (0, 86400]")
+        with self._write() as conn:
+            run = self._run(conn, run_id)
+            if run.status != "running":
+                raise RecordRefused(f"run {run_id} is {run.status}: it is sealed, there is nothing to run")
+            now = self._clock().astimezone(UTC)
+            stamp = now.isoformat(timespec="microseconds")
+            owner, host = uuid.uuid4().hex, _lock.this_host()
+            mine = _lock.RunLock(run_id, owner, host, os.getpid(), stamp, stamp, float(lease_s))
+            held = _lock.read(conn, run_id)
+            why = None if held is None else _lock.stale_reason(held, now)
+            if held is not None and why is None:
+                raise _lock.RunLocked(_lock.refusal(run_id, held))
+            if held is not None:
+                _lock.remove(conn, run_id, held.owner)
+            _lock.insert(conn, mine)
+            self._held[run_id] = mine.owner
+            try:
+                if held is not None:
+                    payload = {"holder": held.as_payload(), "reason": why, "taken_by": mine.as_payload()}
+                    self._append(conn, run_id, RUN_LOCK_BROKEN, payload)
+            except BaseException:
+                self._held.pop(run_id, None)
+                raise
+        return mine
+
+    def release_run(self, held: _lock.RunLock) -> None:
+        """Give the run's lock back (harmless if it was broken meanwhile or the store is closed)."""
+        with self._lock:
+            if self._held.get(held.run_id) == held.owner:
+                del self._held[held.run_id]
+        try:
+            with self._write() as conn:
+                _lock.remove(conn, held.run_id, held.owner)
+        except StoreError:
+            pass  # closed store: the row goes stale with this process (same host) or its lease
+
+    def run_lock_holder(self, run_id: str) -> _lock.RunLock | None:
+        """The run's current lock row, if any (stale or not)."""
+        with self._read() as conn:
+            return _lock.read(conn, run_id)
+
+    def _renew(self, held: _lock.RunLock) -> bool:
+        stamp = self._clock().astimezone(UTC).isoformat(timespec="microseconds")
+        with self._write() as conn:
+            return _lock.renew(conn, held.run_id, held.owner, stamp)
+
     def rebuild_indexes(self) -> None:
         """Recompute `bats` and `runs` from the log (refuses if the log contradicts itself)."""
         with self._write() as conn:
@@ -163,6 +238,12 @@ class Store:
         sql = f"SELECT {_ENTRY_COLUMNS} FROM log WHERE {' AND '.join(where)} ORDER BY seq"
         with self._read() as conn:
             return [_entry(row) for row in conn.execute(sql, params)]
+
+    def entry(self, seq: int) -> LogEntry | None:
+        """The entry at `seq`, or None if there is none."""
+        with self._read() as conn:
+            row = conn.execute(f"SELECT {_ENTRY_COLUMNS} FROM log WHERE seq = ?", (seq,)).fetchone()
+        return _entry(row) if row else None
 
     def runs(self) -> list[RunSummary]:
         """Every run, oldest first."""
@@ -252,7 +333,7 @@ class Store:
         if run_id is not None and not isinstance(run_id, str):
             raise RecordRefused(f"run_id {run_id!r}: must be a str or None")
         if run_id is not None and not new_run:
-            self._run(conn, run_id)  # refuses an unknown run with the known ids
+            self._check_open(conn, run_id, kind)
         head = conn.execute("SELECT seq, hash FROM log ORDER BY seq DESC LIMIT 1").fetchone()
         seq, prev_hash = (head[0] + 1, head[1]) if head else (1, GENESIS_HASH)
         t_utc = self._clock().astimezone(UTC).isoformat(timespec="microseconds")
@@ -265,6 +346,20 @@ class Store:
             conn.execute("UPDATE runs SET last_seq = ? WHERE run_id = ?", (seq, run_id))
         return LogEntry(seq, run_id, kind, decode_payload(text), t_utc, prev_hash, digest)
 
+    def _check_open(self, conn: sqlite3.Connection, run_id: str, kind: str) -> None:
+        """Refuse an entry for an unknown or sealed run, or one another runner holds."""
+        run = self._run(conn, run_id)  # refuses an unknown run with the known ids
+        if run.status != "running":
+            raise RecordRefused(
+                f"run {run_id} is {run.status} and sealed at seq {run.last_seq}: no {kind} may follow it"
+            )
+        held = _lock.read(conn, run_id)
+        mine = self._held.get(run_id)
+        if held is not None and held.owner != mine:
+            raise _lock.RunLocked(_lock.refusal(run_id, held))
+        if held is None and mine is not None:
+            raise _lock.RunLocked(f"run {run_id}: this runner's lock was broken (lease ran out); stopping")
+
     def _run(self, conn: sqlite3.Connection, run_id: str) -> RunSummary:
         row = conn.execute(f"SELECT {_RUN_COLUMNS} FROM runs WHERE run_id = ?", (run_id,)).fetchone()
         if row is None:
@@ -273,6 +368,28 @@ class Store:
             hint = f"did you mean {', '.join(close[:3])}?" if close else _known("runs", recent)
             raise UnknownRecord(f"no run {run_id!r}; {hint}")
         return RunSummary(*row)
+
+
+class _Heartbeat(threading.Thread):
+    """Renews a run lock's lease every `interval_s` until stopped or the lock is found broken."""
+
+    def __init__(self, store: Store, held: _lock.RunLock, interval_s: float) -> None:
+        super().__init__(name=f"run-lock-heartbeat-{held.run_id[:8]}", daemon=True)
+        self._store, self._held, self._interval_s = store, held, interval_s
+        self._stopped = threading.Event()
+
+    def run(self) -> None:
+        while not self._stopped.wait(self._interval_s):
+            try:
+                if not self._store._renew(self._held):
+                    return  # broken: the store refuses this runner's next append
+            except StoreError:
+                continue  # busy or closed: try again at the next beat
+
+    def stop(self) -> None:
+        self._stopped.set()
+        if self.is_alive():
+            self.join()
 
 
 def _entry(row: Sequence[Any]) -> LogEntry:

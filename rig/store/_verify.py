@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sqlite3
 from collections.abc import Iterable
 
@@ -64,19 +65,55 @@ class _Chain:
         self.problems.append((seq, reason))
 
 
+# Entries a run may hold once only, keyed by a payload field (None: once per run at all).
+_ONCE_PER_RUN: dict[str, str | None] = {"ShotRequested": "index", "ShotFired": "index", "RunFinished": None}
+
+
+class _RunAudit:
+    """Per run: a shot number requested or fired twice, a second verdict (two runners at once)."""
+
+    def __init__(self) -> None:
+        self.first: dict[tuple[str, str, object], int] = {}  # (run, kind, key) -> first seq
+        self.problems: list[str] = []
+
+    def feed(self, seq: int, run_id: str | None, kind: str, payload: str | None) -> None:
+        if run_id is None or kind not in _ONCE_PER_RUN:
+            return
+        field = _ONCE_PER_RUN[kind]
+        key: object = None
+        if field is not None:
+            try:
+                key = json.loads(payload or "").get(field)
+            except (ValueError, AttributeError):
+                return  # an unreadable payload is the chain's finding
+            if not isinstance(key, int):
+                return
+        first = self.first.setdefault((run_id, kind, key), seq)
+        if first != seq:
+            what = {
+                "ShotFired": f"shot {key} fired twice",
+                "ShotRequested": f"shot {key} requested twice",
+            }.get(kind, f"a second {kind}")
+            self.problems.append(
+                f"seq {seq}: run {run_id}: {what} (the first at seq {first}; two runners at once?)"
+            )
+
+
 def verify(conn: sqlite3.Connection, anchors: Iterable[Anchor] = ()) -> VerifyReport:
     """Check the log, the tables and the anchors (caller holds a read transaction)."""
-    chain, deriver = _Chain(), Deriver()
+    chain, deriver, audit = _Chain(), Deriver(), _RunAudit()
     for row in conn.execute(_SELECT):
         seq, raw = row[0], row[1:]
         fields = chain.feed(seq, raw)
         if fields is not None:
             run_id, kind, payload, t_utc = fields[:4]
             deriver.feed(seq, run_id, kind or "", payload, t_utc or "")
+            audit.feed(seq, run_id, kind or "", payload)
     problems = [f"seq {seq}: {reason}" for seq, reason in chain.problems[:_MAX_LISTED]]
     if len(chain.problems) > _MAX_LISTED:
         problems.append(f"... and {len(chain.problems) - _MAX_LISTED} more broken entries")
     problems += deriver.problems[:_MAX_LISTED]
+    problems += audit.problems[:_MAX_LISTED]
     problems += compare_tables(conn, deriver)[:_MAX_LISTED]
     problems += _check_anchors(conn, anchors)
     problems += _check_triggers(conn)
