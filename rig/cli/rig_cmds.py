@@ -12,6 +12,7 @@ from rig.cli.common import (
     emit,
     rig_config,
 )
+from rig.core.errors import ConfigError
 
 
 def cmd_shot(args: argparse.Namespace) -> int:
@@ -23,6 +24,7 @@ def cmd_shot(args: argparse.Namespace) -> int:
     if args.impact_from_pivot is not None:
         config = config.model_copy(update={"impact_from_pivot_m": args.impact_from_pivot})
     with RigSession.open(config) as session:
+        _clear_fault(session.cannon)
         cfg = prepare(session.cannon, session.gates, session.clamp, config.impact_from_pivot_m)
         try:
             record = fire_shot(session.cannon, session.gates, session.clamp, config, args.speed, cfg)
@@ -43,12 +45,38 @@ def cmd_shot(args: argparse.Namespace) -> int:
     return 0
 
 
+def _clear_fault(cannon: Any) -> None:
+    """Reset a cannon an earlier session left in FAULT (a misfire vents the tank), as a run does."""
+    from rig.core.devices import CannonState
+
+    if cannon.status().state is CannonState.FAULT:
+        cannon.reset()
+        print("rig: the cannon was in FAULT (left by an earlier shot); reset it to SAFE", file=sys.stderr)
+
+
 def cmd_sim_serve(args: argparse.Namespace) -> int:
-    """rig sim serve: expose the simulated devices on ptys or TCP ports until interrupted."""
+    """rig sim serve: expose the simulated devices on ptys or TCP ports until interrupted.
+
+    The physics is loaded and one dummy shot fired before the ports are printed, so that the first
+    FIRE is answered as fast as any other. With --bat, the simulated bat takes the bat file's
+    properties as its true ones (those the scene's [bat] table sets win), as `--sim` does for a run.
+    """
+    from pydantic import ValidationError
+
     from simulators.scene import Scene
     from simulators.serve import serve
 
-    serve(Scene.load(args.scene), kind=args.kind, base_port=args.base_port)
+    scene = Scene.load(args.scene)
+    if args.bat is not None:
+        from rig.core.bat import BatSpec
+        from rig.session import scene_with_bat
+
+        try:
+            scene = scene_with_bat(scene, BatSpec.load(args.bat))
+        except ValidationError as exc:
+            reason = exc.errors()[0]["msg"].removeprefix("Value error, ")
+            raise ConfigError(f"this bat does not fit scene {args.scene!r}: {reason}", args.bat) from None
+    serve(scene, kind=args.kind, base_port=args.base_port)
     return 0
 
 
@@ -72,4 +100,7 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--scene", default="ideal", help="ideal, lab, faulty or a scene TOML file")
     p.add_argument("--kind", choices=("pty", "tcp"), default="pty", help="pty (default) or tcp on 127.0.0.1")
     p.add_argument("--base-port", type=int, default=0, help="first TCP port (default: any free port)")
+    p.add_argument(
+        "--bat", metavar="BAT.toml", help="simulate this bat (its length, mass, MOI, balance, hoop)"
+    )
     p.set_defaults(handler=cmd_sim_serve)

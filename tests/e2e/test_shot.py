@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -18,7 +19,7 @@ from rig.core.errors import DeviceError, DeviceGone, DeviceTimeout, RigError, Sa
 from rig.physics import DEFAULT_PARAMS, PivotedBat, predict_bat
 from rig.session import RigSession, sim_config
 from simulators.scene import Scene
-from simulators.urlhandler import get_world
+from simulators.urlhandler import get_world, register, reset_worlds
 
 
 def test_cli_shot_in_ideal_scene_matches_the_model(capsys: pytest.CaptureFixture[str]) -> None:
@@ -140,6 +141,7 @@ def _recover(s: RigSession) -> None:
 
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX process groups")
 @pytest.mark.parametrize("kind", ["tcp", "pty"])
+@pytest.mark.usefixtures("cpu_load")
 def test_shot_through_rig_sim_serve(kind: str) -> None:
     """The real drivers cross a real OS boundary to a `rig sim serve` process."""
     server = subprocess.Popen(
@@ -193,3 +195,35 @@ def test_shot_through_rig_sim_serve(kind: str) -> None:
         except subprocess.TimeoutExpired:
             os.killpg(server.pid, signal.SIGKILL)
             server.wait()
+
+
+def _ports(scene: str, rig: str) -> list[str]:
+    return [a for d in ("cannon", "gates", "clamp") for a in (f"--{d}", f"sim://{d}?scene={scene}&rig={rig}")]
+
+
+def test_cli_shot_resets_a_cannon_an_earlier_shot_left_in_fault(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A misfire leaves the cannon in FAULT; the next `rig shot` clears it (RESET) and fires."""
+    scene = tmp_path / "misfire.toml"
+    scene.write_text('[[effects]]\nkind = "misfire"\nshots = [2]\n')
+    ports = _ports(str(scene), "shot-fault")
+    register()
+    reset_worlds()
+    try:
+        assert main(["shot", "--speed", "60.8", "--json", *ports]) == 0
+        capsys.readouterr()
+        assert main(["shot", "--speed", "60.8", *ports]) == 2  # the misfire
+        assert "MISFIRE" in capsys.readouterr().err
+        world = get_world("shot-fault")
+        assert world.cannon.state is CannonState.FAULT  # and so it stays, across sessions
+        assert main(["shot", "--speed", "60.8", "--json", *ports]) == 0
+        captured = capsys.readouterr()
+        assert "FAULT" in captured.err and "reset" in captured.err
+        out = json.loads(captured.out)
+        assert out["shot_number"] == 2  # the cannon's count of balls launched: the misfire launched none
+        assert out["inbound_speed_m_s"] == pytest.approx(60.8, rel=0.01)
+        assert world.attempts == 3 and len(world.shots) == 2  # three FIREs accepted, two balls flew
+        assert world.cannon.state is not CannonState.FAULT
+    finally:
+        reset_worlds()
