@@ -14,6 +14,8 @@ from rig.cli.common import (
 )
 from rig.core.errors import ConfigError
 
+MAX_BASE_PORT = 65533  # the cannon's port; gates and clamp take the next two
+
 
 def cmd_shot(args: argparse.Namespace) -> int:
     """rig shot: fire one shot through the drivers and print the raw and derived figures."""
@@ -80,6 +82,17 @@ def cmd_sim_serve(args: argparse.Namespace) -> int:
     return 0
 
 
+def _base_port(text: str) -> int:
+    """A TCP port for the cannon, with room for the gates and the clamp on the next two; 0: any."""
+    try:
+        port = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if not 0 <= port <= MAX_BASE_PORT:
+        raise argparse.ArgumentTypeError(f"{port} is not a port from 1 to {MAX_BASE_PORT} (or 0: any free)")
+    return port
+
+
 def add_parsers(sub: Any) -> None:
     """`rig shot` and `rig sim serve`."""
     p = sub.add_parser("shot", help="fire one shot through the drivers", description=cmd_shot.__doc__)
@@ -99,7 +112,9 @@ def add_parsers(sub: Any) -> None:
     )
     p.add_argument("--scene", default="ideal", help="ideal, lab, faulty or a scene TOML file")
     p.add_argument("--kind", choices=("pty", "tcp"), default="pty", help="pty (default) or tcp on 127.0.0.1")
-    p.add_argument("--base-port", type=int, default=0, help="first TCP port (default: any free port)")
+    p.add_argument(
+        "--base-port", type=_base_port, default=0, help="first of three TCP ports (default: any free ports)"
+    )
     p.add_argument(
         "--bat", metavar="BAT.toml", help="simulate this bat (its length, mass, MOI, balance, hoop)"
     )

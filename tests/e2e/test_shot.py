@@ -227,3 +227,87 @@ def test_cli_shot_resets_a_cannon_an_earlier_shot_left_in_fault(
         assert world.cannon.state is not CannonState.FAULT
     finally:
         reset_worlds()
+
+
+HEAVY_BAT = """[bat]
+id = "HEAVY-MOI"
+length_in = 33.0
+weight_oz = 30.0
+barrel = "aluminium"
+moi_kgm2 = 0.30
+"""
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX process groups")
+@pytest.mark.usefixtures("cpu_load")
+def test_rig_sim_serve_simulates_the_bat_file(tmp_path: Path) -> None:
+    """`rig sim serve --bat`: the served bat has the file's MOI, so the rebound is that bat's."""
+    bat = tmp_path / "heavy.toml"
+    bat.write_text(HEAVY_BAT)
+    server = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "rig.cli",
+            "sim",
+            "serve",
+            "--scene",
+            "ideal",
+            "--kind",
+            "tcp",
+            "--bat",
+            str(bat),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        assert server.stdout is not None
+        urls = dict(server.stdout.readline().split() for _ in range(3))
+        argv = [sys.executable, "-m", "rig.cli", "shot", "--speed", "60.8", "--json"]
+        argv += [a for d in ("cannon", "gates", "clamp") for a in (f"--{d}", urls[d])]
+        proc = subprocess.run(argv, capture_output=True, text=True, timeout=120, check=False)
+        assert proc.returncode == 0, proc.stderr
+    finally:
+        os.killpg(server.pid, signal.SIGINT)
+        server.wait(timeout=10)
+    out = json.loads(proc.stdout)
+    e_a = out["rebound_speed_m_s"] / out["inbound_speed_m_s"]
+
+    def model(moi: float) -> float:
+        bat = PivotedBat(moi_kgm2=moi, impact_from_pivot_m=out["impact_from_pivot_m"])
+        return predict_bat(DEFAULT_PARAMS, out["inbound_speed_m_s"], None, bat).e_a
+
+    assert Scene.load("ideal").bat.moi_kgm2 == 0.19  # what the scene alone would simulate
+    assert e_a == pytest.approx(model(0.30), abs=2e-4)  # tick quantization over ~23 ms
+    assert abs(e_a - model(0.19)) > 0.05
+
+
+@pytest.mark.parametrize(
+    ("text", "needle"),
+    [
+        ('[bat]\nid = "X"\nlength_in = 33.0\nweight_oz = 30.0\nbarrel = "wood"\nmoi_kgm2 = 0.05\n', "MOI"),
+        ('[bat]\nid = "X"\nlength_in = 33.0\nbarrel = "wood"\n', "weight_oz"),
+    ],
+)
+def test_rig_sim_serve_refuses_a_bad_bat_file_in_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], text: str, needle: str
+) -> None:
+    bat = tmp_path / "bad.toml"
+    bat.write_text(text)
+    assert main(["sim", "serve", "--scene", "ideal", "--kind", "tcp", "--bat", str(bat)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "Traceback" not in err and "bad.toml" in err and needle in err
+
+
+@pytest.mark.parametrize("port", ["70000", "65534", "-1", "x"])
+def test_rig_sim_serve_refuses_a_base_port_out_of_range(
+    capsys: pytest.CaptureFixture[str], port: str
+) -> None:
+    with pytest.raises(SystemExit) as exc:
+        main(["sim", "serve", "--kind", "tcp", "--base-port", port])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "--base-port" in err
