@@ -12,12 +12,16 @@ from pathlib import Path
 
 import pytest
 
+from protocols.procedure import Procedure
 from protocols.shot import ShotFailed, fire_shot, prepare
+from rig.certification import certify
 from rig.cli import main
+from rig.core.bat import BatSpec
 from rig.core.devices import CannonState
 from rig.core.errors import DeviceError, DeviceGone, DeviceTimeout, RigError, SafetyRefusal
 from rig.physics import DEFAULT_PARAMS, PivotedBat, predict_bat
 from rig.session import RigSession, sim_config
+from rig.store import Store
 from simulators.scene import Scene
 from simulators.urlhandler import get_world, register, reset_worlds
 
@@ -311,3 +315,76 @@ def test_rig_sim_serve_refuses_a_base_port_out_of_range(
     assert exc.value.code == 2
     err = capsys.readouterr().err
     assert "Traceback" not in err and "--base-port" in err
+
+
+SAMPLE_BAT = Path(__file__).resolve().parents[2] / "protocols" / "examples" / "sample-bat.toml"
+OUTCOMES = ("ShotMeasured", "ShotRejected", "ShotLost")
+RIG = [sys.executable, "-m", "rig.cli"]
+SERVE = [*RIG, "sim", "serve"]
+
+
+def _outcomes(db: Path) -> tuple[list[tuple[str, int, float | None]], dict]:
+    """(kind, shot index, metric) of every shot's outcome, and the RunFinished payload."""
+    with Store.open(db, create=False) as store:
+        (run,) = store.runs()
+        shots = [
+            (e.kind, e.payload["index"], e.payload.get("metric"))
+            for e in store.entries(run.run_id, kinds=OUTCOMES)
+        ]
+        (finished,) = store.entries(run.run_id, kinds=["RunFinished"])
+        assert store.verify().ok
+    return shots, finished.payload
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX process groups")
+@pytest.mark.usefixtures("cpu_load")
+def test_certify_on_a_served_rig_loses_no_shot_and_matches_the_in_process_run(tmp_path: Path) -> None:
+    """`rig certify --config` on `rig sim serve --bat` under load: every shot is the in-process run's.
+
+    Virtual time makes the simulated rig deterministic, so the record of a run across the process
+    boundary (TCP) must equal the record of the same run in process (sim://): no shot lost to a slow
+    first reply, the same outcomes and metrics, the same verdict.
+    """
+    server = subprocess.Popen(
+        [*SERVE, "--scene", "lab", "--kind", "tcp", "--bat", str(SAMPLE_BAT)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        assert server.stdout is not None
+        urls = dict(server.stdout.readline().split() for _ in range(3))
+        fragment = Scene.load("lab").rig_config_fragment()
+        rig_toml = tmp_path / "rig.toml"
+        rig_toml.write_text(
+            "[ports]\n"
+            + "".join(f'{d} = "{urls[d]}"\n' for d in ("cannon", "gates", "clamp"))
+            + f"[gates]\npositions_m = {list(fragment['gates']['positions_m'])}\n"
+            + f"[aim]\npressure_kpa = {list(fragment['aim']['pressure_kpa'])}\n"
+            + f"speed_m_s = {list(fragment['aim']['speed_m_s'])}\n"
+        )
+        served_db = tmp_path / "served.db"
+        files = ["--bat", str(SAMPLE_BAT), "--config", str(rig_toml), "--db", str(served_db)]
+        proc = subprocess.run(
+            [*RIG, "certify", "--procedure", "bbcor", *files],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            check=False,
+        )
+        assert proc.returncode in (0, 1), proc.stdout + proc.stderr  # PASS or FAIL: a verdict
+    finally:
+        os.killpg(server.pid, signal.SIGINT)
+        server.wait(timeout=10)
+    bat = BatSpec.load(SAMPLE_BAT)
+    ref_db = tmp_path / "in-process.db"
+    with Store.open(ref_db) as store:
+        certify(store, Procedure.load("bbcor"), bat, sim_config("lab", bat=bat))
+    served, served_verdict = _outcomes(served_db)
+    reference, ref_verdict = _outcomes(ref_db)
+    assert not [s for s in served if s[0] == "ShotLost"]
+    assert [s[:2] for s in served] == [s[:2] for s in reference]
+    assert [s[2] for s in served] == pytest.approx([s[2] for s in reference], abs=1e-12)
+    assert served_verdict["verdict"] == ref_verdict["verdict"]
+    assert served_verdict["mean"] == pytest.approx(ref_verdict["mean"], abs=1e-12)
