@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -24,6 +26,9 @@ from rig.session import RigSession, sim_config
 from rig.store import Store
 from simulators.scene import Scene
 from simulators.urlhandler import get_world, register, reset_worlds
+
+RIG = [sys.executable, "-m", "rig.cli"]
+SERVE = [*RIG, "sim", "serve"]
 
 
 def test_cli_shot_in_ideal_scene_matches_the_model(capsys: pytest.CaptureFixture[str]) -> None:
@@ -143,21 +148,21 @@ def _recover(s: RigSession) -> None:
         raise
 
 
-@pytest.mark.skipif(sys.platform == "win32", reason="POSIX process groups")
-@pytest.mark.parametrize("kind", ["tcp", "pty"])
-@pytest.mark.usefixtures("cpu_load")
-def test_shot_through_rig_sim_serve(kind: str) -> None:
-    """The real drivers cross a real OS boundary to a `rig sim serve` process."""
+@contextlib.contextmanager
+def served(*args: str) -> Iterator[dict[str, str]]:
+    """`rig sim serve ARGS` in its own process group; yields its device URLs; always stopped."""
     server = subprocess.Popen(
-        [sys.executable, "-m", "rig.cli", "sim", "serve", "--scene", "lab", "--kind", kind],
+        [*SERVE, *args],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
     )
+    assert server.stdout is not None and server.stderr is not None
     try:
         urls = {}
-        deadline = time.monotonic() + 60
+        # the warm-up (in a fresh checkout: compiling the kernel) comes before the first line
+        deadline = time.monotonic() + 120
         while len(urls) < 3 and time.monotonic() < deadline:
             line = server.stdout.readline()
             if not line:
@@ -165,33 +170,7 @@ def test_shot_through_rig_sim_serve(kind: str) -> None:
             name, url = line.split()
             urls[name] = url
         assert set(urls) == {"cannon", "gates", "clamp"}, server.stderr.read() if server.poll() else urls
-        proc = subprocess.run(
-            [
-                sys.executable,
-                "-m",
-                "rig.cli",
-                "shot",
-                "--speed",
-                "60.8",
-                "--json",
-                "--cannon",
-                urls["cannon"],
-                "--gates",
-                urls["gates"],
-                "--clamp",
-                urls["clamp"],
-            ],
-            capture_output=True,
-            text=True,
-            timeout=120,
-            check=False,
-        )
-        assert proc.returncode == 0, proc.stderr
-        out = json.loads(proc.stdout)
-        assert len(out["crossings"]) >= 6
-        assert out["inbound_speed_m_s"] == pytest.approx(60.8, rel=0.02)
-        assert 5.0 < out["rebound_speed_m_s"] < 30.0
-        assert out["recoil_rad_s"] > 0  # the lab scene turns on bat recoil
+        yield urls
     finally:
         os.killpg(server.pid, signal.SIGINT)
         try:
@@ -199,6 +178,33 @@ def test_shot_through_rig_sim_serve(kind: str) -> None:
         except subprocess.TimeoutExpired:
             os.killpg(server.pid, signal.SIGKILL)
             server.wait()
+        server.stdout.close()
+        server.stderr.close()
+
+
+def _urls(urls: dict[str, str]) -> list[str]:
+    return [a for d in ("cannon", "gates", "clamp") for a in (f"--{d}", urls[d])]
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="POSIX process groups")
+@pytest.mark.parametrize("kind", ["tcp", "pty"])
+@pytest.mark.usefixtures("cpu_load")
+def test_shot_through_rig_sim_serve(kind: str) -> None:
+    """The real drivers cross a real OS boundary to a `rig sim serve` process."""
+    with served("--scene", "lab", "--kind", kind) as urls:
+        proc = subprocess.run(
+            [*RIG, "shot", "--speed", "60.8", "--json", *_urls(urls)],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        )
+    assert proc.returncode == 0, proc.stderr
+    out = json.loads(proc.stdout)
+    assert len(out["crossings"]) >= 6
+    assert out["inbound_speed_m_s"] == pytest.approx(60.8, rel=0.02)
+    assert 5.0 < out["rebound_speed_m_s"] < 30.0
+    assert out["recoil_rad_s"] > 0  # the lab scene turns on bat recoil
 
 
 def _ports(scene: str, rig: str) -> list[str]:
@@ -248,35 +254,10 @@ def test_rig_sim_serve_simulates_the_bat_file(tmp_path: Path) -> None:
     """`rig sim serve --bat`: the served bat has the file's MOI, so the rebound is that bat's."""
     bat = tmp_path / "heavy.toml"
     bat.write_text(HEAVY_BAT)
-    server = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "rig.cli",
-            "sim",
-            "serve",
-            "--scene",
-            "ideal",
-            "--kind",
-            "tcp",
-            "--bat",
-            str(bat),
-        ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
-    try:
-        assert server.stdout is not None
-        urls = dict(server.stdout.readline().split() for _ in range(3))
-        argv = [sys.executable, "-m", "rig.cli", "shot", "--speed", "60.8", "--json"]
-        argv += [a for d in ("cannon", "gates", "clamp") for a in (f"--{d}", urls[d])]
+    with served("--scene", "ideal", "--kind", "tcp", "--bat", str(bat)) as urls:
+        argv = [*RIG, "shot", "--speed", "60.8", "--json", *_urls(urls)]
         proc = subprocess.run(argv, capture_output=True, text=True, timeout=120, check=False)
-        assert proc.returncode == 0, proc.stderr
-    finally:
-        os.killpg(server.pid, signal.SIGINT)
-        server.wait(timeout=10)
+    assert proc.returncode == 0, proc.stderr
     out = json.loads(proc.stdout)
     e_a = out["rebound_speed_m_s"] / out["inbound_speed_m_s"]
 
@@ -319,8 +300,6 @@ def test_rig_sim_serve_refuses_a_base_port_out_of_range(
 
 SAMPLE_BAT = Path(__file__).resolve().parents[2] / "protocols" / "examples" / "sample-bat.toml"
 OUTCOMES = ("ShotMeasured", "ShotRejected", "ShotLost")
-RIG = [sys.executable, "-m", "rig.cli"]
-SERVE = [*RIG, "sim", "serve"]
 
 
 def _outcomes(db: Path) -> tuple[list[tuple[str, int, float | None]], dict]:
@@ -345,16 +324,7 @@ def test_certify_on_a_served_rig_loses_no_shot_and_matches_the_in_process_run(tm
     boundary (TCP) must equal the record of the same run in process (sim://): no shot lost to a slow
     first reply, the same outcomes and metrics, the same verdict.
     """
-    server = subprocess.Popen(
-        [*SERVE, "--scene", "lab", "--kind", "tcp", "--bat", str(SAMPLE_BAT)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-        start_new_session=True,
-    )
-    try:
-        assert server.stdout is not None
-        urls = dict(server.stdout.readline().split() for _ in range(3))
+    with served("--scene", "lab", "--kind", "tcp", "--bat", str(SAMPLE_BAT)) as urls:
         fragment = Scene.load("lab").rig_config_fragment()
         rig_toml = tmp_path / "rig.toml"
         rig_toml.write_text(
@@ -373,18 +343,15 @@ def test_certify_on_a_served_rig_loses_no_shot_and_matches_the_in_process_run(tm
             timeout=300,
             check=False,
         )
-        assert proc.returncode in (0, 1), proc.stdout + proc.stderr  # PASS or FAIL: a verdict
-    finally:
-        os.killpg(server.pid, signal.SIGINT)
-        server.wait(timeout=10)
+    assert proc.returncode in (0, 1), proc.stdout + proc.stderr  # PASS or FAIL: a verdict
     bat = BatSpec.load(SAMPLE_BAT)
     ref_db = tmp_path / "in-process.db"
     with Store.open(ref_db) as store:
         certify(store, Procedure.load("bbcor"), bat, sim_config("lab", bat=bat))
-    served, served_verdict = _outcomes(served_db)
+    shots, verdict = _outcomes(served_db)
     reference, ref_verdict = _outcomes(ref_db)
-    assert not [s for s in served if s[0] == "ShotLost"]
-    assert [s[:2] for s in served] == [s[:2] for s in reference]
-    assert [s[2] for s in served] == pytest.approx([s[2] for s in reference], abs=1e-12)
-    assert served_verdict["verdict"] == ref_verdict["verdict"]
-    assert served_verdict["mean"] == pytest.approx(ref_verdict["mean"], abs=1e-12)
+    assert not [s for s in shots if s[0] == "ShotLost"]
+    assert [s[:2] for s in shots] == [s[:2] for s in reference]
+    assert [s[2] for s in shots] == pytest.approx([s[2] for s in reference], abs=1e-12)
+    assert verdict["verdict"] == ref_verdict["verdict"]
+    assert verdict["mean"] == pytest.approx(ref_verdict["mean"], abs=1e-12)
