@@ -12,13 +12,16 @@ from rig.cli.common import (
     emit,
     rig_config,
 )
-from rig.core.errors import ConfigError
+from rig.core.errors import ConfigError, DeviceError
 
 MAX_BASE_PORT = 65533  # the cannon's port; gates and clamp take the next two
 
 
 def cmd_shot(args: argparse.Namespace) -> int:
-    """rig shot: fire one shot through the drivers and print the raw and derived figures."""
+    """rig shot: fire one shot through the drivers and print the raw and derived figures.
+
+    A cannon an earlier shot left in FAULT (a misfire) is reset to SAFE first, and the user told.
+    """
     from protocols.shot import ShotFailed, fire_shot, prepare
     from rig.session import RigSession
 
@@ -35,6 +38,11 @@ def cmd_shot(args: argparse.Namespace) -> int:
                 json.dump({"error": str(exc), **exc.record.as_dict()}, sys.stderr, allow_nan=False)
                 sys.stderr.write("\n")
             raise
+        except DeviceError as exc:
+            if _in_fault(session.cannon):
+                hint = "the cannon is left in FAULT (tank vented); the next `rig shot` resets it"
+                raise DeviceError("cannon", f"{str(exc).removeprefix('cannon: ')}; {hint}") from exc
+            raise
     payload = record.as_dict()
     if args.json:
         json.dump(payload, sys.stdout, indent=2, allow_nan=False)
@@ -47,11 +55,19 @@ def cmd_shot(args: argparse.Namespace) -> int:
     return 0
 
 
-def _clear_fault(cannon: Any) -> None:
-    """Reset a cannon an earlier session left in FAULT (a misfire vents the tank), as a run does."""
+def _in_fault(cannon: Any) -> bool:
+    """True if the cannon says it is in FAULT (False if it cannot say)."""
     from rig.core.devices import CannonState
 
-    if cannon.status().state is CannonState.FAULT:
+    try:
+        return cannon.status().state is CannonState.FAULT
+    except DeviceError:
+        return False
+
+
+def _clear_fault(cannon: Any) -> None:
+    """Reset a cannon an earlier session left in FAULT (a misfire vents the tank), as a run does."""
+    if _in_fault(cannon):
         cannon.reset()
         print("rig: the cannon was in FAULT (left by an earlier shot); reset it to SAFE", file=sys.stderr)
 

@@ -224,7 +224,8 @@ def test_cli_shot_resets_a_cannon_an_earlier_shot_left_in_fault(
         assert main(["shot", "--speed", "60.8", "--json", *ports]) == 0
         capsys.readouterr()
         assert main(["shot", "--speed", "60.8", *ports]) == 2  # the misfire
-        assert "MISFIRE" in capsys.readouterr().err
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and "MISFIRE" in err and "next `rig shot` resets it" in err
         world = get_world("shot-fault")
         assert world.cannon.state is CannonState.FAULT  # and so it stays, across sessions
         assert main(["shot", "--speed", "60.8", "--json", *ports]) == 0
