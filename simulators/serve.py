@@ -160,11 +160,11 @@ def serve(
     out = out if out is not None else sys.stdout
     stop = stop if stop is not None else threading.Event()
     world = SimWorld(scene if isinstance(scene, Scene) else Scene.load(scene))
-    if warm:
-        warm_up(world.scene)
     endpoints: list[_Endpoint] = []
     selector = selectors.DefaultSelector()
     try:
+        if warm:
+            warm_up(world.scene)
         for i, (name, device) in enumerate(world.devices.items()):
             endpoints.append(_Endpoint(device, kind, host, base_port + i if base_port else 0))
             print(f"{name} {endpoints[-1].url}", file=out, flush=True)
