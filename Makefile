@@ -36,6 +36,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_curve.py
 	$(BIN)/python benchmarks/bench_scene.py
 	$(BIN)/python benchmarks/bench_certify.py
+	$(BIN)/python benchmarks/bench_serve.py --repeat 2
 
 accuracy: $(STAMP)
 	$(BIN)/python benchmarks/accuracy_doc.py

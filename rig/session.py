@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import uuid
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 from urllib.parse import quote
 
 from drivers.cannon.driver import CannonDriver
@@ -18,6 +19,9 @@ from drivers.transport import TrafficRecord
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.units import INCH
+
+if TYPE_CHECKING:
+    from simulators.scene import Scene
 
 DEVICES = ("cannon", "gates", "clamp")
 
@@ -36,17 +40,22 @@ def sim_config(scene: str = "ideal", rig_name: str | None = None, bat: BatSpec |
     loaded = Scene.load(scene)
     rig = rig_name or f"session-{uuid.uuid4().hex[:8]}"
     if bat is not None:
-        loaded = loaded.with_bat(
-            length_m=bat.length_m,
-            mass_kg=bat.mass_kg,
-            moi_kgm2=bat.moi_kgm2,
-            balance_point_m=None if bat.balance_point_in is None else bat.balance_point_in * INCH,
-            hoop_hz=bat.hoop_hz,
-        )
+        loaded = scene_with_bat(loaded, bat)
         install_world(rig, scene, loaded)
     ports = {dev: f"sim://{dev}?scene={quote(scene, safe='')}&rig={rig}" for dev in DEVICES}
     data = {"name": f"simulated rig ({loaded.name})", "ports": ports, **loaded.rig_config_fragment()}
     return RigConfig.from_dict(data, source=f"scene {scene}")
+
+
+def scene_with_bat(scene: Scene, bat: BatSpec) -> Scene:
+    """`scene` whose simulated bat has the bat file's properties, except those the scene's [bat] sets."""
+    return scene.with_bat(
+        length_m=bat.length_m,
+        mass_kg=bat.mass_kg,
+        moi_kgm2=bat.moi_kgm2,
+        balance_point_m=None if bat.balance_point_in is None else bat.balance_point_in * INCH,
+        hoop_hz=bat.hoop_hz,
+    )
 
 
 @dataclass

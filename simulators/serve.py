@@ -2,6 +2,8 @@
 
 `python -m simulators.serve --scene lab --kind tcp` prints one line per device, `<name> <url>`
 (`cannon socket://127.0.0.1:40123`, or `gates /dev/pts/7` for a pty), and runs until interrupted.
+Before it prints them it fires one dummy shot in a throwaway world of the scene (simulators.warmup),
+so that the first FIRE is answered as fast as any later one (`--no-warm` skips this).
 One thread, one selector. The server forwards a device's output as soon as it is queued, so the
 virtual clock runs ahead to the last consequence queued (nothing sleeps). An unplug fault closes
 the TCP connection (a new connection plugs the device back in) or replaces the pty with a new one,
@@ -22,6 +24,7 @@ from typing import TextIO
 
 from simulators.device import SimDevice, Unplugged
 from simulators.scene import Scene
+from simulators.warmup import warm_up
 from simulators.world import SimWorld
 
 POLL_S = 0.05  # how often the loop looks at the stop event
@@ -146,8 +149,12 @@ def serve(
     base_port: int = 0,
     stop: threading.Event | None = None,
     out: TextIO | None = None,
+    warm: bool = True,
 ) -> None:
-    """Expose the devices of one world until interrupted or `stop` is set; print `<name> <url>` lines."""
+    """Expose the devices of one world until interrupted or `stop` is set; print `<name> <url>` lines.
+
+    With `warm` (the default) the physics is loaded and exercised before the first line is printed.
+    """
     if kind not in ("pty", "tcp"):
         raise ValueError(f"kind must be 'pty' or 'tcp', not {kind!r}")
     out = out if out is not None else sys.stdout
@@ -156,6 +163,8 @@ def serve(
     endpoints: list[_Endpoint] = []
     selector = selectors.DefaultSelector()
     try:
+        if warm:
+            warm_up(world.scene)
         for i, (name, device) in enumerate(world.devices.items()):
             endpoints.append(_Endpoint(device, kind, host, base_port + i if base_port else 0))
             print(f"{name} {endpoints[-1].url}", file=out, flush=True)
@@ -195,8 +204,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--kind", choices=("pty", "tcp"), default="pty")
     parser.add_argument("--host", default="127.0.0.1")
     parser.add_argument("--base-port", type=int, default=0, help="cannon on this port, gates +1, clamp +2")
+    parser.add_argument(
+        "--no-warm",
+        action="store_true",
+        help="announce the ports at once (the first FIRE then loads the physics)",
+    )
     args = parser.parse_args(argv)
-    serve(args.scene, kind=args.kind, host=args.host, base_port=args.base_port)
+    serve(args.scene, kind=args.kind, host=args.host, base_port=args.base_port, warm=not args.no_warm)
     return 0
 
 

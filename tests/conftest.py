@@ -9,11 +9,13 @@ Profiles (choose with HYPOTHESIS_PROFILE, default "ci"):
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 
 import pytest
 from hypothesis import HealthCheck, settings
 
 from rig.physics.params import DEFAULT_PARAMS, CollisionParams
+from tests.load import cpu_load as _cpu_load
 
 settings.register_profile(
     "ci",
@@ -36,6 +38,13 @@ settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 def paper_params() -> CollisionParams:
     """The founding paper's constants (ball 0.145 kg, barrel 0.09 kg, a = 0.6495, b = 0.5202)."""
     return DEFAULT_PARAMS
+
+
+@pytest.fixture
+def cpu_load() -> Iterator[None]:
+    """Two CPU-bound processes beside the test (tests/load.py): for tests that cross a process boundary."""
+    with _cpu_load():
+        yield
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

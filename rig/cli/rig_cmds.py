@@ -12,10 +12,16 @@ from rig.cli.common import (
     emit,
     rig_config,
 )
+from rig.core.errors import ConfigError, DeviceError
+
+MAX_BASE_PORT = 65533  # the cannon's port; gates and clamp take the next two
 
 
 def cmd_shot(args: argparse.Namespace) -> int:
-    """rig shot: fire one shot through the drivers and print the raw and derived figures."""
+    """rig shot: fire one shot through the drivers and print the raw and derived figures.
+
+    A cannon an earlier shot left in FAULT (a misfire) is reset to SAFE first, and the user told.
+    """
     from protocols.shot import ShotFailed, fire_shot, prepare
     from rig.session import RigSession
 
@@ -23,6 +29,7 @@ def cmd_shot(args: argparse.Namespace) -> int:
     if args.impact_from_pivot is not None:
         config = config.model_copy(update={"impact_from_pivot_m": args.impact_from_pivot})
     with RigSession.open(config) as session:
+        _clear_fault(session.cannon)
         cfg = prepare(session.cannon, session.gates, session.clamp, config.impact_from_pivot_m)
         try:
             record = fire_shot(session.cannon, session.gates, session.clamp, config, args.speed, cfg)
@@ -30,6 +37,11 @@ def cmd_shot(args: argparse.Namespace) -> int:
             if exc.record is not None and args.json:
                 json.dump({"error": str(exc), **exc.record.as_dict()}, sys.stderr, allow_nan=False)
                 sys.stderr.write("\n")
+            raise
+        except DeviceError as exc:
+            if _in_fault(session.cannon):
+                hint = "the cannon is left in FAULT (tank vented); the next `rig shot` resets it"
+                raise DeviceError("cannon", f"{str(exc).removeprefix('cannon: ')}; {hint}") from exc
             raise
     payload = record.as_dict()
     if args.json:
@@ -43,13 +55,58 @@ def cmd_shot(args: argparse.Namespace) -> int:
     return 0
 
 
+def _in_fault(cannon: Any) -> bool:
+    """True if the cannon says it is in FAULT (False if it cannot say)."""
+    from rig.core.devices import CannonState
+
+    try:
+        return cannon.status().state is CannonState.FAULT
+    except DeviceError:
+        return False
+
+
+def _clear_fault(cannon: Any) -> None:
+    """Reset a cannon an earlier session left in FAULT (a misfire vents the tank), as a run does."""
+    if _in_fault(cannon):
+        cannon.reset()
+        print("rig: the cannon was in FAULT (left by an earlier shot); reset it to SAFE", file=sys.stderr)
+
+
 def cmd_sim_serve(args: argparse.Namespace) -> int:
-    """rig sim serve: expose the simulated devices on ptys or TCP ports until interrupted."""
+    """rig sim serve: expose the simulated devices on ptys or TCP ports until interrupted.
+
+    The physics is loaded and one dummy shot fired before the ports are printed, so that the first
+    FIRE is answered as fast as any other. With --bat, the simulated bat takes the bat file's
+    properties as its true ones (those the scene's [bat] table sets win), as `--sim` does for a run.
+    """
+    from pydantic import ValidationError
+
     from simulators.scene import Scene
     from simulators.serve import serve
 
-    serve(Scene.load(args.scene), kind=args.kind, base_port=args.base_port)
+    scene = Scene.load(args.scene)
+    if args.bat is not None:
+        from rig.core.bat import BatSpec
+        from rig.session import scene_with_bat
+
+        try:
+            scene = scene_with_bat(scene, BatSpec.load(args.bat))
+        except ValidationError as exc:
+            reason = exc.errors()[0]["msg"].removeprefix("Value error, ")
+            raise ConfigError(f"this bat does not fit scene {args.scene!r}: {reason}", args.bat) from None
+    serve(scene, kind=args.kind, base_port=args.base_port)
     return 0
+
+
+def _base_port(text: str) -> int:
+    """A TCP port for the cannon, with room for the gates and the clamp on the next two; 0: any."""
+    try:
+        port = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if not 0 <= port <= MAX_BASE_PORT:
+        raise argparse.ArgumentTypeError(f"{port} is not a port from 1 to {MAX_BASE_PORT} (or 0: any free)")
+    return port
 
 
 def add_parsers(sub: Any) -> None:
@@ -71,5 +128,10 @@ def add_parsers(sub: Any) -> None:
     )
     p.add_argument("--scene", default="ideal", help="ideal, lab, faulty or a scene TOML file")
     p.add_argument("--kind", choices=("pty", "tcp"), default="pty", help="pty (default) or tcp on 127.0.0.1")
-    p.add_argument("--base-port", type=int, default=0, help="first TCP port (default: any free port)")
+    p.add_argument(
+        "--base-port", type=_base_port, default=0, help="first of three TCP ports (default: any free ports)"
+    )
+    p.add_argument(
+        "--bat", metavar="BAT.toml", help="simulate this bat (its length, mass, MOI, balance, hoop)"
+    )
     p.set_defaults(handler=cmd_sim_serve)

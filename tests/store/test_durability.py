@@ -56,6 +56,7 @@ def test_wal_and_full_sync_are_set(store: Store) -> None:
 
 
 @pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="needs SIGKILL")
+@pytest.mark.usefixtures("cpu_load")
 def test_every_returned_append_survives_sigkill(tmp_path: Path) -> None:
     path = tmp_path / "killed.db"
     env = {**os.environ, "PYTHONPATH": str(ROOT)}

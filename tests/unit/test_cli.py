@@ -155,6 +155,7 @@ def test_every_command_has_help(capsys: pytest.CaptureFixture[str], argv: list[s
     assert "usage:" in capsys.readouterr().out
 
 
+@pytest.mark.usefixtures("cpu_load")
 def test_module_entry_point_runs_in_a_fresh_process() -> None:
     proc = subprocess.run(
         [sys.executable, "-m", "rig.cli", "model", "cor", "--speed", "30", "--rigid", "--json"],

@@ -43,6 +43,7 @@ def test_bad_rig_config_names_file_and_field(tmp_path: Path, text: str, needle: 
     assert needle in str(exc.value) and "rig.toml" in str(exc.value)
 
 
+@pytest.mark.usefixtures("cpu_load")
 def test_hardware_tests_run_when_opted_in(tmp_path: Path) -> None:
     """`pytest --hardware RIG.toml` runs tests/hardware; here against a simulated rig's URLs."""
     cfg = tmp_path / "rig.toml"

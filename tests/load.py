@@ -1,0 +1,81 @@
+"""Machine load beside a test: CPU-bound processes, bounded in time, always cleaned up.
+
+Anything that crosses a process boundary must still pass with two CPU-bound processes running
+beside it (a shared lab PC, a CI runner doing other jobs). `cpu_load()` starts them:
+
+    with cpu_load():            # two burners, each gone after at most LIMIT_S
+        ...
+
+Each burner spins in pure Python until its deadline, or until its parent is gone (so a test
+process killed with SIGKILL does not leave it behind), whichever comes first. Leaving the block,
+normally or by an exception, kills and reaps every burner. The pytest fixture `cpu_load` in
+tests/conftest.py wraps this for a whole test.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+
+BURNERS = 2
+LIMIT_S = 300.0  # no test that needs load runs longer; a burner never outlives this
+
+# A busy loop; every ~50 ms it checks the deadline and whether its parent still exists.
+_BURN = """
+import os, sys, time
+deadline, parent = time.monotonic() + float(sys.argv[1]), os.getppid()
+print("burning", flush=True)
+while time.monotonic() < deadline and os.getppid() == parent:
+    n = 0
+    for i in range(200_000):
+        n += i * i
+"""
+
+
+@contextlib.contextmanager
+def cpu_load(n: int = BURNERS, limit_s: float = LIMIT_S) -> Iterator[list[subprocess.Popen[str]]]:
+    """Run `n` CPU-bound processes for at most `limit_s` s while the block runs; yield them."""
+    procs: list[subprocess.Popen[str]] = []
+    try:
+        for _ in range(n):
+            procs.append(
+                subprocess.Popen(
+                    [sys.executable, "-c", _BURN, repr(limit_s)],
+                    stdin=subprocess.DEVNULL,
+                    stdout=subprocess.PIPE,
+                    stderr=subprocess.DEVNULL,
+                    text=True,
+                )
+            )
+        for proc in procs:  # each one is spinning before the block starts
+            assert proc.stdout is not None
+            if proc.stdout.readline().strip() != "burning":
+                raise RuntimeError(f"load process {proc.pid} did not start (exit {proc.poll()})")
+        yield procs
+    finally:
+        for proc in procs:
+            with contextlib.suppress(ProcessLookupError):
+                proc.kill()
+        for proc in procs:
+            proc.wait()
+            if proc.stdout is not None:
+                proc.stdout.close()
+
+
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time a running process has used, s (Linux /proc)."""
+    with open(f"/proc/{pid}/stat", encoding="ascii") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def wall_clock_share(procs: list[subprocess.Popen[str]], seconds: float = 1.0) -> float:
+    """CPU seconds the processes used together per wall second, measured over `seconds`."""
+    before = sum(cpu_seconds(p.pid) for p in procs)
+    t0 = time.monotonic()
+    time.sleep(seconds)
+    return (sum(cpu_seconds(p.pid) for p in procs) - before) / (time.monotonic() - t0)
