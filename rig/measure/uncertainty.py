@@ -149,7 +149,7 @@ def budget(shots: ShotInputs | Sequence[ShotInputs], model: UncertaintyModel = D
     values = np.zeros(len(OUTPUTS))
     for hit in hits:
         J, u, hit_names = jacobian(hit), input_u(hit, model), hit.names()
-        values += outputs(hit.vector(), hit.gates) / n
+        values += outputs(hit.vector(), hit.gates, hit.ball_diameter_m) / n
         for j in range(4):  # timing: independent per hit, each enters the mean with weight 1/n
             cols.append(J[:, j] * u[j] / n)
             names.append(hit_names[j])
@@ -218,15 +218,18 @@ def monte_carlo(
                 model.impact_q.sample(gen, (N,)),
                 hits[0].moi_kgm2 * model.moi_relative.sample(gen, (N,)),
                 model.ball_mass.sample(gen, (N,)),
+                model.drag_in.sample(gen, (N,)),
+                model.drag_out.sample(gen, (N,)),
+                model.air_density.sample(gen, (N,)),
             ]
         )
         total = np.zeros((N, len(OUTPUTS)))
         for hit in hits:
-            p = np.broadcast_to(hit.vector(), (N, 13)).copy()
+            p = np.broadcast_to(hit.vector(), (N, len(hit.vector()))).copy()
             p[:, 4:] += shared
             half = hit.tick_s / 2.0
             p[:, :4] += gen.uniform(-half, half, (N, 4)) + model.trigger_jitter.sample(gen, (N, 4))
-            total += outputs(p, hit.gates)
+            total += outputs(p, hit.gates, hit.ball_diameter_m)
         results.append(total / len(hits))
     y = np.concatenate(results)
     return MonteCarlo(OUTPUTS, y.mean(axis=0), np.cov(y, rowvar=False), draws)
