@@ -40,3 +40,20 @@ def test_drag_correction_is_in_the_budget(verdicts: dict[str, dict]) -> None:
         assert inputs[name]["systematic"] and inputs[name]["u"] > 0.0
     shares = verdicts["drag"]["budget"]["outputs"]["bbcor"]["contributions"]
     assert shares["Cd_in"] > 0.0 and shares["rho"] > 0.0
+
+
+def test_without_the_correction_the_drag_scene_reads_low(verdicts: dict[str, dict]) -> None:
+    drag = verdicts["drag"]["drag"]
+    assert drag["applied"] and not verdicts["ideal"]["drag"]["applied"]
+    assert verdicts["ideal"]["mean"] - drag["mean_uncorrected"] > 0.0009  # the bias found (0.0012)
+    assert drag["correction"] == pytest.approx(verdicts["drag"]["mean"] - drag["mean_uncorrected"])
+
+
+def test_guarded_decision_uses_the_corrected_mean_and_whole_budget(verdicts: dict[str, dict]) -> None:
+    v = verdicts["drag"]
+    assert v["mean"] == pytest.approx(sum(v["hits"]) / len(v["hits"]))
+    assert v["mean"] > v["drag"]["mean_uncorrected"]
+    out = v["budget"]["outputs"]["bbcor"]
+    # the decision's u holds every systematic input (I, Q, gates, ball, Cd, rho) at least
+    assert v["u"] ** 2 >= out["systematic_variance"] * (1 - 1e-12)
+    assert (v["verdict"] == "PASS") == (v["mean"] + v["U"] <= v["limit"])
