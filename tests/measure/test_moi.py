@@ -196,3 +196,23 @@ def test_old_procedures_with_a_fixed_relative_uncertainty_still_load() -> None:
     data["moi"]["relative_uncertainty"] = 0.005  # as RunStarted payloads recorded it before
     p = Procedure.model_validate(data)
     assert p.moi.repeats == 3 and "relative_uncertainty" not in p.model_dump(mode="json")["moi"]
+
+
+def test_certificate_lists_the_moi_inputs_and_the_drag_correction(
+    lab_run: dict[str, Any], tmp_path: Path
+) -> None:
+    from rig.report.certificate import render
+
+    rec = lab_run["record"]
+    md = render(rec, "md", figures_dir=tmp_path / "f", output=tmp_path / "c.md")
+    moi_section = md.split("### MOI and its uncertainty")[1].split("\n## ")[0]
+    for c in rec["moi"]["contributions"]:
+        assert re.search(rf"^\| {c['input']} \| {re.escape(c['what'])} \|", moi_section, flags=re.M)
+    g = next(c for c in rec["moi"]["contributions"] if c["input"] == "g")
+    assert f"| {100 * g['share']:.1f} % |" in moi_section
+    drag = md.split("### Drag correction")[1].split("###")[0]
+    air = rec["verdict"]["drag"]["air"]
+    assert f"| air density (kg/m³) | {air['rho_kgm3']:.4f} |" in drag
+    assert f"{rec['verdict']['drag']['correction']:.5f}" in drag
+    budget_rows = re.findall(r"^\| (\w+) \| .* \| (?:systematic|random) \|", md, flags=re.M)
+    assert {"I", "Cd_in", "Cd_out", "rho"} <= set(budget_rows) <= set(rec["verdict"]["budget"]["inputs"])
