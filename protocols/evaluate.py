@@ -39,7 +39,10 @@ def air_density(config: RigConfig, state: RunState) -> AirDensity:
 
 
 def uncertainty_model(
-    p: Procedure, config: RigConfig | None = None, state: RunState | None = None
+    p: Procedure,
+    config: RigConfig | None = None,
+    state: RunState | None = None,
+    air: AirDensity | None = None,
 ) -> UncertaintyModel:
     """The input distributions: the MOI's derived u (its MoiMeasured record), the rig's gates and air."""
     kw: dict[str, Any] = {"coverage_k": p.decision.coverage_k}
@@ -51,16 +54,17 @@ def uncertainty_model(
         kw["gate_position"] = Spread(width=config.gates.position_uncertainty_m, shape="rectangular")
         kw["drag_in"] = Spread(width=a.drag_coefficient_u)
         kw["drag_out"] = Spread(width=a.rebound_drag_coefficient_u)
-        kw["air_density"] = Spread(width=air_density(config, state or RunState()).u)
+        air = air or air_density(config, state or RunState())
+        kw["air_density"] = Spread(width=air.u)
     return UncertaintyModel(**kw)
 
 
-def drag_inputs(config: RigConfig | None, state: RunState) -> tuple[float, float, float, float]:
+def drag_inputs(config: RigConfig | None, air: AirDensity | None) -> tuple[float, float, float, float]:
     """(Cd inbound, Cd rebound, air density, ball diameter) of the drag correction; zeros: none."""
-    if config is None:
+    if config is None or air is None:
         return (0.0, 0.0, 0.0, BALL_DIAMETER_M)
     a = config.air
-    return (a.drag_coefficient, a.rebound_drag_coefficient, air_density(config, state).rho, a.ball_diameter_m)
+    return (a.drag_coefficient, a.rebound_drag_coefficient, air.rho, a.ball_diameter_m)
 
 
 def _metric_u(p: Procedure, bud: dict[str, Any], v_pitch_plus_bat: float) -> float:
@@ -119,6 +123,7 @@ def shot(
         aimed = p.target_speed_m_s / state.aim_factor
         out["aim_factor"] = 0.5 * state.aim_factor + 0.5 * (v_in / aimed)
     if v_in is not None and v_out is not None and v_out > 0:
+        air = air_density(config, state) if config is not None else None
         inputs = ShotInputs.from_passes(
             passes,
             record.gate_positions_m,
@@ -126,13 +131,13 @@ def shot(
             q,
             moi,
             p.ball.mass_kg,
-            drag_inputs(config, state),
+            drag_inputs(config, air),
         )
-        at_impact = outputs(inputs.vector(), inputs.gates, inputs.ball_diameter_m)
-        v_in_hit, v_out_hit = float(at_impact[0]), float(at_impact[1])
+        hit_budget = budget(inputs, uncertainty_model(p, config, state, air))
+        v_in_hit, v_out_hit = hit_budget.value("v_in"), hit_budget.value("v_out")  # at the impact point
         m = compute_metrics(v_in_hit, v_out_hit, q, moi, p.ball.mass_kg, bat.length_m)
         out["inbound_at_impact_m_s"], out["rebound_at_impact_m_s"] = v_in_hit, v_out_hit
-        bud = budget(inputs, uncertainty_model(p, config, state)).as_dict()
+        bud = hit_budget.as_dict()
         value = m.as_dict()[p.standard.value]
         out.update(
             metrics=m.as_dict(),

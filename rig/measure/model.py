@@ -219,11 +219,20 @@ def outputs(
     return np.stack([v_in, v_out, e, e * (1.0 + k) + k, e + 0.5], axis=-1)
 
 
-def jacobian(shot: ShotInputs) -> np.ndarray:
-    """d(outputs)/d(inputs), 5 x 16, by complex step (h = 1e-30: no cancellation, no truncation)."""
+def values_and_jacobian(shot: ShotInputs) -> tuple[np.ndarray, np.ndarray]:
+    """The outputs and d(outputs)/d(inputs), 5 x 16, by complex step (h = 1e-30: exact to rounding).
+
+    With h = 1e-30 the real part of every perturbed evaluation is the unperturbed value.
+    """
     h = 1e-30
     p = shot.vector()
-    return (outputs(p + 1j * h * np.eye(p.size), shot.gates, shot.ball_diameter_m).imag / h).T
+    y = outputs(p + 1j * h * np.eye(p.size), shot.gates, shot.ball_diameter_m)
+    return y[0].real.copy(), (y.imag / h).T
+
+
+def jacobian(shot: ShotInputs) -> np.ndarray:
+    """d(outputs)/d(inputs), 5 x 16, by complex step."""
+    return values_and_jacobian(shot)[1]
 
 
 def input_u(shot: ShotInputs, model: UncertaintyModel) -> np.ndarray:
