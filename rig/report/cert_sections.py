@@ -327,9 +327,11 @@ def moi_blocks(moi: dict[str, Any] | None) -> list[Block]:
         )
         for c in moi.get("contributions") or []
     )
+    value, u = moi.get("moi_kgm2"), moi.get("u_kgm2")
+    rel = 100 * u / value if isinstance(u, int | float) and isinstance(value, int | float) and value else None
     head = (
-        f"MOI = {_num(moi.get('moi_kgm2'), 5)} kg m², u = {_sig(moi.get('u_kgm2'))} kg m² "
-        f"({_num(100 * (moi.get('relative_u') or 0.0), 3)} %), source: {moi.get('source', '?')}."
+        f"MOI = {_num(value, 5)} kg m², u = {_sig(u)} kg m² ({_num(rel, 3)} %), "
+        f"source: {moi.get('source', '?')}."
     )
     if not rows:
         return [
