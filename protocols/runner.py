@@ -20,7 +20,7 @@ from protocols.shot import ShotFailed, ShotRecord, fire_shot, prepare
 from protocols.state import RunState, fold
 from rig import __version__
 from rig.core import events as ev
-from rig.core.bat import PIVOT_FROM_KNOB_M, BatSpec
+from rig.core.bat import PIVOT_FROM_KNOB_IN, PIVOT_FROM_KNOB_M, BatSpec
 from rig.core.config import RigConfig
 from rig.core.devices import Cannon, CannonState, Clamp, GateConfig, GateCrossing, Gates
 from rig.core.errors import ConfigError, DeviceError, DeviceGone, RigError, SafetyRefusal
@@ -97,7 +97,7 @@ def dry_run(p: Procedure, bat: BatSpec, config: RigConfig) -> list[str]:
             problems.append(
                 f"target speed {speed:.2f} m/s is outside the aim calibration ({lo:g}-{hi:g} m/s)"
             )
-    barrel_room_in = bat.length_in - PIVOT_FROM_KNOB_M / INCH
+    barrel_room_in = bat.length_in - PIVOT_FROM_KNOB_IN
     for loc in p.scan.locations_in():
         q_mm = bat.impact_from_pivot_m(loc) * 1000.0
         if loc >= barrel_room_in:

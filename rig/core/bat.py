@@ -11,7 +11,8 @@ from pydantic import BaseModel, ConfigDict, Field
 from rig.core.tomlfile import read_toml, table, validate
 from rig.core.units import INCH, OUNCE
 
-PIVOT_FROM_KNOB_M = 6.0 * INCH  # NCAA/ASTM F2398 pivot point
+PIVOT_FROM_KNOB_IN = 6.0  # NCAA/ASTM F2398 pivot point
+PIVOT_FROM_KNOB_M = PIVOT_FROM_KNOB_IN * INCH
 
 
 class Barrel(StrEnum):
