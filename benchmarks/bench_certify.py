@@ -19,6 +19,7 @@ from protocols.shot import derive_speeds
 from protocols.state import fold
 from rig.certification import certify, history
 from rig.core.bat import BatSpec
+from rig.core.config import RigConfig
 from rig.measure.realtime import ShotTracker
 from rig.session import sim_config
 from rig.store import Store
@@ -43,6 +44,7 @@ def latency(db: Path, run_id: str, repeats: int) -> tuple[float, float]:
     state = fold(events)
     procedure = Procedure.model_validate(next(e for e in events if e.kind == "RunStarted").data["procedure"])
     bat = BatSpec.model_validate(next(e for e in events if e.kind == "RunStarted").data["bat"])
+    config = RigConfig.model_validate(next(e for e in events if e.kind == "RunStarted").data["rig"])
     from protocols.shot import ShotRecord
     from rig.core.devices import GateConfig, GateCrossing
 
@@ -72,7 +74,7 @@ def latency(db: Path, run_id: str, repeats: int) -> tuple[float, float]:
             t0 = time.perf_counter()
             tracker.add(rec.crossings[-1])  # the last gate event arrives
             t1 = time.perf_counter()
-            evaluate.shot(derive_speeds(rec), procedure, bat, state, "")
+            evaluate.shot(derive_speeds(rec), procedure, bat, state, "", config)  # drag-corrected
             t2 = time.perf_counter()
             tracker_times.append(t1 - t0)
             metric_times.append(t2 - t0)

@@ -7,7 +7,7 @@ mean alone does. The model cross-check predicts the metric from the bat's hoop f
 
 from __future__ import annotations
 
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from typing import Any
 
 from protocols.procedure import Metric, Procedure
@@ -15,22 +15,56 @@ from protocols.shot import ShotRecord
 from protocols.state import RunState
 from rig.core.bat import Barrel, BatSpec
 from rig.core.config import RigConfig
-from rig.core.devices import Recoil
+from rig.core.devices import Environment, Recoil
 from rig.core.errors import RigError
+from rig.measure.drag import AirDensity, lab_air
 from rig.measure.metrics import DEFAULT_SWING, DEFINITIONS, compute_metrics
-from rig.measure.model import ShotInputs, Spread, UncertaintyModel
+from rig.measure.model import BALL_DIAMETER_M, OUTPUTS, ShotInputs, Spread, UncertaintyModel, outputs
 from rig.measure.speeds import ShotDataError, shot_speeds, split_passes
 from rig.measure.tradeoff import tradeoff_table
 from rig.measure.uncertainty import budget, u_with_scatter
 from rig.measure.validity import Invalidity, ValidityLimits, check_shot, is_valid
 from rig.physics import DEFAULT_PARAMS, PivotedBat, predict_bat
 
+NOMINAL_AIR = Environment(temperature_c=20.0, humidity_pct=50.0)  # when no check is recorded
 
-def uncertainty_model(p: Procedure) -> UncertaintyModel:
-    """The input distributions for this procedure (MOI uncertainty from the procedure)."""
-    return UncertaintyModel(
-        moi_relative=Spread(width=p.moi.relative_uncertainty), coverage_k=p.decision.coverage_k
-    )
+
+def air_density(config: RigConfig, state: RunState) -> AirDensity:
+    """The lab air's density from the latest environment check and the rig's stated pressure."""
+    env = state.environment or {}
+    t = float(env.get("temperature_c", NOMINAL_AIR.temperature_c))
+    rh = float(env.get("humidity_pct", NOMINAL_AIR.humidity_pct))
+    a = config.air
+    return lab_air(t, rh, a.pressure_kpa, a.temperature_u_c, a.humidity_u_pct, a.pressure_u_kpa)
+
+
+def uncertainty_model(
+    p: Procedure,
+    config: RigConfig | None = None,
+    state: RunState | None = None,
+    air: AirDensity | None = None,
+) -> UncertaintyModel:
+    """The input distributions: the MOI's derived u (its MoiMeasured record), the rig's gates and air."""
+    kw: dict[str, Any] = {"coverage_k": p.decision.coverage_k}
+    moi = state.moi if state is not None else None
+    if moi and moi.get("u_kgm2") and moi.get("moi_kgm2"):
+        kw["moi_relative"] = Spread(width=float(moi["u_kgm2"]) / float(moi["moi_kgm2"]))
+    if config is not None:
+        a = config.air
+        kw["gate_position"] = Spread(width=config.gates.position_uncertainty_m, shape="rectangular")
+        kw["drag_in"] = Spread(width=a.drag_coefficient_u)
+        kw["drag_out"] = Spread(width=a.rebound_drag_coefficient_u)
+        air = air or air_density(config, state or RunState())
+        kw["air_density"] = Spread(width=air.u)
+    return UncertaintyModel(**kw)
+
+
+def drag_inputs(config: RigConfig | None, air: AirDensity | None) -> tuple[float, float, float, float]:
+    """(Cd inbound, Cd rebound, air density, ball diameter) of the drag correction; zeros: none."""
+    if config is None or air is None:
+        return (0.0, 0.0, 0.0, BALL_DIAMETER_M)
+    a = config.air
+    return (a.drag_coefficient, a.rebound_drag_coefficient, air.rho, a.ball_diameter_m)
 
 
 def _metric_u(p: Procedure, bud: dict[str, Any], v_pitch_plus_bat: float) -> float:
@@ -41,8 +75,19 @@ def _metric_u(p: Procedure, bud: dict[str, Any], v_pitch_plus_bat: float) -> flo
     return outs[p.standard.value]["u"]
 
 
-def shot(record: ShotRecord, p: Procedure, bat: BatSpec, state: RunState, failure: str) -> dict[str, Any]:
-    """Speeds, metrics, uncertainty and validity of one fired shot (JSON-ready)."""
+def shot(
+    record: ShotRecord,
+    p: Procedure,
+    bat: BatSpec,
+    state: RunState,
+    failure: str,
+    config: RigConfig | None = None,
+) -> dict[str, Any]:
+    """Speeds, metrics, uncertainty and validity of one fired shot (JSON-ready).
+
+    With `config` the gate speeds are corrected for air drag to the impact point (the rig's Cd,
+    the lab air's density) before the metrics; without it they are used as measured.
+    """
     moi = float(state.moi["moi_kgm2"]) if state.moi else float(bat.moi_kgm2 or 0.0)
     q = record.impact_from_pivot_m
     reasons: list[Invalidity] = []
@@ -78,11 +123,21 @@ def shot(record: ShotRecord, p: Procedure, bat: BatSpec, state: RunState, failur
         aimed = p.target_speed_m_s / state.aim_factor
         out["aim_factor"] = 0.5 * state.aim_factor + 0.5 * (v_in / aimed)
     if v_in is not None and v_out is not None and v_out > 0:
-        m = compute_metrics(v_in, v_out, q, moi, p.ball.mass_kg, bat.length_m)
+        air = air_density(config, state) if config is not None else None
         inputs = ShotInputs.from_passes(
-            passes, record.gate_positions_m, record.gate_config, q, moi, p.ball.mass_kg
+            passes,
+            record.gate_positions_m,
+            record.gate_config,
+            q,
+            moi,
+            p.ball.mass_kg,
+            drag_inputs(config, air),
         )
-        bud = budget(inputs, uncertainty_model(p)).as_dict()
+        hit_budget = budget(inputs, uncertainty_model(p, config, state, air))
+        v_in_hit, v_out_hit = hit_budget.value("v_in"), hit_budget.value("v_out")  # at the impact point
+        m = compute_metrics(v_in_hit, v_out_hit, q, moi, p.ball.mass_kg, bat.length_m)
+        out["inbound_at_impact_m_s"], out["rebound_at_impact_m_s"] = v_in_hit, v_out_hit
+        bud = hit_budget.as_dict()
         value = m.as_dict()[p.standard.value]
         out.update(
             metrics=m.as_dict(),
@@ -120,7 +175,7 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> d
         ShotInputs(**{k: tuple(v) if isinstance(v, list) else v for k, v in h.measured["inputs"].items()})
         for h in hits
     ]
-    model = uncertainty_model(p)
+    model = uncertainty_model(p, config, state)
     per_bat = budget(inputs, model)
     per_hit = budget(inputs[0], model)
     name = p.standard.value if p.standard is not Metric.BBS else "e_a"
@@ -141,7 +196,9 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> d
     zone = (
         "pass" if passed else ("fail: within the guard band" if mean <= p.limit else "fail: above the limit")
     )
-    v_in_mean = sum(h.measured["inbound_speed_m_s"] for h in hits) / n
+    v_in_mean = (
+        sum(h.measured.get("inbound_at_impact_m_s", h.measured["inbound_speed_m_s"]) for h in hits) / n
+    )
     q = bat.impact_from_pivot_m(loc) if loc is not None else config.impact_from_pivot_m
     moi = float(state.moi["moi_kgm2"]) if state.moi else float(bat.moi_kgm2 or 0.0)
     return {
@@ -162,10 +219,35 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> d
         "moi_kgm2": moi,
         "edition": p.edition,
         "budget": per_bat.as_dict(),
+        "drag": drag_summary(config, state, inputs, name, per_bat.value(name)),
         "cross_check": cross_check(p, bat, v_in_mean, q, moi, mean),
         "tradeoff": [
             r.as_dict() for r in tradeoff_table(per_hit, name, max_hits=12, cycle_s=config.cannon_cycle_s)
         ],
+    }
+
+
+def drag_summary(
+    config: RigConfig, state: RunState, inputs: list[ShotInputs], name: str, corrected: float
+) -> dict[str, Any]:
+    """The drag correction's inputs (Cd, air) and what it changed in the mean of `name`."""
+    index = OUTPUTS.index(name)
+    plain = [
+        float(outputs(replace(i, cd_in=0.0, cd_out=0.0).vector(), i.gates, i.ball_diameter_m)[index])
+        for i in inputs
+    ]
+    a = config.air
+    return {
+        "applied": any(i.cd_in > 0.0 or i.cd_out > 0.0 for i in inputs) and inputs[0].air_density > 0.0,
+        "drag_coefficient": a.drag_coefficient,
+        "drag_coefficient_u": a.drag_coefficient_u,
+        "rebound_drag_coefficient": a.rebound_drag_coefficient,
+        "rebound_drag_coefficient_u": a.rebound_drag_coefficient_u,
+        "ball_diameter_m": a.ball_diameter_m,
+        "air": air_density(config, state).as_dict(),
+        "output": name,
+        "mean_uncorrected": sum(plain) / len(plain),
+        "correction": corrected - sum(plain) / len(plain),
     }
 
 

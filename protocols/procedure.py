@@ -78,11 +78,16 @@ class EnvironmentLimits(_Model):
 
 
 class Moi(_Model):
-    """Where the bat's MOI about the pivot comes from."""
+    """Where the bat's MOI about the pivot comes from; its u is derived (rig.measure.moi)."""
 
     source: Literal["pendulum", "entered"] = "pendulum"
     cycles: Annotated[int, Field(ge=1, le=100)] = 10
-    relative_uncertainty: Annotated[float, Field(gt=0.0, lt=0.1)] = 0.005
+    repeats: Annotated[int, Field(ge=1, le=20)] = 3  # timings of `cycles` periods; their scatter is a u
+    # Deprecated, ignored: the MOI's u was a fixed fraction before it was derived from the
+    # pendulum's inputs. Kept so that procedures recorded in older runs still load.
+    relative_uncertainty: Annotated[float, Field(gt=0.0, lt=0.1)] | None = Field(
+        None, deprecated=True, exclude=True
+    )
 
 
 class Decision(_Model):

@@ -8,7 +8,6 @@ fired again.
 
 from __future__ import annotations
 
-import math
 import platform
 import threading
 from collections.abc import Callable
@@ -21,12 +20,13 @@ from protocols.shot import ShotFailed, ShotRecord, fire_shot, prepare
 from protocols.state import RunState, fold
 from rig import __version__
 from rig.core import events as ev
-from rig.core.bat import BatSpec
+from rig.core.bat import PIVOT_FROM_KNOB_IN, PIVOT_FROM_KNOB_M, BatSpec
 from rig.core.config import RigConfig
 from rig.core.devices import Cannon, CannonState, Clamp, GateConfig, GateCrossing, Gates
 from rig.core.errors import ConfigError, DeviceError, DeviceGone, RigError, SafetyRefusal
 from rig.core.events import RunEvent
-from rig.core.units import G_STANDARD, INCH
+from rig.core.units import INCH
+from rig.measure.moi import PendulumReading, entered_budget, pendulum_budget, pendulum_uncertainty
 from rig.measure.realtime import InboundKnown, ReboundKnown, ShotTracker
 
 
@@ -97,7 +97,7 @@ def dry_run(p: Procedure, bat: BatSpec, config: RigConfig) -> list[str]:
             problems.append(
                 f"target speed {speed:.2f} m/s is outside the aim calibration ({lo:g}-{hi:g} m/s)"
             )
-    barrel_room_in = bat.length_in - 6.0
+    barrel_room_in = bat.length_in - PIVOT_FROM_KNOB_IN
     for loc in p.scan.locations_in():
         q_mm = bat.impact_from_pivot_m(loc) * 1000.0
         if loc >= barrel_room_in:
@@ -106,6 +106,8 @@ def dry_run(p: Procedure, bat: BatSpec, config: RigConfig) -> list[str]:
             problems.append(f"scan location {loc:g} in needs the stage at {q_mm:.0f} mm (range 100-900 mm)")
     if p.moi.source == "entered" and bat.moi_kgm2 is None:
         problems.append("procedure wants the MOI entered, but the bat file has no moi_kgm2")
+    if p.moi.source == "entered" and bat.moi_kgm2 is not None and bat.moi_u_kgm2 is None:
+        problems.append("an entered MOI needs its standard uncertainty: add moi_u_kgm2 to the bat file")
     if p.moi.source == "pendulum" and bat.balance_point_in is None:
         problems.append("the pendulum MOI needs balance_point_in in the bat file")
     if p.hits.valid_hits > p.ball.replace_after_hits * 10:
@@ -222,31 +224,34 @@ class Runner:
         self.emit(ev.SHOT_LOST, index=pending.index, reason=reason)
 
     def _measure_moi(self) -> None:
+        """The MOI and its derived u: entered with its stated u, or timed on the pendulum (F2398)."""
         if self.p.moi.source == "entered":
-            if self.bat.moi_kgm2 is None:
-                raise ConfigError("procedure wants the MOI entered, but the bat file has no moi_kgm2")
-            self.emit(
-                ev.MOI_MEASURED,
-                moi_kgm2=self.bat.moi_kgm2,
-                source="entered",
-                u_kgm2=self.bat.moi_kgm2 * self.p.moi.relative_uncertainty,
-            )
+            if self.bat.moi_kgm2 is None or self.bat.moi_u_kgm2 is None:
+                lacks = "moi_kgm2" if self.bat.moi_kgm2 is None else "moi_u_kgm2 (the MOI's standard u)"
+                raise ConfigError(f"procedure wants the MOI entered, but the bat file lacks {lacks}")
+            found = entered_budget(self.bat.moi_kgm2, self.bat.moi_u_kgm2)
+            self.emit(ev.MOI_MEASURED, **found.as_dict())
             return
         if self.bat.balance_point_in is None:
             raise ConfigError("the pendulum MOI needs the bat's balance_point_in in the bat file")
-        period = self.clamp.measure_period(self.p.moi.cycles)
-        lever = (self.bat.balance_point_in - 6.0) * INCH
-        theta0 = math.radians(period.amplitude_deg)
-        t0 = period.period_s / (1.0 + theta0**2 / 16.0)  # finite-amplitude correction
-        moi = self.bat.mass_kg * G_STANDARD * lever * t0**2 / (4.0 * math.pi**2)
+        timings = [self.clamp.measure_period(self.p.moi.cycles) for _ in range(self.p.moi.repeats)]
+        pend = self.config.pendulum
+        reading = PendulumReading(
+            periods_s=tuple(t.period_s for t in timings),
+            cycles=timings[0].cycles,
+            amplitude_deg=sum(t.amplitude_deg for t in timings) / len(timings),
+            mass_kg=self.bat.mass_kg,
+            lever_m=self.bat.balance_point_in * INCH - PIVOT_FROM_KNOB_M,
+            gravity_m_s2=pend.gravity_m_s2,
+        )
+        found = pendulum_budget(reading, pendulum_uncertainty(pend))
         self.emit(
             ev.MOI_MEASURED,
-            moi_kgm2=moi,
-            source="pendulum",
-            period_s=period.period_s,
-            amplitude_deg=period.amplitude_deg,
-            cycles=period.cycles,
-            u_kgm2=moi * self.p.moi.relative_uncertainty,
+            **found.as_dict(),
+            period_s=sum(reading.periods_s) / len(reading.periods_s),
+            periods_s=list(reading.periods_s),
+            amplitude_deg=reading.amplitude_deg,
+            cycles=reading.cycles,
         )
 
     def _choose_location(self) -> None:
@@ -341,7 +346,7 @@ class Runner:
         if record is None:
             self.emit(ev.SHOT_LOST, index=index, reason=failure)
             return
-        result = evaluate.shot(record, self.p, self.bat, self.state, failure)
+        result = evaluate.shot(record, self.p, self.bat, self.state, failure, self.config)
         self.emit(ev.SHOT_MEASURED if result["valid"] else ev.SHOT_REJECTED, index=index, **result)
         if result["valid"] and self.review_shots:
             metric = f"{self.p.standard.value} {result['metric']:.4f}"

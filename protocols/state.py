@@ -32,6 +32,7 @@ class RunState:
     finished: bool = False
     verdict: dict[str, Any] | None = None
     moi: dict[str, Any] | None = None
+    environment: dict[str, Any] | None = None  # the latest lab environment check
     shots: list[ShotEntry] = field(default_factory=list)
     ball_number: int = 1
     ball_hits: int = 0
@@ -69,6 +70,8 @@ def fold(events: Iterable[RunEvent]) -> RunState:
             st.started = True
         elif e.kind == ev.MOI_MEASURED:
             st.moi = d
+        elif e.kind == ev.ENVIRONMENT_CHECKED:
+            st.environment = d
         elif e.kind == ev.LOCATION_SET:
             st.location_in = d["from_barrel_end_in"]
         elif e.kind == ev.SHOT_REQUESTED:

@@ -156,6 +156,22 @@ class Scene(BaseModel):
         return {
             "gates": {"positions_m": tuple(self.rig.gate_positions_m)},
             "aim": {"pressure_kpa": tuple(pressures_kpa), "speed_m_s": speeds},
+            "air": self._air_fragment(),
+        }
+
+    def _air_fragment(self) -> dict[str, float]:
+        """The ball's Cd as a lab that measured it would state it: the drag effect's, else none."""
+        drag = next((e for e in self.active_effects() if e.kind == "drag"), None)
+        if drag is None:  # straight-line flight: the rig has no drag to correct
+            return {k: 0.0 for k in ("drag_coefficient", "drag_coefficient_u")} | {
+                "rebound_drag_coefficient": 0.0,
+                "rebound_drag_coefficient_u": 0.0,
+            }
+        cd = drag.drag_coefficient
+        return {
+            "drag_coefficient": cd,
+            "rebound_drag_coefficient": cd,
+            "ball_diameter_m": drag.ball_diameter_m,
         }
 
     @classmethod

@@ -11,7 +11,8 @@ from pydantic import BaseModel, ConfigDict, Field
 from rig.core.tomlfile import read_toml, table, validate
 from rig.core.units import INCH, OUNCE
 
-PIVOT_FROM_KNOB_M = 6.0 * INCH  # NCAA/ASTM F2398 pivot point
+PIVOT_FROM_KNOB_IN = 6.0  # NCAA/ASTM F2398 pivot point
+PIVOT_FROM_KNOB_M = PIVOT_FROM_KNOB_IN * INCH
 
 
 class Barrel(StrEnum):
@@ -33,6 +34,7 @@ class BatSpec(BaseModel):
     barrel: Barrel
     hoop_hz: Annotated[float, Field(gt=0.0)] | None = None
     moi_kgm2: Annotated[float, Field(gt=0.0, lt=1.0)] | None = None  # about the pivot 6 in from the knob
+    moi_u_kgm2: Annotated[float, Field(gt=0.0, lt=0.1)] | None = None  # standard u of an entered moi_kgm2
     balance_point_in: Annotated[float, Field(gt=0.0, lt=40.0)] | None = None  # from the knob end
 
     @property

@@ -74,6 +74,36 @@ class Timeouts(_Model):
     # long before the rebound has cleared the far gate, so little waiting is left by then
 
 
+class Air(_Model):
+    """The ball's drag and the lab air's pressure: inputs of the drag correction (docs/measurement.md 3.6).
+
+    Cd of a baseball near the inbound 60 m/s (0.35 +- 0.05) and in the subcritical flow of the
+    ~11 m/s rebound (0.5 +- 0.1): see docs/measurement.md for the sources. 0 means no drag (a
+    simulated ideal rig). The ENV reading gives temperature and humidity; the pressure is stated.
+    """
+
+    drag_coefficient: Annotated[float, Field(ge=0.0, le=1.5)] = 0.35
+    drag_coefficient_u: Annotated[float, Field(ge=0.0, le=1.0)] = 0.05
+    rebound_drag_coefficient: Annotated[float, Field(ge=0.0, le=1.5)] = 0.5
+    rebound_drag_coefficient_u: Annotated[float, Field(ge=0.0, le=1.0)] = 0.1
+    ball_diameter_m: Annotated[float, Field(gt=0.05, lt=0.12)] = 0.0737  # 2.9 in
+    pressure_kpa: Annotated[float, Field(ge=50.0, le=110.0)] = 101.325  # standard atmosphere
+    pressure_u_kpa: Annotated[float, Field(ge=0.0, le=20.0)] = 3.0  # [assumed] weather at sea level
+    temperature_u_c: Annotated[float, Field(ge=0.0, le=10.0)] = 0.5  # [assumed] ENV sensor
+    humidity_u_pct: Annotated[float, Field(ge=0.0, le=50.0)] = 5.0  # [assumed] ENV sensor
+
+
+class Pendulum(_Model):
+    """The MOI pendulum's own inputs (ASTM F2398): local g, timer, scale, balance point, amplitude."""
+
+    gravity_m_s2: Annotated[float, Field(ge=9.7, le=9.9)] = 9.80665  # standard g; set the lab's
+    gravity_u_m_s2: Annotated[float, Field(ge=0.0, le=0.1)] = 0.015  # covers 9.78-9.83 m/s^2
+    timer_resolution_s: Annotated[float, Field(gt=0.0, le=0.01)] = 1e-6  # [assumed] period timer
+    scale_resolution_kg: Annotated[float, Field(gt=0.0, le=0.05)] = 0.001  # [assumed] 1 g scale
+    balance_point_u_m: Annotated[float, Field(ge=0.0, le=0.05)] = 0.0008  # [assumed] +-1/32 in
+    amplitude_u_deg: Annotated[float, Field(ge=0.0, le=10.0)] = 0.5  # [assumed] release angle
+
+
 class RigConfig(_Model):
     """Everything the controller must know about one rig."""
 
@@ -84,6 +114,8 @@ class RigConfig(_Model):
     timeouts: Timeouts = Timeouts()
     impact_from_pivot_m: Annotated[float, Field(gt=0.1, lt=0.9)] = 0.56
     cannon_cycle_s: Annotated[float, Field(gt=0.0)] = 45.0  # refill and reload between shots [assumed]
+    air: Air = Air()
+    pendulum: Pendulum = Pendulum()
 
     @classmethod
     def load(cls, path: str | Path) -> RigConfig:

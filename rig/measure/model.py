@@ -4,8 +4,10 @@ Per hit:
     v_in  = (x_a - x_b) / ((t_b - d_b) - (t_a - d_a))      inbound pair a -> b
     v_out = (x_d - x_c) / ((t_d - d_d) - (t_c - d_c))      rebound pair c -> d
     e_A = v_out / v_in,  BBCOR = e_A (1 + k) + k with k = m Q^2 / I,  BESR = e_A + 1/2
-t: crossing times (random per hit), x: gate positions, d: gate trigger delays, Q, I, m
-(systematic: shared by every hit on one bat). rig.measure.uncertainty propagates it.
+t: crossing times (random per hit), x: gate positions, d: gate trigger delays, Q, I, m, and the
+drag correction's Cd (inbound, rebound) and air density rho (systematic: shared by every hit on
+one bat). With drag the pair speeds become speeds at the impact point (rig.measure.drag): the
+plain spacing / time above when Cd or rho is 0. rig.measure.uncertainty propagates it.
 """
 
 from __future__ import annotations
@@ -20,10 +22,12 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from rig.core.devices import GateConfig, GateCrossing
 from rig.core.units import INCH
+from rig.measure.drag import inbound_impact_speed, kappa, phi, rebound_impact_speed
 from rig.measure.speeds import GatePasses, ShotDataError, elapsed_s
 
 OUTPUTS = ("v_in", "v_out", "e_a", "bbcor", "besr")
-SHARED = ("x1", "x2", "x3", "delay_g1", "delay_g2", "delay_g3", "Q", "I", "m_ball")
+SHARED = ("x1", "x2", "x3", "delay_g1", "delay_g2", "delay_g3", "Q", "I", "m_ball", "Cd_in", "Cd_out", "rho")
+BALL_DIAMETER_M = 0.0737  # 2.9 in
 
 
 class Spread(BaseModel):
@@ -57,6 +61,9 @@ class UncertaintyModel(BaseModel):
     impact_q: Spread = Spread(width=0.001, shape="rectangular")  # m, stage setting [assumed]
     moi_relative: Spread = Spread(width=0.005)  # u(I)/I (standards.md: measure I to 0.5 %)
     ball_mass: Spread = Spread(width=0.0005, shape="rectangular")  # kg, weighed ball [assumed]
+    drag_in: Spread = Spread(width=0.05)  # Cd of the inbound ball (rig config air table)
+    drag_out: Spread = Spread(width=0.1)  # Cd of the rebounding ball
+    air_density: Spread = Spread(width=0.04)  # kg/m^3, lab air (rig.measure.drag.lab_air)
     coverage_k: float = Field(2.0, gt=0.0)
 
 
@@ -74,6 +81,10 @@ class ShotInputs:
     moi_kgm2: float
     ball_mass_kg: float
     tick_s: float
+    cd_in: float = 0.0  # drag coefficients and air density: 0 means no drag correction
+    cd_out: float = 0.0
+    air_density: float = 0.0
+    ball_diameter_m: float = BALL_DIAMETER_M
 
     def __post_init__(self) -> None:
         ga, gb, gc, gd = self.gates
@@ -88,6 +99,9 @@ class ShotInputs:
         values = (self.q_m, self.moi_kgm2, self.ball_mass_kg, self.tick_s)
         if not all(math.isfinite(v) and v > 0.0 for v in values):
             raise ShotDataError(f"Q, I, ball mass and tick must be finite and > 0, not {values}")
+        drag = (self.cd_in, self.cd_out, self.air_density)
+        if not (all(math.isfinite(v) and v >= 0.0 for v in drag) and 0.0 < self.ball_diameter_m < 1.0):
+            raise ShotDataError(f"Cd, air density must be finite and >= 0, not {drag}")
 
     @classmethod
     def ideal(
@@ -100,15 +114,29 @@ class ShotInputs:
         moi_kgm2: float,
         ball_mass_kg: float,
         gates: tuple[int, int, int, int] = (2, 3, 3, 2),
+        cd_in: float = 0.0,
+        cd_out: float = 0.0,
+        air_density: float = 0.0,
     ) -> ShotInputs:
-        """The crossing times of a straight-line shot at these speeds (for budgets ahead of a test)."""
+        """The crossing times of a shot at these impact-point speeds (straight line without drag)."""
         if not (v_in > 0.0 and v_out > 0.0):
             raise ShotDataError(f"speeds must be > 0, not v_in={v_in}, v_out={v_out}")
         x = tuple(float(p) for p in positions_m)
+        k_in = float(kappa(air_density, cd_in, BALL_DIAMETER_M, ball_mass_kg))
+        k_out = float(kappa(air_density, cd_out, BALL_DIAMETER_M, ball_mass_kg))
+
+        def t_in(d: float) -> float:  # from d m out to the impact point
+            return d * float(phi(k_in * d)) / v_in
+
+        def t_out(d: float) -> float:  # from the impact point d m out
+            return d * float(phi(-k_out * d)) / v_out
+
         ga, gb, gc, gd = gates
-        t_hit = x[ga - 1] / v_in
-        times = (0.0, (x[ga - 1] - x[gb - 1]) / v_in, t_hit + x[gc - 1] / v_out, t_hit + x[gd - 1] / v_out)
-        return cls(times, gates, (x[0], x[1], x[2]), q_m, moi_kgm2, ball_mass_kg, tick_s)
+        t_hit = t_in(x[ga - 1])
+        times = (0.0, t_hit - t_in(x[gb - 1]), t_hit + t_out(x[gc - 1]), t_hit + t_out(x[gd - 1]))
+        return cls(
+            times, gates, (x[0], x[1], x[2]), q_m, moi_kgm2, ball_mass_kg, tick_s, cd_in, cd_out, air_density
+        )
 
     @classmethod
     def from_passes(
@@ -119,19 +147,35 @@ class ShotInputs:
         q_m: float,
         moi_kgm2: float,
         ball_mass_kg: float,
+        drag: tuple[float, float, float, float] = (0.0, 0.0, 0.0, BALL_DIAMETER_M),
     ) -> ShotInputs:
-        """The crossings ShotSpeeds.inbound and .rebound use (same pair choice), as times."""
+        """The crossings ShotSpeeds.inbound and .rebound use (same pair choice), as times.
+
+        `drag` is (Cd inbound, Cd rebound, air density, ball diameter); zeros: no correction.
+        """
         a, b = _pair_used(passes.inbound, inbound=True)
         c, d = _pair_used(passes.rebound, inbound=False)
         times = (0.0, elapsed_s(a, b, cfg), elapsed_s(a, c, cfg), elapsed_s(a, d, cfg))
         gates = (a.gate, b.gate, c.gate, d.gate)
         x = tuple(float(p) for p in positions_m)
-        return cls(times, gates, (x[0], x[1], x[2]), q_m, moi_kgm2, ball_mass_kg, cfg.tick_s)
+        return cls(times, gates, (x[0], x[1], x[2]), q_m, moi_kgm2, ball_mass_kg, cfg.tick_s, *drag)
 
     def vector(self) -> np.ndarray:
-        """Input vector: 4 times, x1..x3, 3 gate delays (nominal 0), Q, I, m."""
+        """Input vector: 4 times, x1..x3, 3 gate delays (nominal 0), Q, I, m, Cd_in, Cd_out, rho."""
         return np.array(
-            [*self.times_s, *self.positions_m, 0.0, 0.0, 0.0, self.q_m, self.moi_kgm2, self.ball_mass_kg]
+            [
+                *self.times_s,
+                *self.positions_m,
+                0.0,
+                0.0,
+                0.0,
+                self.q_m,
+                self.moi_kgm2,
+                self.ball_mass_kg,
+                self.cd_in,
+                self.cd_out,
+                self.air_density,
+            ]
         )
 
     def names(self) -> tuple[str, ...]:
@@ -157,23 +201,38 @@ def _pair_used(p: dict[int, GateCrossing], inbound: bool) -> tuple[GateCrossing,
     return (p[lo], p[hi]) if inbound else (p[hi], p[lo])
 
 
-def outputs(p: np.ndarray, gates: tuple[int, int, int, int]) -> np.ndarray:
+def outputs(
+    p: np.ndarray, gates: tuple[int, int, int, int], ball_diameter_m: float = BALL_DIAMETER_M
+) -> np.ndarray:
     """The measurement function, vectorized over leading axes (complex-safe: no abs, no branches)."""
     ga, gb, gc, gd = (g - 1 for g in gates)
     t, x, d = p[..., 0:4], p[..., 4:7], p[..., 7:10]
     q, moi, m = p[..., 10], p[..., 11], p[..., 12]
-    v_in = (x[..., ga] - x[..., gb]) / ((t[..., 1] - d[..., gb]) - (t[..., 0] - d[..., ga]))
-    v_out = (x[..., gd] - x[..., gc]) / ((t[..., 3] - d[..., gd]) - (t[..., 2] - d[..., gc]))
+    k_in = kappa(p[..., 15], p[..., 13], ball_diameter_m, m)
+    k_out = kappa(p[..., 15], p[..., 14], ball_diameter_m, m)
+    dt_in = (t[..., 1] - d[..., gb]) - (t[..., 0] - d[..., ga])
+    dt_out = (t[..., 3] - d[..., gd]) - (t[..., 2] - d[..., gc])
+    v_in = inbound_impact_speed(x[..., ga], x[..., gb], dt_in, k_in)
+    v_out = rebound_impact_speed(x[..., gc], x[..., gd], dt_out, k_out)
     e = v_out / v_in
     k = m * q**2 / moi
     return np.stack([v_in, v_out, e, e * (1.0 + k) + k, e + 0.5], axis=-1)
 
 
-def jacobian(shot: ShotInputs) -> np.ndarray:
-    """d(outputs)/d(inputs), 5 x 13, by complex step (h = 1e-30: no cancellation, no truncation)."""
+def values_and_jacobian(shot: ShotInputs) -> tuple[np.ndarray, np.ndarray]:
+    """The outputs and d(outputs)/d(inputs), 5 x 16, by complex step (h = 1e-30: exact to rounding).
+
+    With h = 1e-30 the real part of every perturbed evaluation is the unperturbed value.
+    """
     h = 1e-30
     p = shot.vector()
-    return (outputs(p + 1j * h * np.eye(p.size), shot.gates).imag / h).T
+    y = outputs(p + 1j * h * np.eye(p.size), shot.gates, shot.ball_diameter_m)
+    return y[0].real.copy(), (y.imag / h).T
+
+
+def jacobian(shot: ShotInputs) -> np.ndarray:
+    """d(outputs)/d(inputs), 5 x 16, by complex step."""
+    return values_and_jacobian(shot)[1]
 
 
 def input_u(shot: ShotInputs, model: UncertaintyModel) -> np.ndarray:
@@ -183,4 +242,5 @@ def input_u(shot: ShotInputs, model: UncertaintyModel) -> np.ndarray:
         + [model.gate_position.standard] * 3
         + [model.gate_delay.standard] * 3
         + [model.impact_q.standard, model.moi_relative.standard * shot.moi_kgm2, model.ball_mass.standard]
+        + [model.drag_in.standard, model.drag_out.standard, model.air_density.standard]
     )

@@ -26,6 +26,7 @@ from rig.measure.model import (
     input_u,
     jacobian,
     outputs,
+    values_and_jacobian,
 )
 
 __all__ = [
@@ -148,22 +149,27 @@ def budget(shots: ShotInputs | Sequence[ShotInputs], model: UncertaintyModel = D
     shared_ju = np.zeros((len(OUTPUTS), len(SHARED)))
     values = np.zeros(len(OUTPUTS))
     for hit in hits:
-        J, u, hit_names = jacobian(hit), input_u(hit, model), hit.names()
-        values += outputs(hit.vector(), hit.gates) / n
+        value, J = values_and_jacobian(hit)
+        u, hit_names = input_u(hit, model), hit.names()
+        values += value / n
         for j in range(4):  # timing: independent per hit, each enters the mean with weight 1/n
             cols.append(J[:, j] * u[j] / n)
             names.append(hit_names[j])
             unit_u[hit_names[j]] = float(u[j])
         shared_ju += J[:, 4:] * u[4:] / n  # shared: sensitivities of the mean add, then propagate once
+    u_shared = input_u(hits[0], model)[4:]
     for j, name in enumerate(SHARED):
         cols.append(shared_ju[:, j])
         names.append(name)
-        unit_u[name] = float(input_u(hits[0], model)[4 + j])
+        unit_u[name] = float(u_shared[j])
     JU = np.column_stack(cols)
     order = list(dict.fromkeys(names))
-    contrib = np.column_stack(
-        [sum(JU[:, i] ** 2 for i, nm in enumerate(names) if nm == key) for key in order]
-    )
+    if len(order) == len(names):  # one hit: every column is its own input
+        contrib = JU**2
+    else:
+        contrib = np.column_stack(
+            [sum(JU[:, i] ** 2 for i, nm in enumerate(names) if nm == key) for key in order]
+        )
     return Budget(
         outputs=OUTPUTS,
         values=tuple(float(v) for v in values),
@@ -218,15 +224,18 @@ def monte_carlo(
                 model.impact_q.sample(gen, (N,)),
                 hits[0].moi_kgm2 * model.moi_relative.sample(gen, (N,)),
                 model.ball_mass.sample(gen, (N,)),
+                model.drag_in.sample(gen, (N,)),
+                model.drag_out.sample(gen, (N,)),
+                model.air_density.sample(gen, (N,)),
             ]
         )
         total = np.zeros((N, len(OUTPUTS)))
         for hit in hits:
-            p = np.broadcast_to(hit.vector(), (N, 13)).copy()
+            p = np.broadcast_to(hit.vector(), (N, len(hit.vector()))).copy()
             p[:, 4:] += shared
             half = hit.tick_s / 2.0
             p[:, :4] += gen.uniform(-half, half, (N, 4)) + model.trigger_jitter.sample(gen, (N, 4))
-            total += outputs(p, hit.gates)
+            total += outputs(p, hit.gates, hit.ball_diameter_m)
         results.append(total / len(hits))
     y = np.concatenate(results)
     return MonteCarlo(OUTPUTS, y.mean(axis=0), np.cov(y, rowvar=False), draws)

@@ -150,7 +150,7 @@ def model_curve(record: dict[str, Any], hoops: np.ndarray) -> tuple[np.ndarray, 
     needed = (v.get("mean"), v.get("moi_kgm2"), v.get("impact_from_pivot_m"), bat.get("length_in"))
     if not hits or name is None or any(x is None for x in needed):
         return None
-    v_in = sum(s["inbound_speed_m_s"] for s in hits) / len(hits)
+    v_in = sum(s.get("inbound_at_impact_m_s") or s["inbound_speed_m_s"] for s in hits) / len(hits)
     q, moi, m_ball = v["impact_from_pivot_m"], v["moi_kgm2"], (proc.get("ball") or {}).get("mass_kg", 0.145)
     length = bat["length_in"] * INCH
     params = DEFAULT_PARAMS.model_copy(update={"m1": m_ball})

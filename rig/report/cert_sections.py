@@ -10,9 +10,12 @@ from rig.report.cert_plots import bbs_per_e_a, certification_hits, metric_label
 
 _PROMPT_SEQ = re.compile(r"-\d+$")  # ring-before-12 -> ring-before
 _INPUTS = {
-    "I": "MOI about the pivot (kg m²)",
+    "I": "MOI about the pivot (kg m²; its own budget below)",
     "Q": "pivot-to-impact distance (m)",
     "m_ball": "ball mass (kg)",
+    "Cd_in": "drag coefficient, inbound ball (drag correction)",
+    "Cd_out": "drag coefficient, rebounding ball (drag correction)",
+    "rho": "lab air density (kg/m³; drag correction)",
 }
 
 
@@ -222,7 +225,7 @@ def budget_blocks(record: dict[str, Any]) -> list[Block]:
         return []
     name, inputs = metric_label(metric), budget.get("inputs") or {}
     ranked = sorted((out_b.get("contributions") or {}).items(), key=lambda item: -item[1])
-    top = [(k, share) for k, share in ranked if share > 0][:6]
+    top = [(k, share) for k, share in ranked if share > 0]
     rows = [
         (
             k,
@@ -250,6 +253,8 @@ def budget_blocks(record: dict[str, Any]) -> list[Block]:
         ),
         Table(("input", "what", "u of input", "kind", f"share of u²({name})"), tuple(rows)),
         Para(f"Largest contribution: {lead}. Shared (systematic) inputs are not reduced by more hits."),
+        *drag_blocks(v.get("drag")),
+        *moi_blocks(record.get("moi")),
     ]
     trade = v.get("tradeoff") or []
     if trade:
@@ -271,6 +276,77 @@ def budget_blocks(record: dict[str, Any]) -> list[Block]:
             Table(("valid hits", "shots", "u", "U", "lab time", ""), rows_t),
         ]
     return out
+
+
+def drag_blocks(drag: dict[str, Any] | None) -> list[Block]:
+    """The drag correction to the impact point: its inputs (Cd, air) and what it changed."""
+    if not drag:
+        return [Para("No drag correction in this record (recorded before it existed): speeds as measured.")]
+    air = drag.get("air") or {}
+    if not drag.get("applied"):
+        return [Heading("Drag correction", 3), Para("Not applied: the rig config states Cd = 0 (no drag).")]
+    rows = (
+        ("Cd, inbound", _num(drag.get("drag_coefficient"), 3), _sig(drag.get("drag_coefficient_u"))),
+        (
+            "Cd, rebound",
+            _num(drag.get("rebound_drag_coefficient"), 3),
+            _sig(drag.get("rebound_drag_coefficient_u")),
+        ),
+        ("air density (kg/m³)", _num(air.get("rho_kgm3"), 4), _sig(air.get("u_kgm3"))),
+    )
+    contrib = air.get("contributions") or {}
+    return [
+        Heading("Drag correction", 3),
+        Para(
+            "Gate speeds are corrected to the impact point for quadratic air drag "
+            "(docs/measurement.md, 3.6). Air from the environment check: "
+            f"{_num(air.get('temperature_c'), 1)} °C, {_num(air.get('humidity_pct'), 0)} % RH, "
+            f"stated pressure {_num(air.get('pressure_kpa'), 2)} kPa; u of the density from pressure "
+            f"{_sig(contrib.get('pressure'))}, temperature {_sig(contrib.get('temperature'))}, humidity "
+            f"{_sig(contrib.get('humidity'))}, formula {_sig(contrib.get('formula'))} kg/m³. "
+            f"The correction moved the mean {drag.get('output', '')} by {_num(drag.get('correction'), 5)} "
+            f"(uncorrected {_num(drag.get('mean_uncorrected'), 5)}); Cd and the density are inputs of "
+            "the budget above."
+        ),
+        Table(("input", "value", "standard u"), rows),
+    ]
+
+
+def moi_blocks(moi: dict[str, Any] | None) -> list[Block]:
+    """The MOI's own budget: each input of the pendulum (or the entered value) and its share."""
+    if not moi:
+        return []
+    rows = tuple(
+        (
+            str(c.get("input", "?")),
+            str(c.get("what", "")),
+            f"{_sig(c.get('value'), 6)} {c.get('unit', '')}",
+            f"{_sig(c.get('u'))} {c.get('unit', '')}",
+            _sig(c.get("u_moi_kgm2")),
+            _share(float(c.get("share") or 0.0)),
+        )
+        for c in moi.get("contributions") or []
+    )
+    value, u = moi.get("moi_kgm2"), moi.get("u_kgm2")
+    rel = 100 * u / value if isinstance(u, int | float) and isinstance(value, int | float) and value else None
+    head = (
+        f"MOI = {_num(value, 5)} kg m², u = {_sig(u)} kg m² ({_num(rel, 3)} %), "
+        f"source: {moi.get('source', '?')}."
+    )
+    if not rows:
+        return [
+            Heading("MOI and its uncertainty", 3),
+            Para(head + " Its inputs were not recorded (older run)."),
+        ]
+    formula = (
+        " I = m g d T0²/(4π²), T0 = T/(1 + θ0²/16) (ASTM F2398 pendulum); the MOI enters the budget above "
+        "as one systematic input shared by every hit."
+    )
+    return [
+        Heading("MOI and its uncertainty", 3),
+        Para(head + (formula if moi.get("source") == "pendulum" else "")),
+        Table(("input", "what", "value", "u of input", "u of MOI (kg m²)", "share of u²(MOI)"), rows),
+    ]
 
 
 def cross_check_blocks(record: dict[str, Any], fig: dict[str, Figure]) -> list[Block]:

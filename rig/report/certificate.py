@@ -196,18 +196,18 @@ def bat_table(record: dict[str, Any]) -> Table:
     length, weight = bat.get("length_in"), bat.get("weight_oz")
     drop = f"{weight - length:+g}" if length is not None and weight is not None else "—"
     hoop = bat.get("hoop_hz")
-    rel = ((record.get("procedure") or {}).get("moi") or {}).get("relative_uncertainty")
     if moi:
         value, u = moi.get("moi_kgm2"), moi.get("u_kgm2")
         how = f"measured on the rig ({moi.get('source', '?')}"
+        if moi.get("source") == "entered":
+            how = "entered from the bat file, with the standard uncertainty it states ("
         if moi.get("period_s") is not None:
             cycles, amp = moi.get("cycles"), moi.get("amplitude_deg")
             how += f": period {moi['period_s']:.5f} s over {cycles} cycles at {amp}° amplitude"
         how += ")"
     elif bat.get("moi_kgm2") is not None:
-        value = bat["moi_kgm2"]
-        u = value * rel if rel else None
-        how = "from the bat file (uncertainty: the procedure's relative uncertainty)"
+        value, u = bat["moi_kgm2"], bat.get("moi_u_kgm2")
+        how = "from the bat file, with the standard uncertainty it states"
     else:
         value, u, how = None, None, "not measured (the run stopped before the MOI)"
     moi_text = "—" if value is None else f"{value:.5f} kg m²"

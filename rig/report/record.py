@@ -153,6 +153,8 @@ def _merge_shot(shot: dict[str, Any], kind: str, d: dict[str, Any], t_utc: str) 
             valid=kind == "ShotMeasured",
             inbound_speed_m_s=d.get("inbound_speed_m_s"),
             rebound_speed_m_s=d.get("rebound_speed_m_s"),
+            inbound_at_impact_m_s=d.get("inbound_at_impact_m_s"),  # drag-corrected (none in old runs)
+            rebound_at_impact_m_s=d.get("rebound_at_impact_m_s"),
             metrics=d.get("metrics"),
             metric=d.get("metric"),
             u=d.get("u"),

@@ -18,7 +18,8 @@ def write(tmp_path: Path, text: str) -> Path:
 
 
 def test_builtins_load_with_their_names() -> None:
-    assert Scene.builtin_names() == ["faulty", "ideal", "lab"]
+    assert Scene.builtin_names() == ["drag", "faulty", "ideal", "lab"]
+    assert [e.kind for e in Scene.load("drag").effects] == ["drag"]  # drag only (finding 5)
     ideal, lab, faulty = Scene.load("ideal"), Scene.load("lab"), Scene.load("faulty")
     assert (ideal.name, lab.name, faulty.name) == ("ideal", "lab", "faulty")
     assert ideal.effects == ()
@@ -109,5 +110,5 @@ def test_a_disabled_effect_does_not_count_for_its_slot() -> None:
 
 
 def test_unknown_scene_lists_the_builtins() -> None:
-    with pytest.raises(ConfigError, match="built-in scenes: faulty, ideal, lab"):
+    with pytest.raises(ConfigError, match="built-in scenes: drag, faulty, ideal, lab"):
         Scene.load("no-such-scene")

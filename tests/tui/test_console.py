@@ -35,7 +35,7 @@ def test_whole_certification_to_the_verdict(make_settings: Callable[..., Console
             screen = await start_run(pilot)
             await answer_prompts(pilot, screen)
             assert screen.outcome is not None and screen.outcome.status == "finished"
-            assert "PASS  bbcor 0.4618 ± 0.0027 (k=2), limit 0.5: pass" in screen_text(app, "#message")
+            assert "PASS  bbcor 0.4618 ± 0.0017 (k=2), limit 0.5: pass" in screen_text(app, "#message")
             assert "Run finished" in screen_text(app, "#prompt")
             assert "0.4618" in screen_text(app, "#progress") and "6/6 valid" in screen_text(app, "#progress")
             await pilot.press("h")  # the history lists it
