@@ -334,6 +334,8 @@ def test_certify_on_a_served_rig_loses_no_shot_and_matches_the_in_process_run(tm
             + f"[gates]\npositions_m = {list(fragment['gates']['positions_m'])}\n"
             + f"[aim]\npressure_kpa = {list(fragment['aim']['pressure_kpa'])}\n"
             + f"speed_m_s = {list(fragment['aim']['speed_m_s'])}\n"
+            + "[air]\n"  # the lab states the drag coefficients it measured (the scene's own)
+            + "".join(f"{k} = {v}\n" for k, v in fragment["air"].items())
         )
         served_db = tmp_path / "served.db"
         files = ["--bat", str(SAMPLE_BAT), "--config", str(rig_toml), "--db", str(served_db)]
