@@ -26,6 +26,9 @@ def run_record(store: Store, run_id: str) -> dict[str, Any]:
         "location": None,
         "operator": [],
         "interruptions": [],
+        "rig_checks": [],
+        "ended": None,
+        "scan_extensions": [],
         "verdict": None,
         "cross_check": None,
         "started_utc": summary.started_utc,
@@ -46,8 +49,14 @@ def run_record(store: Store, run_id: str) -> dict[str, Any]:
             record["operator"].append({"kind": e.kind, **d, "t_utc": e.t_utc})
         elif e.kind == "LocationChosen":
             record["location"] = d
-        elif e.kind in ("RunInterrupted", "RunResumed"):
+        elif e.kind in ("RunInterrupted", "RunResumed", "RigChecked", "RunEnded"):
             record["interruptions"].append({"kind": e.kind, **d, "t_utc": e.t_utc})
+            if e.kind == "RigChecked":
+                record["rig_checks"].append({**d, "t_utc": e.t_utc})
+            elif e.kind == "RunEnded":
+                record["ended"] = {**d, "t_utc": e.t_utc}
+        elif e.kind == "ScanExtended":
+            record["scan_extensions"].append({**d, "t_utc": e.t_utc})
         elif e.kind == "RunFinished":
             record["verdict"] = {k: v for k, v in d.items() if k != "cross_check"}
             record["cross_check"] = d.get("cross_check")
