@@ -3,7 +3,8 @@
 The first signal asks the runner to stop before its next step (the shot in progress is finished
 and recorded first); the run is then recorded as interrupted and stays resumable. A second signal
 raises ForcedStop wherever the runner is: a shot it interrupts is recorded lost (it may have been
-fired), never fired again. Further signals are ignored while the interruption is recorded.
+fired), never fired again. Further signals are ignored while the interruption is recorded, and
+after a stop until the process exits (the CLI's use).
 """
 
 from __future__ import annotations
@@ -44,4 +45,5 @@ def stop_on_signals(control: RunControl) -> Iterator[None]:
         yield
     finally:
         for s, handler in previous.items():
-            signal.signal(s, handler)
+            # once stopped, a late signal must not turn the recorded stop into a traceback on the way out
+            signal.signal(s, signal.SIG_IGN if received else handler)
