@@ -336,18 +336,17 @@ class Runner:
         means = self._scan_means()
         best = max(means, key=lambda k: means[k])
         planned = self.p.scan.locations_in()
-        if any(x < best for x in means) and any(x > best for x in means):
-            return None  # bracketed: a lower mean on each side
-        sign = -1.0 if not any(x < best for x in means) else 1.0
-        nxt = round(best + sign * self.p.scan.step_in, 6)
         reach = planned[0] - self.p.scan.extend_in - 1e-9, planned[-1] + self.p.scan.extend_in + 1e-9
-        if not reach[0] <= nxt <= reach[1] or location_problem(self.bat, nxt) is not None:
-            return None
-        side = "tip" if sign < 0 else "handle"
-        return nxt, (
-            f"the highest mean {self.p.standard.value} so far ({means[best]:.4f}) is at {best:g} in, "
-            f"the scan's edge towards the {side}: the maximum is not bracketed yet"
-        )
+        for sign, side in ((-1.0, "tip"), (1.0, "handle")):
+            if any(sign * (x - best) > 0 for x in means):
+                continue  # a lower mean on this side already
+            nxt = round(best + sign * self.p.scan.step_in, 6)
+            if reach[0] <= nxt <= reach[1] and location_problem(self.bat, nxt) is None:
+                return nxt, (
+                    f"the highest mean {self.p.standard.value} so far ({means[best]:.4f}) is at {best:g} in, "
+                    f"the scan's edge towards the {side}: the maximum is not bracketed yet"
+                )
+        return None  # bracketed, or the procedure and the bat allow no further step
 
     def _choose_location(self) -> None:
         means = self._scan_means()
