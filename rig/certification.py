@@ -81,18 +81,18 @@ def _traffic_drain(session: RigSession) -> Callable[[], list[dict[str, Any]]]:
     return drain
 
 
-def _running(store: Store, run_id: str) -> None:
+def _running(store: Store, run_id: str, source: str) -> None:
     """Refuse to go on with a run that is already closed."""
     summary = store.run(run_id)
     if summary.status == "finished":
-        raise ConfigError(f"run {run_id} is already finished ({summary.verdict})", source="--resume")
+        raise ConfigError(f"run {run_id} is already finished ({summary.verdict})", source=source)
     if summary.status != "running":
-        raise ConfigError(f"run {run_id} was ended without a verdict; start a new one", source="--resume")
+        raise ConfigError(f"run {run_id} was ended without a verdict; start a new one", source=source)
 
 
 def end_run(store: Store, run_id: str, signoff: Signoff) -> Outcome:
     """End an unfinished run with no verdict, on the operator's recorded word (store status aborted)."""
-    _running(store, run_id)
+    _running(store, run_id, "--end")
     shots = len(store.entries(run_id, kinds=[ev.SHOT_REQUESTED]))
     store.append(run_id, ev.RUN_ENDED, {**signoff.as_dict(), "shots_so_far": shots})
     store.set_run_status(run_id, "aborted", None)
@@ -136,7 +136,7 @@ def certify(
     if problems:
         raise ConfigError("; ".join(problems), source="dry run")
     if run_id is not None:
-        _running(store, run_id)
+        _running(store, run_id, "--resume")
     if run_id is None:
         bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
         if bat.id not in store.bats():

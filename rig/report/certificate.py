@@ -140,6 +140,18 @@ def resume_command(record: dict[str, Any]) -> str:
     return f"rig certify --resume {record.get('run_id')} {where}"
 
 
+def _budget_way_out(record: dict[str, Any], stop: dict[str, Any]) -> list[Block]:
+    """After the re-shoot budget: resume with the rig check recorded, or end the run (recorded)."""
+    if not stop.get("budget_exceeded"):
+        return []
+    return [
+        Para("The re-shoot budget is spent: once the rig is checked, resume with the check recorded:"),
+        Code(f"{resume_command(record)} --rig-checked --who NAME --why TEXT"),
+        Para("or end the run with no verdict (recorded):"),
+        Code(f"rig certify --end {record.get('run_id')} --who NAME --why TEXT"),
+    ]
+
+
 def verdict_blocks(record: dict[str, Any]) -> list[Block]:
     """The verdict banner and its figures, or NOT CERTIFIED with the resume command."""
     v = record.get("verdict")
@@ -167,6 +179,7 @@ def verdict_blocks(record: dict[str, Any]) -> list[Block]:
                 "Fix the cause, then resume the run (add --db FILE if the record is not in rig-records.db):"
             ),
             Code(resume_command(record)),
+            *_budget_way_out(record, stops[-1] if stops else {}),
         ]
     tone = "pass" if v.get("verdict") == "PASS" else "fail"
     name, limit = metric_label(v.get("metric")), v.get("limit")

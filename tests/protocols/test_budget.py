@@ -39,6 +39,10 @@ def test_rig_check_restarts_the_budget(tmp_path: Path, capsys: pytest.CaptureFix
     assert "--rig-checked --who NAME --why TEXT" in err and f"rig certify --end {run_id}" in err
     with Store.open(db[1]) as store:
         n_before = len(store.entries(run_id, kinds=["ShotRequested"]))
+    assert main(["report", run_id, "--format", "md", *db]) == 0
+    md = capsys.readouterr().out  # the certificate of the stopped run shows both ways out
+    assert f"--resume {run_id} --sim {tmp_path / 'wild.toml'} --rig-checked --who NAME" in md
+    assert f"rig certify --end {run_id} --who NAME --why TEXT" in md
     # resuming on a good rig without the recorded check stops at once, before any shot
     assert main(["certify", "--resume", run_id, "--sim", "ideal", *db]) == 3
     assert "more than 10 invalid shots in this run" in capsys.readouterr().err
@@ -67,6 +71,8 @@ def test_rig_check_restarts_the_budget(tmp_path: Path, capsys: pytest.CaptureFix
     assert main(["report", run_id, "--format", "md", *db]) == 0
     md = capsys.readouterr().out
     assert "| rig checked |" in md and who in md and why in md
+    assert main(["certify", "--end", run_id, "--who", who, "--why", "too late", *db]) == 2
+    assert "already finished" in capsys.readouterr().err  # a finished run stays as it is
 
 
 def test_end_a_run_without_a_verdict(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
