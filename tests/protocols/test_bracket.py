@@ -138,3 +138,16 @@ def test_old_procedure_records_still_load() -> None:
          "scan": {"from_in": 5.0, "to_in": 7.5, "step_in": 0.5, "hits_per_location": 1}}
     """)
     assert Procedure.model_validate_json(text).scan.extend_in == 1.0
+
+
+def test_a_single_location_scan_is_extended_on_both_sides(tmp_path: Path) -> None:
+    base = Procedure.load("bbcor")
+    one = base.model_copy(update={"scan": base.scan.model_copy(update={"from_in": 7.5, "to_in": 7.5})})
+    operator = Operator()
+    out, entries, _ = run(tmp_path, "ideal", one, operator)
+    assert out.status == "finished"
+    extended = [e.payload["from_barrel_end_in"] for e in entries if e.kind == "ScanExtended"]
+    assert extended == [7.0, 8.0, 8.5]  # the tip side first, then towards the handle up to 1.0 in
+    means = scan_means(entries)
+    assert means[7.0] < means[7.5] < means[8.0] < means[8.5]  # the ideal bat: rising towards the handle
+    assert operator.asked.count("edge-location") == 1
