@@ -65,7 +65,9 @@ def test_signal_interrupts_and_the_run_resumes(
     if len(signals) == 2:
         assert "second signal" in last.payload["reason"]
         lost = [e.payload for e in entries if e.kind == "ShotLost" and e.payload["index"] == nth]
-        assert lost and "ForcedStop" in lost[0]["reason"]  # the shot it cut short: lost, not re-fired
+        # the shot it cut short is lost, not re-fired (if the signals came late, the dropped reply's
+        # timeout had already lost it)
+        assert lost and ("ForcedStop" in lost[0]["reason"] or "DeviceTimeout" in lost[0]["reason"])
     code = main(["certify", "--resume", run_id, "--sim", "lab", "--db", str(db)])
     assert code in (0, 1)
     capsys.readouterr()
