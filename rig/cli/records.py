@@ -99,6 +99,9 @@ def cmd_certify(args: argparse.Namespace) -> int:
             if problems:
                 raise ConfigError("; ".join(problems), source="dry run")
             return 0
+        if control.aborted:  # a signal before anything was recorded: nothing to resume
+            print("rig: stopped by a signal before the run started; nothing recorded", file=sys.stderr)
+            return 3
         live = LiveConsole(quiet=args.json)
         outcome = certify(
             store,
