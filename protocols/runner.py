@@ -57,6 +57,7 @@ class RunControl:
         self._go.set()
         self._abort = threading.Event()
         self.reason = "aborted by the operator"
+        self.settled = False  # the run's outcome is being recorded: nothing is left to stop
 
     def pause(self) -> None:
         """Hold before the next shot."""

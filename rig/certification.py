@@ -178,20 +178,25 @@ def certify(
         )
         try:
             verdict = runner.run()
+            runner.control.settled = True
         except BaseException as exc:
+            runner.control.settled = True  # stop signals from now on would only tear the record up
             if not isinstance(exc, Exception | KeyboardInterrupt):
                 raise  # SystemExit and the like: not an interruption of the run
             if runner.state.finished:  # e.g. a failed ring check ends the run with FAIL
                 store.set_run_status(run_id, "finished", runner.state.verdict.get("verdict"))
                 return Outcome(run_id, "finished", runner.state.verdict, str(exc))
             reason, budget = _reason(exc), isinstance(exc, BudgetExceeded)
-            with contextlib.suppress(Exception):
-                runner.flush_traffic()
             detail: dict[str, Any] = {"reason": reason, "budget_exceeded": budget}
             if not isinstance(exc, RigError | KeyboardInterrupt):  # a bug: say where, for the developers
                 detail["where"] = _where(exc)
                 log.debug("run %s interrupted by an unexpected error", run_id, exc_info=exc)
-            emit(RunEvent(ev.RUN_INTERRUPTED, detail))
+            try:
+                with contextlib.suppress(Exception):
+                    runner.flush_traffic()
+                emit(RunEvent(ev.RUN_INTERRUPTED, detail))
+            except KeyboardInterrupt:  # forced while recording: the record stays whole, resumable
+                pass
             return Outcome(run_id, "interrupted", None, reason, budget)
     store.set_run_status(run_id, "finished", verdict["verdict"])
     return Outcome(run_id, "finished", verdict)

@@ -3,8 +3,8 @@
 The first signal asks the runner to stop before its next step (the shot in progress is finished
 and recorded first); the run is then recorded as interrupted and stays resumable. A second signal
 raises ForcedStop wherever the runner is: a shot it interrupts is recorded lost (it may have been
-fired), never fired again. Further signals are ignored while the interruption is recorded, and
-after a stop until the process exits (the CLI's use).
+fired), never fired again. Signals are ignored once the runner has stopped and its outcome is
+being recorded (RunControl.settled), and after a stop until the process exits (the CLI's use).
 """
 
 from __future__ import annotations
@@ -24,26 +24,36 @@ class ForcedStop(KeyboardInterrupt):
     """A second stop signal: the run stops where it is."""
 
 
-@contextmanager
-def stop_on_signals(control: RunControl) -> Iterator[None]:
-    """While inside, SIGINT and SIGTERM stop the run `control` steers (main thread only)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    received: list[str] = []
+class SignalStop:
+    """The signal handler: how many stop signals came, for the run `control` steers."""
 
-    def on_signal(signum: int, frame: FrameType | None) -> None:
+    def __init__(self, control: RunControl) -> None:
+        self.control = control
+        self.received: list[str] = []
+
+    def on_signal(self, signum: int, frame: FrameType | None) -> None:
+        """First signal: stop after the shot in progress; second: stop at once; later ones: ignored."""
         name = signal.Signals(signum).name
-        received.append(name)
-        if len(received) == 1:
-            control.abort(f"stopped by {name} (the shot in progress was recorded first)")
-        elif len(received) == 2:
-            raise ForcedStop(f"stopped at once by a second signal ({', '.join(received)})")
+        self.received.append(name)
+        if self.control.settled:
+            return  # the outcome is being recorded: a late signal must not tear that up
+        if len(self.received) == 1:
+            self.control.abort(f"stopped by {name} (the shot in progress was recorded first)")
+        elif len(self.received) == 2:
+            raise ForcedStop(f"stopped at once by a second signal ({', '.join(self.received)})")
 
-    previous = {s: signal.signal(s, on_signal) for s in SIGNALS}
+
+@contextmanager
+def stop_on_signals(control: RunControl) -> Iterator[SignalStop]:
+    """While inside, SIGINT and SIGTERM stop the run `control` steers (main thread only)."""
+    stop = SignalStop(control)
+    if threading.current_thread() is not threading.main_thread():
+        yield stop
+        return
+    previous = {s: signal.signal(s, stop.on_signal) for s in SIGNALS}
     try:
-        yield
+        yield stop
     finally:
         for s, handler in previous.items():
             # once stopped, a late signal must not turn the recorded stop into a traceback on the way out
-            signal.signal(s, signal.SIG_IGN if received else handler)
+            signal.signal(s, signal.SIG_IGN if stop.received else handler)
