@@ -1,7 +1,8 @@
 """Read a run's recorded device traffic back as the wire commands the host sent.
 
 Independent of the runner's bookkeeping: the Traffic entries hold the raw bytes (base64) of every
-frame; these are decoded with the shared line codec, and each cannon FIRE is paired with the
+frame; these are decoded as each device decodes them (its codec's device side: a command it would
+refuse moves nothing), and each cannon FIRE is paired with the
 stage position the clamp was last commanded to (MOVE) in the same session (a resume opens the
 devices afresh, so a position commanded before it counts for nothing).
 """
@@ -13,7 +14,12 @@ from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
-from drivers.wire import Command, LineDecoder
+from drivers.cannon import codec as cannon_codec
+from drivers.clamp import codec as clamp_codec
+from drivers.codec import CheckedCommand, DeviceCodec
+from drivers.gates import codec as gates_codec
+
+SPECS = {"cannon": cannon_codec.SPECS, "clamp": clamp_codec.SPECS, "gates": gates_codec.SPECS}
 
 MM_PER_IN = 25.4
 PIVOT_FROM_KNOB_IN = 6.0
@@ -31,7 +37,7 @@ def wire_fires(entries: list[Any]) -> list[WireFire]:
     """Every FIRE command in a run's Traffic entries, in order, with the stage position at that moment."""
     fires: list[WireFire] = []
     stage: float | None = None
-    decoders: dict[str, LineDecoder] = {}
+    decoders: dict[str, DeviceCodec] = {}
     for e in entries:
         if e.kind in ("RunStarted", "RunResumed"):
             stage, decoders = None, {}  # a new session: the stage's position is not known
@@ -40,12 +46,12 @@ def wire_fires(entries: list[Any]) -> list[WireFire]:
         for chunk in e.payload["chunks"]:
             if chunk["dir"] != "tx":
                 continue
-            decoder = decoders.setdefault(chunk["device"], LineDecoder("device"))
+            decoder = decoders.setdefault(chunk["device"], DeviceCodec(SPECS[chunk["device"]]))
             for item in decoder.feed(base64.b64decode(chunk["data_b64"])):
-                if not isinstance(item, Command):
+                if not isinstance(item, CheckedCommand):
                     continue
                 if chunk["device"] == "clamp" and item.verb == "MOVE":
-                    stage = float(item.args[0])
+                    stage = float(item.values[0])  # type: ignore[arg-type]
                 elif chunk["device"] == "cannon" and item.verb == "FIRE":
                     fires.append(WireFire(e.payload.get("index"), stage))
     return fires
