@@ -37,6 +37,8 @@ class Scan(_Model):
     to_in: Annotated[float, Field(gt=0.0)] = 7.5
     step_in: Annotated[float, Field(gt=0.0)] = 0.5
     hits_per_location: Annotated[int, Field(ge=1, le=10)] = 1
+    # how far beyond either end the runner may extend the scan to bracket the maximum (inches)
+    extend_in: Annotated[float, Field(ge=0.0, le=10.0)] = 1.0
 
     @model_validator(mode="after")
     def _order(self) -> Scan:

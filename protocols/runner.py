@@ -8,6 +8,7 @@ fired again.
 
 from __future__ import annotations
 
+import contextlib
 import platform
 import threading
 from collections.abc import Callable
@@ -55,6 +56,8 @@ class RunControl:
         self._go = threading.Event()
         self._go.set()
         self._abort = threading.Event()
+        self.reason = "aborted by the operator"
+        self.settled = False  # the run's outcome is being recorded: nothing is left to stop
 
     def pause(self) -> None:
         """Hold before the next shot."""
@@ -64,8 +67,10 @@ class RunControl:
         """Go on after a pause."""
         self._go.set()
 
-    def abort(self) -> None:
-        """Stop before the next shot; the run stays resumable."""
+    def abort(self, reason: str = "aborted by the operator") -> None:
+        """Stop before the next shot (the one in progress is recorded first); the run stays resumable."""
+        if not self._abort.is_set():
+            self.reason = reason
         self._abort.set()
         self._go.set()
 
@@ -88,6 +93,20 @@ class RunAborted(RigError):
     """The run cannot go on; the reason is recorded and the run can be resumed after a fix."""
 
 
+class BudgetExceeded(RunAborted):
+    """More invalid shots than the procedure allows since the rig was last checked."""
+
+
+def location_problem(bat: BatSpec, loc_in: float) -> str | None:
+    """Why the rig cannot hit the bat `loc_in` inches from the tip, or None if it can."""
+    q_mm = bat.impact_from_pivot_m(loc_in) * 1000.0
+    if not 0.0 < loc_in < bat.length_in - PIVOT_FROM_KNOB_IN:
+        return f"scan location {loc_in:g} in from the tip is not on the bat beyond the pivot"
+    if not 100.0 <= q_mm <= 900.0:
+        return f"scan location {loc_in:g} in needs the stage at {q_mm:.0f} mm (range 100-900 mm)"
+    return None
+
+
 def dry_run(p: Procedure, bat: BatSpec, config: RigConfig) -> list[str]:
     """Everything in the procedure the rig or the bat cannot do, found before the cannon is armed."""
     problems: list[str] = []
@@ -97,13 +116,7 @@ def dry_run(p: Procedure, bat: BatSpec, config: RigConfig) -> list[str]:
             problems.append(
                 f"target speed {speed:.2f} m/s is outside the aim calibration ({lo:g}-{hi:g} m/s)"
             )
-    barrel_room_in = bat.length_in - PIVOT_FROM_KNOB_IN
-    for loc in p.scan.locations_in():
-        q_mm = bat.impact_from_pivot_m(loc) * 1000.0
-        if loc >= barrel_room_in:
-            problems.append(f"scan location {loc:g} in from the tip is not on the bat beyond the pivot")
-        elif not 100.0 <= q_mm <= 900.0:
-            problems.append(f"scan location {loc:g} in needs the stage at {q_mm:.0f} mm (range 100-900 mm)")
+    problems += [m for m in (location_problem(bat, loc) for loc in p.scan.locations_in()) if m]
     if p.moi.source == "entered" and bat.moi_kgm2 is None:
         problems.append("procedure wants the MOI entered, but the bat file has no moi_kgm2")
     if p.moi.source == "entered" and bat.moi_kgm2 is not None and bat.moi_u_kgm2 is None:
@@ -133,6 +146,7 @@ class Runner:
         control: RunControl | None = None,
         confirm_fire: bool = False,
         review_shots: bool = False,
+        rig_check: dict[str, str] | None = None,
     ) -> None:
         self.p, self.bat, self.config = procedure, bat, config
         self.cannon, self.gates, self.clamp = cannon, gates, clamp
@@ -145,6 +159,17 @@ class Runner:
         self.control = control or RunControl()
         self.confirm_fire = confirm_fire  # the operator confirms every shot (the UI's fire key)
         self.review_shots = review_shots  # the operator may reject a valid shot (never accept an invalid one)
+        self.rig_check = rig_check  # {who, why}: the rig was checked, the re-shoot budget starts again
+        # Where this session has put the stage (inches from the tip); None until a MOVE is confirmed.
+        # Never taken from the record: a resumed session, a new port or a recovered device may be
+        # anywhere, so every shot commands its own location unless this session put it there.
+        self._stage_at: float | None = None
+
+    def flush_traffic(self) -> None:
+        """Record device traffic not yet attached to a shot (e.g. before an interruption)."""
+        chunks = self.drain_traffic()
+        if chunks:
+            self.emit(ev.TRAFFIC, index=None, chunks=chunks)
 
     # -- events -----------------------------------------------------------------------------
     def emit(self, kind: str, **data: Any) -> None:
@@ -160,27 +185,61 @@ class Runner:
         """Run (or resume) to the verdict; returns the RunFinished payload."""
         if self.state.finished:
             return dict(self.state.verdict or {})
+        if self.state.ended is not None:
+            raise ConfigError("the run was ended without a verdict; start a new one", source="resume")
         problems = dry_run(self.p, self.bat, self.config)
         if problems:
             raise ConfigError("; ".join(problems), source="dry run")
         self._start()
+        self._check_budget()
+        self._hold()
         self._check_environment()
-        self.gate_config = prepare(self.cannon, self.gates, self.clamp, self._q(self.p.scan.from_in))
+        self._hold()
+        first = self._next_location()
+        self.gate_config = prepare(self.cannon, self.gates, self.clamp, self._q(first))
+        self._stage_at = first
+        self.emit(ev.LOCATION_SET, from_barrel_end_in=first, impact_from_pivot_m=self._q(first))
         self._resolve_pending()
         if self.state.moi is None:
             self._measure_moi()
-        for loc in self.p.scan.locations_in():
-            while len(self.state.valid_shots("scan", loc)) < self.p.scan.hits_per_location:
-                self._shoot(loc, "scan")
+        self._scan()
         if self.state.best_location_in is None:
             self._choose_location()
         best = self.state.best_location_in
         assert best is not None
         while len(self.state.valid_shots("valid", best)) < self.p.hits.valid_hits:
             self._shoot(best, "valid")
+        self._hold()
         verdict = evaluate.verdict(self.p, self.bat, self.state, self.config)
+        self.flush_traffic()
         self.emit(ev.RUN_FINISHED, **verdict)
         return verdict
+
+    def _next_location(self) -> float:
+        """Where the next shot goes: the first scan location short of hits, or the chosen one."""
+        if self.state.best_location_in is not None:
+            return self.state.best_location_in
+        for loc in self.state.scan_locations(self.p.scan.locations_in()):
+            if len(self.state.valid_shots("scan", loc)) < self.p.scan.hits_per_location:
+                return loc
+        return self.p.scan.from_in
+
+    def _check_budget(self) -> None:
+        """Record the operator's rig check (budget starts again); stop at once if still over budget."""
+        if self.rig_check is not None:
+            self.emit(
+                ev.RIG_CHECKED,
+                who=self.rig_check["who"],
+                why=self.rig_check["why"],
+                invalid_shots_before=self.state.invalid_count,
+            )
+        self._check_reshoots()
+
+    def _check_reshoots(self) -> None:
+        limit = self.p.hits.max_reshoots
+        if self.state.invalid_since_check > limit:
+            since = "since the last rig check" if self.state.invalid_at_last_check else "in this run"
+            raise BudgetExceeded(f"more than {limit} invalid shots {since}: check the rig")
 
     def _start(self) -> None:
         if not self.state.started:
@@ -254,18 +313,70 @@ class Runner:
             cycles=reading.cycles,
         )
 
-    def _choose_location(self) -> None:
+    def _scan_means(self) -> dict[float, float]:
         means: dict[float, float] = {}
-        for loc in self.p.scan.locations_in():
+        for loc in sorted(self.state.scan_locations(self.p.scan.locations_in())):
             vals = [s.metric for s in self.state.valid_shots("scan", loc) if s.metric is not None]
             if vals:
                 means[loc] = sum(vals) / len(vals)
+        return means
+
+    def _scan(self) -> None:
+        """Shoot the scan; while its maximum sits at an edge, extend it by one step (recorded)."""
+        while True:
+            for loc in self.state.scan_locations(self.p.scan.locations_in()):
+                while len(self.state.valid_shots("scan", loc)) < self.p.scan.hits_per_location:
+                    self._shoot(loc, "scan")
+            if self.state.best_location_in is not None:
+                return
+            step = self._extension()
+            if step is None:
+                return
+            loc, reason = step
+            self.emit(
+                ev.SCAN_EXTENDED, from_barrel_end_in=loc, impact_from_pivot_m=self._q(loc), reason=reason
+            )
+
+    def _extension(self) -> tuple[float, str] | None:
+        """The next location beyond the scan's edge if the maximum is there and the rig may go on."""
+        means = self._scan_means()
         best = max(means, key=lambda k: means[k])
+        planned = self.p.scan.locations_in()
+        reach = planned[0] - self.p.scan.extend_in - 1e-9, planned[-1] + self.p.scan.extend_in + 1e-9
+        for sign, side in ((-1.0, "tip"), (1.0, "handle")):
+            if any(sign * (x - best) > 0 for x in means):
+                continue  # a lower mean on this side already
+            nxt = round(best + sign * self.p.scan.step_in, 6)
+            if reach[0] <= nxt <= reach[1] and location_problem(self.bat, nxt) is None:
+                return nxt, (
+                    f"the highest mean {self.p.standard.value} so far ({means[best]:.4f}) is at {best:g} in, "
+                    f"the scan's edge towards the {side}: the maximum is not bracketed yet"
+                )
+        return None  # bracketed, or the procedure and the bat allow no further step
+
+    def _choose_location(self) -> None:
+        means = self._scan_means()
+        best = max(means, key=lambda k: means[k])
+        bracketed = any(x < best for x in means) and any(x > best for x in means)
+        extra: dict[str, Any] = {"bracketed": bracketed}
+        if not bracketed:
+            text = (
+                f"The highest mean {self.p.standard.value} ({means[best]:.4f}) is at {best:g} in from the "
+                f"tip, the edge of the scan (extended as far as the procedure and the bat allow): the "
+                f"maximum is not bracketed. Certify at {best:g} in anyway?"
+            )
+            if not self._prompt("edge-location", text):
+                raise RunAborted(
+                    f"the location of maximum performance is not bracketed (highest mean at {best:g} in, "
+                    "the scan's edge): widen the procedure's scan or scan.extend_in"
+                )
+            extra["accepted_by"] = getattr(self.operator, "who", "operator")
         self.emit(
             ev.LOCATION_CHOSEN,
             from_barrel_end_in=best,
             mean_metric=means[best],
             scan={str(k): v for k, v in means.items()},
+            **extra,
         )
 
     # -- one shot ---------------------------------------------------------------------------
@@ -291,12 +402,11 @@ class Runner:
             if not self.control.aborted:
                 self.emit(ev.RUN_CONTINUED)
         if self.control.aborted:
-            raise RunAborted("aborted by the operator")
+            raise RunAborted(self.control.reason)
 
     def _shoot(self, loc_in: float, purpose: str) -> None:
         self._hold()
-        if self.state.invalid_count > self.p.hits.max_reshoots:
-            raise RunAborted(f"more than {self.p.hits.max_reshoots} invalid shots: check the rig")
+        self._check_reshoots()
         if self.state.ball_hits >= self.p.ball.replace_after_hits:
             if not self._prompt(
                 "ball",
@@ -309,10 +419,8 @@ class Runner:
             f"ring-before-{index}", "Ring check: does the ring pass over the whole bat?"
         ):
             self._fail_ring(index)
-        if self.state.location_in != loc_in:
-            q = self._q(loc_in)
-            self.clamp.move_to(q * 1000.0)
-            self.emit(ev.LOCATION_SET, from_barrel_end_in=loc_in, impact_from_pivot_m=q)
+        if self._stage_at != loc_in:
+            self._move(loc_in)
         q = self._q(loc_in)
         config = self.config.model_copy(update={"impact_from_pivot_m": q})
         aim_speed = self.p.target_speed_m_s / self.state.aim_factor
@@ -330,8 +438,42 @@ class Runner:
             aim_speed_m_s=aim_speed,
         )
         try:
+            self._fire_and_record(config, aim_speed, index)
+        except BaseException as exc:
+            self._lose_unresolved(index, exc)
+            raise
+        if self.state.pending is None and self.state.shots[-1].lost:
+            return
+        self._after_shot(index)
+
+    def _move(self, loc_in: float) -> None:
+        """Command the stage to `loc_in` and wait for it there; only then is the position known."""
+        self._stage_at = None
+        q = self._q(loc_in)
+        self.clamp.move_to(q * 1000.0)
+        self._stage_at = loc_in
+        self.emit(ev.LOCATION_SET, from_barrel_end_in=loc_in, impact_from_pivot_m=q)
+
+    def _lose_unresolved(self, index: int, exc: BaseException) -> None:
+        """Anything that stops a shot before its outcome is recorded marks it lost (never fired again)."""
+        pending = self.state.pending
+        if pending is None or pending.index != index:
+            return
+        with contextlib.suppress(Exception):
+            self.emit(ev.TRAFFIC, index=index, chunks=self.drain_traffic())
+            self.emit(
+                ev.SHOT_LOST,
+                index=index,
+                reason=f"the run stopped during this shot ({type(exc).__name__}: {exc}); "
+                "it may have been fired, so it is not fired again",
+            )
+
+    def _fire_and_record(self, config: RigConfig, aim_speed: float, index: int) -> None:
+        """Fire the requested shot and record its raw data, then its outcome (measured, rejected, lost)."""
+        try:
             record, failure = self._fire(config, aim_speed, index)
         except DeviceError as exc:
+            self._stage_at = None  # a device may have been reset or reopened: command the stage again
             self.emit(ev.TRAFFIC, index=index, chunks=self.drain_traffic())
             self.emit(ev.SHOT_LOST, index=index, reason=f"{type(exc).__name__}: {exc}")
             self._recover_or_abort(exc)
@@ -348,8 +490,12 @@ class Runner:
             return
         result = evaluate.shot(record, self.p, self.bat, self.state, failure, self.config)
         self.emit(ev.SHOT_MEASURED if result["valid"] else ev.SHOT_REJECTED, index=index, **result)
-        if result["valid"] and self.review_shots:
-            metric = f"{self.p.standard.value} {result['metric']:.4f}"
+
+    def _after_shot(self, index: int) -> None:
+        """The operator's review and the ring check after a recorded shot."""
+        shot = self.state.shots[-1]
+        if shot.valid and self.review_shots:
+            metric = f"{self.p.standard.value} {shot.metric:.4f}"
             if not self._prompt(f"review-{index}", f"Accept shot {index} ({metric})? n rejects it: re-shoot"):
                 self.emit(
                     ev.SHOT_OVERRULED,

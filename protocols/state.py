@@ -39,6 +39,9 @@ class RunState:
     best_location_in: float | None = None
     location_in: float | None = None
     aim_factor: float = 1.0
+    extra_locations: list[float] = field(default_factory=list)  # scan extensions, in order
+    invalid_at_last_check: int = 0  # invalid shots already counted when the rig was last checked
+    ended: dict[str, Any] | None = None  # ended on the operator's word, no verdict
 
     @property
     def pending(self) -> ShotEntry | None:
@@ -58,6 +61,15 @@ class RunState:
     def invalid_count(self) -> int:
         """Shots rejected or lost."""
         return sum(1 for s in self.shots if s.valid is False or s.lost)
+
+    @property
+    def invalid_since_check(self) -> int:
+        """Shots rejected or lost since the operator last confirmed the rig was checked."""
+        return self.invalid_count - self.invalid_at_last_check
+
+    def scan_locations(self, planned: list[float]) -> list[float]:
+        """The procedure's scan locations and the extensions recorded so far, in scan order."""
+        return planned + [x for x in self.extra_locations if x not in planned]
 
 
 def fold(events: Iterable[RunEvent]) -> RunState:
@@ -99,6 +111,12 @@ def fold(events: Iterable[RunEvent]) -> RunState:
             st.ball_number, st.ball_hits = d["ball_number"], 0
         elif e.kind == ev.LOCATION_CHOSEN:
             st.best_location_in = d["from_barrel_end_in"]
+        elif e.kind == ev.SCAN_EXTENDED:
+            st.extra_locations.append(d["from_barrel_end_in"])
+        elif e.kind == ev.RIG_CHECKED:
+            st.invalid_at_last_check = st.invalid_count
+        elif e.kind == ev.RUN_ENDED:
+            st.ended = d
         elif e.kind == ev.RUN_FINISHED:
             st.finished, st.verdict = True, d
     return st

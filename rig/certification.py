@@ -1,26 +1,33 @@
 """Certify a bat: store, devices, procedure runner and subscribers wired together.
 
 Every persisted event is appended to the store (committed) before the runner goes on, so a run
-killed at any moment resumes from its record: no shot lost, none fired twice.
+killed at any moment resumes from its record: no shot lost, none fired twice. Any error during a
+run (a device fault, a signal, a bug) ends the session with a RunInterrupted entry naming it.
 """
 
 from __future__ import annotations
 
 import base64
+import contextlib
+import logging
+import traceback
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from protocols.procedure import Procedure
-from protocols.runner import Operator, RunAborted, RunControl, Runner
+from protocols.runner import BudgetExceeded, Operator, RunControl, Runner, dry_run
+from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
-from rig.core.errors import ConfigError
+from rig.core.errors import ConfigError, RigError
 from rig.core.events import RunEvent, Subscriber
 from rig.modal.link import with_measured_hoop
 from rig.session import RigSession
 from rig.store import Store
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -28,9 +35,29 @@ class Outcome:
     """How a certification run ended."""
 
     run_id: str
-    status: str  # finished | interrupted
+    status: str  # finished | interrupted | ended
     verdict: dict[str, Any] | None
     reason: str = ""
+    budget_exceeded: bool = False  # resume only with a recorded rig check (Signoff), or end the run
+
+
+@dataclass(frozen=True)
+class Signoff:
+    """Who takes a recorded decision about a run, and why (a rig check, ending a run)."""
+
+    who: str
+    why: str
+
+    def __post_init__(self) -> None:
+        for name, text in (("who", self.who), ("why", self.why)):
+            if not isinstance(text, str) or not text.strip() or len(text) > 500 or not text.isprintable():
+                raise ConfigError(
+                    f"give a name and a reason ({name}: 1-500 printable characters)", source=name
+                )
+
+    def as_dict(self) -> dict[str, str]:
+        """JSON-ready view."""
+        return {"who": self.who.strip(), "why": self.why.strip()}
 
 
 def history(store: Store, run_id: str) -> list[RunEvent]:
@@ -54,6 +81,36 @@ def _traffic_drain(session: RigSession) -> Callable[[], list[dict[str, Any]]]:
     return drain
 
 
+def _running(store: Store, run_id: str, source: str) -> None:
+    """Refuse to go on with a run that is already closed."""
+    summary = store.run(run_id)
+    if summary.status == "finished":
+        raise ConfigError(f"run {run_id} is already finished ({summary.verdict})", source=source)
+    if summary.status != "running":
+        raise ConfigError(f"run {run_id} was ended without a verdict; start a new one", source=source)
+
+
+def end_run(store: Store, run_id: str, signoff: Signoff) -> Outcome:
+    """End an unfinished run with no verdict, on the operator's recorded word (store status aborted)."""
+    with store.run_lock(run_id):  # never while a runner is still working on the run
+        _running(store, run_id, "--end")
+        shots = len(store.entries(run_id, kinds=[ev.SHOT_REQUESTED]))
+        store.append(run_id, ev.RUN_ENDED, {**signoff.as_dict(), "shots_so_far": shots})
+        store.set_run_status(run_id, "aborted", None)
+    return Outcome(run_id, "ended", None, f"ended without a verdict by {signoff.who}: {signoff.why}")
+
+
+def _reason(exc: BaseException) -> str:
+    if isinstance(exc, RigError | KeyboardInterrupt) and str(exc):
+        return str(exc)
+    return f"unexpected {type(exc).__name__}: {exc}"
+
+
+def _where(exc: BaseException) -> str:
+    frames = traceback.extract_tb(exc.__traceback__)
+    return "; ".join(f"{Path(f.filename).name}:{f.lineno} in {f.name}" for f in frames[-3:])
+
+
 def certify(
     store: Store,
     procedure: Procedure,
@@ -67,14 +124,21 @@ def certify(
     confirm_fire: bool = False,
     review_shots: bool = False,
     on_open: Callable[[RigSession], None] | None = None,
+    rig_checked: Signoff | None = None,
 ) -> Outcome:
     """Run (or with `run_id`, resume) a certification; returns its outcome.
 
     `on_open` sees the open session before the runner starts: an operator console uses it to read
-    device status on the runner's thread while the runner waits for the operator.
+    device status on the runner's thread while the runner waits for the operator. `rig_checked`
+    records that the rig was checked (who, why): the re-shoot budget starts again.
     """
     listeners = list(subscribers)
+    problems = dry_run(procedure, bat, config)
+    if problems:
+        raise ConfigError("; ".join(problems), source="dry run")
     resuming = run_id is not None
+    if run_id is not None:
+        _running(store, run_id, "--resume")
     if run_id is None:
         bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
         if bat.id not in store.bats():
@@ -111,15 +175,30 @@ def certify(
             control=control,
             confirm_fire=confirm_fire,
             review_shots=review_shots,
+            rig_check=None if rig_checked is None else rig_checked.as_dict(),
         )
         try:
             verdict = runner.run()
-        except RunAborted as exc:
+            runner.control.settled = True
+        except BaseException as exc:
+            runner.control.settled = True  # stop signals from now on would only tear the record up
+            if not isinstance(exc, Exception | KeyboardInterrupt):
+                raise  # SystemExit and the like: not an interruption of the run
             if runner.state.finished:  # e.g. a failed ring check ends the run with FAIL
                 store.set_run_status(run_id, "finished", runner.state.verdict.get("verdict"))
                 return Outcome(run_id, "finished", runner.state.verdict, str(exc))
-            emit(RunEvent("RunInterrupted", {"reason": str(exc)}))
-            return Outcome(run_id, "interrupted", None, str(exc))
+            reason, budget = _reason(exc), isinstance(exc, BudgetExceeded)
+            detail: dict[str, Any] = {"reason": reason, "budget_exceeded": budget}
+            if not isinstance(exc, RigError | KeyboardInterrupt):  # a bug: say where, for the developers
+                detail["where"] = _where(exc)
+                log.debug("run %s interrupted by an unexpected error", run_id, exc_info=exc)
+            try:
+                with contextlib.suppress(Exception):
+                    runner.flush_traffic()
+                emit(RunEvent(ev.RUN_INTERRUPTED, detail))
+            except KeyboardInterrupt:  # forced while recording: the record stays whole, resumable
+                pass
+            return Outcome(run_id, "interrupted", None, reason, budget)
         store.set_run_status(run_id, "finished", verdict["verdict"])  # sealed under the lock
     return Outcome(run_id, "finished", verdict)
 

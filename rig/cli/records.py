@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shlex
 import sys
 from pathlib import Path
 from typing import Any
@@ -18,17 +19,61 @@ from rig.cli.common import (
 )
 
 
+def _signoff(args: argparse.Namespace, flag: str) -> Any:
+    from rig.certification import Signoff
+
+    if not args.who or not args.why:
+        raise ConfigError(f"{flag} needs --who NAME and --why TEXT (both recorded)", source="command line")
+    return Signoff(args.who, args.why)
+
+
+def _interrupted(outcome: Any, args: argparse.Namespace) -> int:
+    """Tell the operator how to go on after an interruption; exit status 3."""
+    where = ("--config", args.config) if args.config else ("--sim", args.sim) if args.sim else None
+    rig = f"{where[0]} {shlex.quote(where[1])}" if where else "--config RIG.toml"
+    db = f" --db {shlex.quote(str(args.db))}" if args.db else ""
+    resume = f"rig certify --resume {outcome.run_id} {rig}{db}"
+    print(f"rig: run {outcome.run_id} interrupted: {outcome.reason}; resume with: {resume}", file=sys.stderr)
+    if outcome.budget_exceeded:
+        print(
+            "rig: once the rig is checked, resume with the check recorded (the re-shoot budget starts "
+            f"again): {resume} --rig-checked --who NAME --why TEXT; or end the run with no verdict: "
+            f"rig certify --end {outcome.run_id}{db} --who NAME --why TEXT",
+            file=sys.stderr,
+        )
+    return 3
+
+
+def _end(args: argparse.Namespace) -> int:
+    from rig.certification import end_run
+
+    signoff = _signoff(args, "--end")
+    with open_db(args) as store:
+        outcome = end_run(store, resolve_run(store, args.end), signoff)
+    print(f"rig: run {outcome.run_id} {outcome.reason}", file=sys.stderr)
+    return 0
+
+
 def cmd_certify(args: argparse.Namespace) -> int:
     """rig certify: run a certification procedure on a bat, live, recording everything."""
     from protocols.procedure import Procedure
-    from protocols.runner import ScriptedOperator, dry_run
+    from protocols.runner import RunControl, ScriptedOperator, dry_run
     from rig.certification import certify
     from rig.core.bat import BatSpec
     from rig.report.live import LiveConsole
     from rig.report.record import run_record
+    from rig.run_signals import stop_on_signals
 
+    if args.end:
+        if args.resume or args.procedure or args.bat or args.rig_checked:
+            raise ConfigError("--end takes only the run, --who and --why", source="command line")
+        return _end(args)
+    if args.rig_checked and not args.resume:
+        raise ConfigError("--rig-checked goes with --resume RUN", source="command line")
+    rig_checked = _signoff(args, "--rig-checked") if args.rig_checked else None
+    control = RunControl()
     args.create_db = True
-    with open_db(args) as store:
+    with stop_on_signals(control), open_db(args) as store:
         if args.resume:
             run_id = resolve_run(store, args.resume)
             started = store.entries(run_id, kinds=["RunStarted"])
@@ -54,6 +99,9 @@ def cmd_certify(args: argparse.Namespace) -> int:
             if problems:
                 raise ConfigError("; ".join(problems), source="dry run")
             return 0
+        if control.aborted:  # a signal before anything was recorded: nothing to resume
+            print("rig: stopped by a signal before the run started; nothing recorded", file=sys.stderr)
+            return 3
         live = LiveConsole(quiet=args.json)
         outcome = certify(
             store,
@@ -63,6 +111,8 @@ def cmd_certify(args: argparse.Namespace) -> int:
             run_id=run_id,
             operator=ScriptedOperator(who="script (--sim or scripted run)"),
             subscribers=[live],
+            control=control,
+            rig_checked=rig_checked,
         )
         live.close()
         if args.json:
@@ -71,12 +121,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
         else:
             live.summary(outcome)
     if outcome.status != "finished":
-        print(
-            f"rig: run {outcome.run_id} interrupted: {outcome.reason}; "
-            f"resume with: rig certify --resume {outcome.run_id}",
-            file=sys.stderr,
-        )
-        return 3
+        return _interrupted(outcome, args)
     return 0 if outcome.verdict and outcome.verdict.get("verdict") == "PASS" else 1
 
 
@@ -167,6 +212,16 @@ def add_parsers(sub: Any) -> None:
     add_rig_options(p)
     p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
     p.add_argument("--resume", metavar="RUN", help="resume an interrupted run")
+    p.add_argument(
+        "--rig-checked",
+        action="store_true",
+        help="with --resume: record that the rig was checked (--who, --why); the re-shoot budget restarts",
+    )
+    p.add_argument(
+        "--end", metavar="RUN", help="end an unfinished run with no verdict (--who, --why recorded)"
+    )
+    p.add_argument("--who", metavar="NAME", help="who checked the rig or ends the run (recorded)")
+    p.add_argument("--why", metavar="TEXT", help="why (recorded)")
     p.add_argument("--dry-run", action="store_true", help="check the procedure against rig and bat only")
     p.add_argument("--json", action="store_true", help="print the run record as JSON")
     p.set_defaults(handler=cmd_certify)

@@ -28,6 +28,9 @@ BALL_REPLACED = "BallReplaced"
 LOCATION_CHOSEN = "LocationChosen"
 RUN_FINISHED = "RunFinished"
 RUN_INTERRUPTED = "RunInterrupted"
+RIG_CHECKED = "RigChecked"  # the operator confirms the rig was checked: the re-shoot budget starts again
+RUN_ENDED = "RunEnded"  # the run ended on the operator's word, with no verdict
+SCAN_EXTENDED = "ScanExtended"  # a location added beyond the scan to bracket the maximum
 TRAFFIC = "Traffic"
 
 # live only
@@ -57,6 +60,9 @@ PERSISTED = frozenset(
         LOCATION_CHOSEN,
         RUN_FINISHED,
         RUN_INTERRUPTED,
+        RIG_CHECKED,
+        RUN_ENDED,
+        SCAN_EXTENDED,
         TRAFFIC,
     }
 )

@@ -39,6 +39,29 @@ def _purpose(shot: dict[str, Any]) -> str:
     )
 
 
+def _bracket_blocks(record: dict[str, Any]) -> list[Block]:
+    """Whether the maximum was bracketed, and the scan's extensions that looked for it."""
+    loc, out = record.get("location") or {}, []
+    ext = [f"{x['from_barrel_end_in']:g}" for x in record.get("scan_extensions") or []]
+    if ext:
+        out.append(
+            Para(
+                f"The scan was extended to {', '.join(ext)} in from the tip (within the procedure's "
+                "scan.extend_in and the bat's reach) because its highest mean was at an edge."
+            )
+        )
+    if loc.get("bracketed") is True:
+        out.append(Para("The location of maximum performance is bracketed: lower means on both sides."))
+    elif loc.get("bracketed") is False:
+        out.append(
+            Para(
+                f"The location of maximum performance is NOT bracketed (highest mean at the edge of the "
+                f"allowed scan); certified there on the word of {loc.get('accepted_by', '?')} (recorded)."
+            )
+        )
+    return out
+
+
 def shot_blocks(record: dict[str, Any], decimals: int, fig: dict[str, Figure]) -> list[Block]:
     """Location scan, valid hits, and every shot that did not count, with its reasons."""
     shots = record.get("shots") or []
@@ -71,6 +94,7 @@ def shot_blocks(record: dict[str, Any], decimals: int, fig: dict[str, Figure]) -
         out.append(Table(("from barrel end (in)", "Q (m)", "valid shots", f"mean {name}", ""), tuple(rows)))
     else:
         out.append(Para("No location scan recorded."))
+    out += _bracket_blocks(record)
     out += [fig["scan"]] if "scan" in fig else []
     used = {s["index"] for s in certification_hits(record)}
     valid = [s for s in shots if s.get("status") == "valid"]

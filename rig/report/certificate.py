@@ -140,9 +140,34 @@ def resume_command(record: dict[str, Any]) -> str:
     return f"rig certify --resume {record.get('run_id')} {where}"
 
 
+def _budget_way_out(record: dict[str, Any], stop: dict[str, Any]) -> list[Block]:
+    """After the re-shoot budget: resume with the rig check recorded, or end the run (recorded)."""
+    if not stop.get("budget_exceeded"):
+        return []
+    return [
+        Para("The re-shoot budget is spent: once the rig is checked, resume with the check recorded:"),
+        Code(f"{resume_command(record)} --rig-checked --who NAME --why TEXT"),
+        Para("or end the run with no verdict (recorded):"),
+        Code(f"rig certify --end {record.get('run_id')} --who NAME --why TEXT"),
+    ]
+
+
 def verdict_blocks(record: dict[str, Any]) -> list[Block]:
     """The verdict banner and its figures, or NOT CERTIFIED with the resume command."""
     v = record.get("verdict")
+    ended = record.get("ended")
+    if not v and ended:
+        return [
+            Banner(
+                NOT_CERTIFIED,
+                (
+                    f"Run ended without a verdict by {ended.get('who', '?')} ({ended.get('t_utc', '')}): "
+                    f"{ended.get('why', '')}",
+                    "No verdict: this record certifies nothing.",
+                ),
+                "none",
+            )
+        ]
     if not v:
         stops = [i for i in record.get("interruptions", []) if i.get("kind") == "RunInterrupted"]
         reason = stops[-1].get("reason", "") if stops else "the run stopped before a verdict was recorded"
@@ -154,6 +179,7 @@ def verdict_blocks(record: dict[str, Any]) -> list[Block]:
                 "Fix the cause, then resume the run (add --db FILE if the record is not in rig-records.db):"
             ),
             Code(resume_command(record)),
+            *_budget_way_out(record, stops[-1] if stops else {}),
         ]
     tone = "pass" if v.get("verdict") == "PASS" else "fail"
     name, limit = metric_label(v.get("metric")), v.get("limit")
@@ -276,14 +302,31 @@ def environment_blocks(record: dict[str, Any]) -> list[Block]:
     ]
 
 
+_STOP_WORDS = {
+    "RunInterrupted": "interrupted",
+    "RunResumed": "resumed",
+    "RigChecked": "rig checked",
+    "RunEnded": "ended, no verdict",
+}
+
+
+def _stop_detail(i: dict[str, Any]) -> str:
+    if i.get("kind") == "RigChecked":
+        return (
+            f"by {i.get('who', '?')}: {i.get('why', '')} (re-shoot budget starts again after "
+            f"{i.get('invalid_shots_before', '?')} invalid shots)"
+        )
+    if i.get("kind") == "RunEnded":
+        return f"by {i.get('who', '?')}: {i.get('why', '')}"
+    if "reason" in i:
+        return str(i["reason"])
+    return f"{i.get('shots_so_far', '?')} shots recorded before"
+
+
 def interruption_blocks(record: dict[str, Any]) -> list[Block]:
     """Every interruption and resume, in order."""
     rows = tuple(
-        (
-            "interrupted" if i.get("kind") == "RunInterrupted" else "resumed",
-            str(i.get("t_utc", "")),
-            str(i["reason"]) if "reason" in i else f"{i.get('shots_so_far', '?')} shots recorded before",
-        )
+        (_STOP_WORDS.get(str(i.get("kind")), str(i.get("kind"))), str(i.get("t_utc", "")), _stop_detail(i))
         for i in record.get("interruptions") or []
     )
     return [

@@ -52,7 +52,12 @@ class LiveConsole:
         if kind == ev.BALL_REPLACED:
             return f"ball replaced: ball {d['ball_number']}"
         if kind == ev.LOCATION_CHOSEN:
-            return f"location of maximum performance: {d['from_barrel_end_in']:g} in from the tip"
+            edge = "" if d.get("bracketed", True) else f" (NOT bracketed; accepted by {d.get('accepted_by')})"
+            return f"location of maximum performance: {d['from_barrel_end_in']:g} in from the tip{edge}"
+        if kind == ev.SCAN_EXTENDED:
+            return f"scan extended to {d['from_barrel_end_in']:g} in: {d['reason']}"
+        if kind == ev.RIG_CHECKED:
+            return f"rig checked by {d['who']}: {d['why']} (re-shoot budget starts again)"
         if kind == ev.RUN_INTERRUPTED:
             return f"[red]interrupted[/]: {d['reason']}"
         if kind == ev.RUN_FINISHED and "mean" in d:

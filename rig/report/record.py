@@ -34,6 +34,9 @@ def run_record(store: Store, run_id: str, anchor: Anchor | None = None) -> dict[
         "location": None,
         "operator": [],
         "interruptions": [],
+        "rig_checks": [],
+        "ended": None,
+        "scan_extensions": [],
         "verdict": None,
         "cross_check": None,
         "started_utc": summary.started_utc,
@@ -55,12 +58,18 @@ def run_record(store: Store, run_id: str, anchor: Anchor | None = None) -> dict[
             record["operator"].append({"kind": e.kind, **d, "t_utc": e.t_utc})
         elif e.kind == "LocationChosen":
             record["location"] = d
-        elif e.kind in ("RunInterrupted", "RunResumed"):
+        elif e.kind in ("RunInterrupted", "RunResumed", "RigChecked", "RunEnded"):
             record["interruptions"].append({"kind": e.kind, **d, "t_utc": e.t_utc})
+            if e.kind == "RigChecked":
+                record["rig_checks"].append({**d, "t_utc": e.t_utc})
+            elif e.kind == "RunEnded":
+                record["ended"] = {**d, "t_utc": e.t_utc}
         elif e.kind == "RunLockBroken":  # a killed runner's lock, broken by the next one
             holder = d.get("holder") or {}
             why = f"lock of host {holder.get('host')} pid {holder.get('pid')} broken: {d.get('reason')}"
             record["interruptions"].append({"kind": e.kind, "reason": why, "t_utc": e.t_utc})
+        elif e.kind == "ScanExtended":
+            record["scan_extensions"].append({**d, "t_utc": e.t_utc})
         elif e.kind == "RunFinished":
             record["verdict"] = {k: v for k, v in d.items() if k != "cross_check"}
             record["cross_check"] = d.get("cross_check")

@@ -343,5 +343,6 @@ def test_operator_rejects_a_valid_shot_on_review(tmp_path: Path) -> None:
     shot2 = rec["shots"][1]
     assert shot2["valid"] is False and shot2["metric"] is not None
     assert any(r["code"] == "OPERATOR_REJECTED" for r in shot2["reasons"])
-    assert len(rec["shots"]) == 13  # 6 scan locations + 6 hits + the re-shot
+    # 6 scan locations + 2 extensions (the ideal bat's maximum lies towards the handle) + 6 hits + the re-shot
+    assert len(rec["shots"]) == 15
     assert rec["verdict"]["n_hits"] == 6

@@ -1,0 +1,60 @@
+"""Helpers for tests that cross a process boundary: CPU burners beside them, a certify child, waits."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sqlite3
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[2]
+SAMPLE_BAT = ROOT / "protocols" / "examples" / "sample-bat.toml"
+
+
+@contextlib.contextmanager
+def burners(n: int = 2) -> Iterator[None]:
+    """`n` CPU-bound processes running beside the test (ended by their pids afterwards)."""
+    procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+    try:
+        yield
+    finally:
+        for p in procs:
+            p.kill()
+            p.wait()
+
+
+def certify_child(db: Path, *args: str) -> subprocess.Popen[str]:
+    """`rig certify ... --db DB` in a child process (python -m rig.cli)."""
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    return subprocess.Popen(
+        [sys.executable, "-m", "rig.cli", "certify", *args, "--db", str(db)],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env,
+    )
+
+
+def count(db: Path, kind: str) -> int:
+    """How many entries of `kind` the store holds now (read-only; the child may be writing)."""
+    if not db.exists():
+        return 0
+    try:
+        with contextlib.closing(sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=5.0)) as conn:
+            return conn.execute("SELECT count(*) FROM log WHERE kind = ?", (kind,)).fetchone()[0]
+    except sqlite3.OperationalError:  # the child is still creating the store
+        return 0
+
+
+def wait_count(db: Path, kind: str, n: int, proc: subprocess.Popen[str], timeout_s: float = 120.0) -> None:
+    """Wait until the store holds `n` entries of `kind` (fail if the child ends first)."""
+    deadline = time.monotonic() + timeout_s
+    while count(db, kind) < n:
+        assert proc.poll() is None, f"the child ended before {n} {kind}: {proc.communicate()}"
+        assert time.monotonic() < deadline, f"no {n} {kind} in {timeout_s} s"
+        time.sleep(0.005)
