@@ -92,8 +92,8 @@ def _running(store: Store, run_id: str, source: str) -> None:
 
 def end_run(store: Store, run_id: str, signoff: Signoff) -> Outcome:
     """End an unfinished run with no verdict, on the operator's recorded word (store status aborted)."""
+    _running(store, run_id, "--end")
     with store.run_lock(run_id):  # never while a runner is still working on the run
-        _running(store, run_id, "--end")
         shots = len(store.entries(run_id, kinds=[ev.SHOT_REQUESTED]))
         store.append(run_id, ev.RUN_ENDED, {**signoff.as_dict(), "shots_so_far": shots})
         store.set_run_status(run_id, "aborted", None)

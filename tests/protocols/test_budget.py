@@ -96,3 +96,12 @@ def test_end_a_run_without_a_verdict(tmp_path: Path, capsys: pytest.CaptureFixtu
         text = capsys.readouterr().out
         assert "Run ended without a verdict by Q. Manager" in text and "cannon sent for repair" in text
         assert "--resume" not in text  # nothing to resume
+
+
+def test_a_run_is_not_ended_while_a_runner_holds_it(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    db, run_id, _ = over_budget(tmp_path, capsys)
+    with Store.open(db[1]) as runner_store, runner_store.run_lock(run_id):  # a live runner (this pid)
+        assert main(["certify", "--end", run_id, "--who", "Q. Manager", "--why", "repair", *db]) == 2
+        assert "already being run" in capsys.readouterr().err
+    with Store.open(db[1]) as store:
+        assert store.run(run_id).status == "running" and not store.entries(run_id, kinds=["RunEnded"])
