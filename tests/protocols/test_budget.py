@@ -98,7 +98,9 @@ def test_end_a_run_without_a_verdict(tmp_path: Path, capsys: pytest.CaptureFixtu
         assert "--resume" not in text  # nothing to resume
 
 
-def test_a_run_is_not_ended_while_a_runner_holds_it(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_run_is_not_ended_while_a_runner_holds_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     db, run_id, _ = over_budget(tmp_path, capsys)
     with Store.open(db[1]) as runner_store, runner_store.run_lock(run_id):  # a live runner (this pid)
         assert main(["certify", "--end", run_id, "--who", "Q. Manager", "--why", "repair", *db]) == 2
