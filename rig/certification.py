@@ -156,50 +156,57 @@ def certify(
             listener(event)
 
     # One runner per run: a second one is refused here (RunLocked), before any device opens.
-    with store.run_lock(run_id), RigSession.open(config) as session:
-        past = history(store, run_id) if resuming else []  # read under the lock
-        if on_open is not None:
-            on_open(session)
-        session.traffic.clear()  # opening chatter belongs to no shot
-        runner = Runner(
-            procedure,
-            bat,
-            config,
-            session.cannon,
-            session.gates,
-            session.clamp,
-            emit,
-            operator=operator,
-            history=past,
-            drain_traffic=_traffic_drain(session),
-            control=control,
-            confirm_fire=confirm_fire,
-            review_shots=review_shots,
-            rig_check=None if rig_checked is None else rig_checked.as_dict(),
-        )
+    with store.run_lock(run_id):
         try:
-            verdict = runner.run()
-            runner.control.settled = True
-        except BaseException as exc:
-            runner.control.settled = True  # stop signals from now on would only tear the record up
-            if not isinstance(exc, Exception | KeyboardInterrupt):
-                raise  # SystemExit and the like: not an interruption of the run
-            if runner.state.finished:  # e.g. a failed ring check ends the run with FAIL
-                store.set_run_status(run_id, "finished", runner.state.verdict.get("verdict"))
-                return Outcome(run_id, "finished", runner.state.verdict, str(exc))
-            reason, budget = _reason(exc), isinstance(exc, BudgetExceeded)
-            detail: dict[str, Any] = {"reason": reason, "budget_exceeded": budget}
-            if not isinstance(exc, RigError | KeyboardInterrupt):  # a bug: say where, for the developers
-                detail["where"] = _where(exc)
-                log.debug("run %s interrupted by an unexpected error", run_id, exc_info=exc)
+            session = RigSession.open(config)
+        except (RigError, OSError) as exc:  # an unplugged or busy port: nothing moved, resumable
+            reason = f"the devices could not be opened: {_reason(exc)}"
+            emit(RunEvent(ev.RUN_INTERRUPTED, {"reason": reason, "budget_exceeded": False}))
+            return Outcome(run_id, "interrupted", None, reason)
+        with session:
+            past = history(store, run_id) if resuming else []  # read under the lock
+            if on_open is not None:
+                on_open(session)
+            session.traffic.clear()  # opening chatter belongs to no shot
+            runner = Runner(
+                procedure,
+                bat,
+                config,
+                session.cannon,
+                session.gates,
+                session.clamp,
+                emit,
+                operator=operator,
+                history=past,
+                drain_traffic=_traffic_drain(session),
+                control=control,
+                confirm_fire=confirm_fire,
+                review_shots=review_shots,
+                rig_check=None if rig_checked is None else rig_checked.as_dict(),
+            )
             try:
-                with contextlib.suppress(Exception):
-                    runner.flush_traffic()
-                emit(RunEvent(ev.RUN_INTERRUPTED, detail))
-            except KeyboardInterrupt:  # forced while recording: the record stays whole, resumable
-                pass
-            return Outcome(run_id, "interrupted", None, reason, budget)
-        store.set_run_status(run_id, "finished", verdict["verdict"])  # sealed under the lock
+                verdict = runner.run()
+                runner.control.settled = True
+            except BaseException as exc:
+                runner.control.settled = True  # stop signals from now on would only tear the record up
+                if not isinstance(exc, Exception | KeyboardInterrupt):
+                    raise  # SystemExit and the like: not an interruption of the run
+                if runner.state.finished:  # e.g. a failed ring check ends the run with FAIL
+                    store.set_run_status(run_id, "finished", runner.state.verdict.get("verdict"))
+                    return Outcome(run_id, "finished", runner.state.verdict, str(exc))
+                reason, budget = _reason(exc), isinstance(exc, BudgetExceeded)
+                detail: dict[str, Any] = {"reason": reason, "budget_exceeded": budget}
+                if not isinstance(exc, RigError | KeyboardInterrupt):  # a bug: say where, for the developers
+                    detail["where"] = _where(exc)
+                    log.debug("run %s interrupted by an unexpected error", run_id, exc_info=exc)
+                try:
+                    with contextlib.suppress(Exception):
+                        runner.flush_traffic()
+                    emit(RunEvent(ev.RUN_INTERRUPTED, detail))
+                except KeyboardInterrupt:  # forced while recording: the record stays whole, resumable
+                    pass
+                return Outcome(run_id, "interrupted", None, reason, budget)
+            store.set_run_status(run_id, "finished", verdict["verdict"])  # sealed under the lock
     return Outcome(run_id, "finished", verdict)
 
 

@@ -64,3 +64,22 @@ def test_api_mid_run_error_records_the_interruption_and_resumes(
         per_shot = check_fires(store.entries(out.run_id))
         assert all(n == 1 for n in per_shot.values())
         assert store.verify().ok
+
+
+def test_unplugged_device_interrupts_the_new_run_and_it_resumes(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A port that cannot be opened: the run records why (nothing moved) and resumes once plugged in."""
+    bat = BatSpec.load(SAMPLE_BAT)
+    good = sim_config("ideal", bat=bat)
+    ports = {**good.ports.model_dump(), "gates": str(tmp_path / "no-such-port")}
+    unplugged = good.model_copy(update={"ports": type(good.ports).model_validate(ports)})
+    with Store.open(tmp_path / "r.db") as store:
+        out = certify(store, Procedure.load("bbcor"), bat, unplugged)
+        assert out.status == "interrupted" and "no-such-port" in out.reason
+        (last,) = store.entries(out.run_id)[-1:]
+        assert last.kind == "RunInterrupted" and last.payload["reason"] == out.reason
+        assert not store.entries(out.run_id, kinds=["RunStarted", "ShotRequested"])
+        done = certify(store, Procedure.load("bbcor"), bat, good, run_id=out.run_id)
+        assert done.status == "finished" and store.verify().ok
+        assert all(n == 1 for n in check_fires(store.entries(out.run_id)).values())
