@@ -19,7 +19,15 @@ from rig.core.devices import Environment, Recoil
 from rig.core.errors import RigError
 from rig.measure.drag import AirDensity, lab_air
 from rig.measure.metrics import DEFAULT_SWING, DEFINITIONS, compute_metrics
-from rig.measure.model import BALL_DIAMETER_M, OUTPUTS, ShotInputs, Spread, UncertaintyModel, outputs
+from rig.measure.model import (
+    BALL_DIAMETER_M,
+    OUTPUTS,
+    ShotInputs,
+    Spread,
+    UncertaintyModel,
+    inbound_at_impact,
+    outputs,
+)
 from rig.measure.speeds import ShotDataError, shot_speeds, split_passes
 from rig.measure.tradeoff import tradeoff_table
 from rig.measure.uncertainty import budget, u_with_scatter
@@ -102,6 +110,12 @@ def shot(
             "reasons": [{"code": "NO_DATA", "message": str(exc), "invalidates": True}],
             "aim_factor": state.aim_factor,
         }
+    air = air_density(config, state) if config is not None else None
+    v_in_bat: float | None = None  # the inbound speed at the bat, which the target is for
+    if speeds.inbound is not None:
+        v_in_bat = inbound_at_impact(
+            passes, record.gate_positions_m, record.gate_config, p.ball.mass_kg, drag_inputs(config, air)
+        )
     limits = ValidityLimits(speed_tolerance_m_s=p.speed_tolerance_m_s)
     recoil = None if record.recoil_rad_s is None else Recoil(record.recoil_rad_s)
     reasons = check_shot(
@@ -114,16 +128,16 @@ def shot(
         p.ball.mass_kg,
         limits,
         positions_m=record.gate_positions_m,
+        inbound_at_impact_m_s=v_in_bat,
     )
     v_in, v_out = speeds.inbound, speeds.rebound
     out["inbound_speed_m_s"], out["rebound_speed_m_s"] = v_in, v_out
     out["aim_factor"] = state.aim_factor
-    if v_in is not None:
-        # the cannon gave v_in where the aim table promised the aimed speed: learn the ratio
+    if v_in_bat is not None:
+        # the cannon gave v_in_bat at the bat where the aim table promised the aimed speed: learn the ratio
         aimed = p.target_speed_m_s / state.aim_factor
-        out["aim_factor"] = 0.5 * state.aim_factor + 0.5 * (v_in / aimed)
+        out["aim_factor"] = 0.5 * state.aim_factor + 0.5 * (v_in_bat / aimed)
     if v_in is not None and v_out is not None and v_out > 0:
-        air = air_density(config, state) if config is not None else None
         inputs = ShotInputs.from_passes(
             passes,
             record.gate_positions_m,

@@ -201,6 +201,24 @@ def _pair_used(p: dict[int, GateCrossing], inbound: bool) -> tuple[GateCrossing,
     return (p[lo], p[hi]) if inbound else (p[hi], p[lo])
 
 
+def inbound_at_impact(
+    passes: GatePasses,
+    positions_m: Sequence[float],
+    cfg: GateConfig,
+    ball_mass_kg: float,
+    drag: tuple[float, float, float, float],
+) -> float:
+    """The inbound speed at the impact point from the pair ShotSpeeds.inbound uses, drag corrected.
+
+    Needs no rebound, so a shot's speed can be held to the target before its metrics exist.
+    """
+    a, b = _pair_used(passes.inbound, inbound=True)
+    cd_in, _, rho, diameter = drag
+    k = kappa(rho, cd_in, diameter, ball_mass_kg)
+    v = inbound_impact_speed(positions_m[a.gate - 1], positions_m[b.gate - 1], elapsed_s(a, b, cfg), k)
+    return float(v)
+
+
 def outputs(
     p: np.ndarray, gates: tuple[int, int, int, int], ball_diameter_m: float = BALL_DIAMETER_M
 ) -> np.ndarray:

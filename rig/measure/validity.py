@@ -79,11 +79,14 @@ def check_shot(
     limits: ValidityLimits = DEFAULT_LIMITS,
     *,
     positions_m: tuple[float, float, float] = (0.75, 0.50, 0.25),
+    inbound_at_impact_m_s: float | None = None,
 ) -> list[Invalidity]:
     """Every reason this shot should be re-shot (or noted); an empty list means valid.
 
     `target_speed_m_s` None skips the speed check, `recoil` None the recoil check; `positions_m`
     (gate distances from the impact, gate 1 first) sets the drag allowance between the pairs.
+    The target is a speed at the bat: `inbound_at_impact_m_s` (the gate speed corrected for drag)
+    is held to it where given, else the gate speed itself.
     """
     out: list[Invalidity] = []
     out += _pass_notes(passes, limits)
@@ -121,12 +124,15 @@ def check_shot(
             )
         )
     if v_in is not None and target_speed_m_s is not None:
-        miss = v_in - target_speed_m_s
+        at_bat = v_in if inbound_at_impact_m_s is None else inbound_at_impact_m_s
+        where = "" if inbound_at_impact_m_s is None else " at the impact point"
+        miss = at_bat - target_speed_m_s
         if abs(miss) > limits.speed_tolerance_m_s:
             out.append(
                 Invalidity(
                     Code.SPEED_OUT_OF_TOLERANCE,
-                    f"Inbound {v_in:.3f} m/s is {miss:+.3f} m/s from the target {target_speed_m_s:.3f} m/s "
+                    f"Inbound {at_bat:.3f} m/s{where} is {miss:+.3f} m/s from the target "
+                    f"{target_speed_m_s:.3f} m/s "
                     f"(limit +-{limits.speed_tolerance_m_s:.3f} m/s).",
                     measured=miss,
                     limit=limits.speed_tolerance_m_s,

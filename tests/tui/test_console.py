@@ -178,7 +178,9 @@ def test_a_port_that_does_not_open_is_a_message(tmp_path: Path) -> None:
             assert "no-such-cannon" in screen_text(app, "#devices")
             screen = await start_run(pilot)
             await until(pilot, lambda: not screen.running, "the run to fail")
-            assert "FAULT: cannon: cannot open '/dev/no-such-cannon'" in screen_text(app, "#message")
+            message = screen_text(app, "#message")  # recorded as an interruption of the run
+            assert "interrupted: the devices could not be opened" in message
+            assert "cannon: cannot open '/dev/no-such-cannon'" in message
             assert screen.check_action("resume", ()) is True  # try again once the cable is in
             await pilot.press("b")
             await until(pilot, lambda: isinstance(app.screen, SetupScreen), "back to set-up")
