@@ -77,7 +77,7 @@ def test_speeds_at_the_bat_match_the_simulated_truth_and_the_target_is_held_ther
         fired = [e.payload["index"] for e in store.entries(out.run_id, kinds=["ShotFired"])]
     truth = dict(zip(fired, get_world(rig_name).shots, strict=True))
     checked = 0
-    for index, (kind, rec) in outcomes.items():
+    for index, (_kind, rec) in outcomes.items():
         true = truth[index]
         if "inbound_at_impact_m_s" not in rec:
             continue
