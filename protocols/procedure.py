@@ -10,7 +10,15 @@ from enum import StrEnum
 from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    StrictBool,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 from rig.core.tomlfile import read_toml, table, validate
 
@@ -26,6 +34,9 @@ class Metric(StrEnum):
     BBS = "bbs"
 
 
+LIMIT_RANGE = {Metric.BBCOR: (0.0, 1.0), Metric.BESR: (0.5, 1.5), Metric.BBS: (0.0, 100.0)}
+
+
 class _Model(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
@@ -33,9 +44,11 @@ class _Model(BaseModel):
 class Scan(_Model):
     """Impact-location scan, distances from the barrel end (inches)."""
 
-    from_in: Annotated[float, Field(gt=0.0)] = 5.0
-    to_in: Annotated[float, Field(gt=0.0)] = 7.5
-    step_in: Annotated[float, Field(gt=0.0)] = 0.5
+    # On the bat: at most 36 in from the tip (a 42 in bat's pivot); steps of 0.1-10 in (a ball's
+    # contact patch is about an inch across, so finer steps resolve nothing).
+    from_in: Annotated[float, Field(gt=0.0, le=36.0)] = 5.0
+    to_in: Annotated[float, Field(gt=0.0, le=36.0)] = 7.5
+    step_in: Annotated[float, Field(ge=0.1, le=10.0)] = 0.5
     hits_per_location: Annotated[int, Field(ge=1, le=10)] = 1
     # how far beyond either end the runner may extend the scan to bracket the maximum (inches)
     extend_in: Annotated[float, Field(ge=0.0, le=10.0)] = 1.0
@@ -73,10 +86,26 @@ class Ball(_Model):
 
 
 class EnvironmentLimits(_Model):
-    """Lab conditions that must hold before firing."""
+    """Lab conditions that must hold before firing: (low, high), low below high."""
 
-    temperature_c: tuple[float, float] = (18.0, 26.0)
-    humidity_pct: tuple[float, float] = (30.0, 70.0)
+    # a lab's air: -10 to 50 C (the ENV sensor's range), 0-100 % relative humidity
+    temperature_c: tuple[
+        Annotated[float, Field(ge=-10.0, le=50.0)], Annotated[float, Field(ge=-10.0, le=50.0)]
+    ] = (18.0, 26.0)
+    humidity_pct: tuple[
+        Annotated[float, Field(ge=0.0, le=100.0)], Annotated[float, Field(ge=0.0, le=100.0)]
+    ] = (
+        30.0,
+        70.0,
+    )
+
+    @model_validator(mode="after")
+    def _low_first(self) -> EnvironmentLimits:
+        for name in ("temperature_c", "humidity_pct"):
+            low, high = getattr(self, name)
+            if not low < high:
+                raise ValueError(f"{name} is (low, high): {low:g} must be below {high:g}")
+        return self
 
 
 class Moi(_Model):
@@ -105,7 +134,7 @@ class Procedure(_Model):
     name: str
     standard: Metric
     edition: str
-    limit: float
+    limit: float  # bounded by the metric in _limit_fits_metric
     limit_note: str = ""
     target_speed_m_s: Annotated[float, Field(gt=10.0, lt=80.0)] = 60.8
     speed_tolerance_m_s: Annotated[float, Field(gt=0.0, lt=10.0)] = 0.447  # 1 mph
@@ -114,9 +143,22 @@ class Procedure(_Model):
     ball: Ball = Ball()
     environment: EnvironmentLimits = EnvironmentLimits()
     moi: Moi = Moi()
-    ring_check: bool = True
+    ring_check: StrictBool = True  # true or false; "yes" is refused
     decision: Decision = Decision()
-    cross_check_tolerance: Annotated[float, Field(gt=0.0)] = 0.05  # |measured - model| flag level
+    cross_check_tolerance: Annotated[float, Field(gt=0.0, le=10.0)] = 0.05  # |measured - model| flag level
+
+    @field_validator("limit")
+    @classmethod
+    def _limit_fits_metric(cls, v: float, info: ValidationInfo) -> float:
+        # BBCOR is a COR, (0, 1]; BESR = e_A + 1/2 lies in (0.5, 1.5]; BBS is a ball speed in m/s,
+        # (0, 100] (100 m/s is 224 mph, beyond any batted ball).
+        standard = info.data.get("standard")
+        if standard is None:
+            return v
+        low, high = LIMIT_RANGE[standard]
+        if not low < v <= high:
+            raise ValueError(f"{v:g} is outside ({low:g}, {high:g}] for {standard.value}")
+        return v
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> Procedure:

@@ -424,6 +424,12 @@ class Runner:
         q = self._q(loc_in)
         config = self.config.model_copy(update={"impact_from_pivot_m": q})
         aim_speed = self.p.target_speed_m_s / self.state.aim_factor
+        try:  # before the shot is requested: an aim the cannon cannot give stops the run, nothing fired
+            self.config.aim.pressure_for(aim_speed)
+        except ConfigError as exc:
+            raise RunAborted(
+                f"{exc}: the measured speeds are far from the aim (gate positions in the rig config wrong?)"
+            ) from exc
         if self.confirm_fire and not self._prompt(
             f"fire-{index}", f"Fire shot {index} ({purpose}) at {loc_in:g} in from the tip?"
         ):

@@ -80,6 +80,10 @@ def fold(events: Iterable[RunEvent]) -> RunState:
         d = e.data
         if e.kind == ev.RUN_STARTED:
             st.started = True
+        elif e.kind == ev.RUN_RESUMED:
+            # a new session may have a repaired cannon or a corrected rig config: aim from the
+            # calibration again rather than from what the last session learned
+            st.aim_factor = 1.0
         elif e.kind == ev.MOI_MEASURED:
             st.moi = d
         elif e.kind == ev.ENVIRONMENT_CHECKED:

@@ -15,15 +15,19 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from rig.core.errors import ConfigError
-from rig.core.units import INCH
+from rig.core.bat import HOOP_HZ, LENGTH_IN, MOI_KGM2, WEIGHT_OZ
+from rig.core.errors import ConfigError, ParameterError
+from rig.core.units import INCH, OUNCE
 from rig.physics import CollisionParams
+from rig.physics.params import check_physical
 from simulators.effects import EffectSpec
 
 SCENES_DIR = Path(__file__).with_name("scenes")
 AIM_PRESSURES_KPA = (100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 800.0)
 _FROZEN = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 Positive = Annotated[float, Field(gt=0.0)]
+# A cannon rig is a few metres long: no gate, muzzle or bat sits more than 5 m from the impact point.
+RigLength = Annotated[float, Field(gt=0.0, le=5.0)]
 
 
 class RigGeometry(BaseModel):
@@ -31,20 +35,29 @@ class RigGeometry(BaseModel):
 
     model_config = _FROZEN
 
-    gate_positions_m: tuple[Positive, ...] = Field(
-        (0.75, 0.50, 0.25), min_length=2, description="gate 1, 2, ... distance from the impact point, m"
+    gate_positions_m: tuple[RigLength, ...] = Field(
+        (0.75, 0.50, 0.25),
+        min_length=2,
+        max_length=16,
+        description="gate 1, 2, ... distance from the impact point, m (at most 5 m, 2-16 gates)",
     )
-    muzzle_m: Positive = Field(1.5, description="muzzle to impact point, m")
-    beam_half_height_m: Positive = Field(
-        0.05, description="a rebounding ball that has dropped more than this passes under the beam"
+    muzzle_m: RigLength = Field(1.5, description="muzzle to impact point, m (at most 5 m)")
+    beam_half_height_m: float = Field(
+        0.05,
+        gt=0.0,
+        le=0.5,
+        description="a rebounding ball that has dropped more than this passes under the beam (<= 0.5 m)",
     )
-    tick_ns: Positive = Field(100.0, description="counter tick, ns")
+    # 1 ns (a 1 GHz counter) to 10 us (100 kHz): coarser cannot time a ball across 20 mm at 80 m/s.
+    tick_ns: float = Field(100.0, ge=1.0, le=1e4, description="counter tick, ns (1-10000)")
     counter_bits: int = Field(32, ge=8, le=64)
     counter_start: int = Field(0, ge=0, description="counter value when the world starts")
-    pivot_from_knob_m: Positive = Field(6 * INCH, description="pivot axis from the knob end, m")
+    pivot_from_knob_m: float = Field(
+        6 * INCH, gt=0.0, le=12 * INCH, description="pivot axis from the knob end, m (<= 12 in)"
+    )
     stage_start_mm: float = Field(500.0, ge=100.0, le=900.0, description="stage position at power-up")
-    stage_speed_mm_s: Positive = Field(100.0, description="stage travel speed")
-    lock_time_s: Positive = Field(0.3, description="grip close to lock sensor confirming")
+    stage_speed_mm_s: float = Field(100.0, ge=1.0, le=2000.0, description="stage travel speed (1-2000)")
+    lock_time_s: float = Field(0.3, gt=0.0, le=60.0, description="grip close to lock confirming, s (<= 60)")
     swing_amplitude_deg: float = Field(5.0, gt=0.0, le=30.0, description="SWING release amplitude")
 
     @model_validator(mode="after")
@@ -64,11 +77,18 @@ class SimBat(BaseModel):
 
     model_config = _FROZEN
 
-    length_m: Positive = Field(33 * INCH, description="knob end to tip, m")
-    mass_kg: Positive = Field(0.85, description="kg")
-    moi_kgm2: Positive = Field(0.19, description="moment of inertia about the pivot, kg m^2")
-    balance_point_m: Positive = Field(0.56, description="centre of mass from the knob end, m")
-    hoop_hz: Positive = Field(1800.0, description="lowest hoop-mode frequency (trampoline effect)")
+    # The bounds are a bat file's (rig.core.bat), in SI: 20-42 in, 10-50 oz, 0.01-1 kg m^2, 200-10000 Hz.
+    length_m: float = Field(
+        33 * INCH, ge=LENGTH_IN[0] * INCH, le=LENGTH_IN[1] * INCH, description="knob end to tip, m"
+    )
+    mass_kg: float = Field(0.85, ge=WEIGHT_OZ[0] * OUNCE, le=WEIGHT_OZ[1] * OUNCE, description="kg")
+    moi_kgm2: float = Field(
+        0.19, ge=MOI_KGM2[0], le=MOI_KGM2[1], description="moment of inertia about the pivot, kg m^2"
+    )
+    balance_point_m: Positive = Field(0.56, description="centre of mass from the knob end, m (on the bat)")
+    hoop_hz: float = Field(
+        1800.0, ge=HOOP_HZ[0], le=HOOP_HZ[1], description="lowest hoop-mode frequency (trampoline effect)"
+    )
 
 
 class CannonModel(BaseModel):
@@ -78,12 +98,18 @@ class CannonModel(BaseModel):
 
     # Defaults fit the controller's default aim calibration (rig.core.config.AimCalibration) to
     # within 0.6 m/s: 60.8 m/s at about 395 kPa.
-    v_max_m_s: Positive = Field(70.8, description="muzzle speed approached at high pressure, m/s")
-    p0_kpa: Positive = Field(295.0, description="pressure scale of the curve, kPa")
-    fill_rate_kpa_s: Positive = Field(150.0, description="compressor fill (and regulator) rate")
-    settle_s: float = Field(0.5, ge=0.0, description="pressure settling after the fill, before READY")
-    launch_delay_s: float = Field(0.03, ge=0.0, description="FIRE to the ball leaving the muzzle")
-    valve_close_s: float = Field(0.05, gt=0.0, description="FIRE to the valve closing (FIRED -> SAFE)")
+    # An air cannon launches a ball at tens of m/s from a tank of a few bar, filled in seconds to
+    # minutes; the bounds keep every simulated time finite and within an hour.
+    v_max_m_s: float = Field(70.8, ge=10.0, le=100.0, description="muzzle speed at high pressure, m/s")
+    p0_kpa: float = Field(295.0, ge=10.0, le=5000.0, description="pressure scale of the curve, kPa")
+    fill_rate_kpa_s: float = Field(
+        150.0, ge=1.0, le=1e4, description="compressor fill (and regulator) rate, kPa/s (1-10000)"
+    )
+    settle_s: float = Field(0.5, ge=0.0, le=60.0, description="pressure settling after the fill, s")
+    launch_delay_s: float = Field(0.03, ge=0.0, le=1.0, description="FIRE to the ball leaving the muzzle")
+    valve_close_s: float = Field(
+        0.05, gt=0.0, le=1.0, description="FIRE to the valve closing (FIRED -> SAFE)"
+    )
 
     def muzzle_speed(self, pressure_kpa: float) -> float:
         """Ball speed at the muzzle for a tank pressure, m/s."""
@@ -104,7 +130,7 @@ class Scene(BaseModel):
 
     name: str = "custom"
     description: str = ""
-    seed: int = Field(0, ge=0)
+    seed: int = Field(0, ge=0, lt=2**64)
     rig: RigGeometry = RigGeometry()
     bat: SimBat = SimBat()
     ball: CollisionParams = CollisionParams()
@@ -114,6 +140,10 @@ class Scene(BaseModel):
     @model_validator(mode="after")
     def _check(self) -> Scene:
         bat, rig = self.bat, self.rig
+        try:  # the ball of a scene is a real ball (rig.physics.params.PHYSICAL_RANGES)
+            check_physical(self.ball)
+        except ParameterError as exc:
+            raise ValueError(f"ball.{exc.name} {exc.value:g} {exc.reason}") from None
         lever = bat.balance_point_m - rig.pivot_from_knob_m
         if not 0.0 < lever < bat.length_m - rig.pivot_from_knob_m:
             raise ValueError("bat.balance_point_m must lie between the pivot and the tip")
@@ -139,8 +169,13 @@ class Scene(BaseModel):
         """
         pinned = self.bat.model_fields_set
         update = {k: v for k, v in true_values.items() if v is not None and k not in pinned}
-        bat = SimBat.model_validate({**self.bat.model_dump(), **update})
-        return self.model_validate({**self.model_dump(), "bat": bat.model_dump()})
+        try:
+            bat = SimBat.model_validate({**self.bat.model_dump(), **update})
+            return self.model_validate({**self.model_dump(), "bat": bat.model_dump()})
+        except ValidationError as exc:
+            error = _config_error("", exc)
+            where = f"simulated rig {self.name!r} with this bat"
+            raise ConfigError(error.reason, source=where, field=error.field) from None
 
     def active_effects(self) -> list[Any]:
         """The effect configurations that are enabled, in scene order."""

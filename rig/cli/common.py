@@ -51,6 +51,20 @@ def positive_int(text: str) -> int:
     return value
 
 
+Bounds = dict[str, tuple[str, float, float, str]]  # flag dest -> (name, low, high, unit)
+
+
+def check_flags(args: argparse.Namespace, bounds: Bounds) -> None:
+    """ParameterError naming the first flag outside its physical range (a list flag: each value)."""
+    from rig.core.errors import ParameterError
+
+    for dest, (name, low, high, unit) in bounds.items():
+        value = getattr(args, dest, None)
+        for v in value if isinstance(value, list) else [value]:
+            if v is not None and not low <= v <= high:  # also refuses nan
+                raise ParameterError(name, v, f"must lie within {low:g}-{high:g} {unit}".rstrip())
+
+
 def rig_config(args: argparse.Namespace, bat: Any = None) -> Any:
     """The rig config from --sim, --config or (where the command has them) the three port URLs.
 

@@ -9,11 +9,31 @@ from pathlib import Path
 from typing import Any
 
 from rig.cli.common import (
+    Bounds,
     ConfigError,
+    check_flags,
     default_db,
     open_db,
     positive_int,
 )
+
+# Physical ranges of the flags (docs/procedures.md, "Bounds"). A bat's hoop modes ring at 200-10000
+# Hz (as a bat file bounds them) and its first bending mode near 150-200 Hz (20-5000 Hz allowed); an
+# analysis window of 10 ms-10 s (resolution 100-0.1 Hz); at most 100 hits of 0.05-10 s each, so a
+# simulated recording stays under 1000 s (about 400 MB at 51.2 kHz would be the most).
+BOUNDS: Bounds = {
+    "window": ("window", 0.01, 10.0, "s"),
+    "max_resolution": ("max_resolution", 0.1, 1000.0, "Hz"),
+    "min_coherence": ("min_coherence", 0.0, 1.0, ""),
+    "hoop": ("hoop", 200.0, 10000.0, "Hz"),
+    "bending": ("bending", 20.0, 5000.0, "Hz"),
+    "hits": ("hits", 1, 100, ""),
+    "interval": ("interval", 0.05, 10.0, "s"),
+    "noise": ("noise", 0.0, 1.0, "of the peak"),
+    "seed": ("seed", 0, 2**32 - 1, ""),
+    "double_hit": ("double_hit", 1, 100, ""),
+    "clip_force": ("clip_force", 0.0, 1.0, "of the peak"),
+}
 
 
 def _modal_settings(args: argparse.Namespace) -> Any:
@@ -31,6 +51,7 @@ def cmd_modal_analyze(args: argparse.Namespace) -> int:
     """rig modal analyze: hoop and bending frequencies from an impact test (CSV or UFF recording)."""
     from rig.modal import analyze, read_recording
 
+    check_flags(args, BOUNDS)
     if args.db and not args.bat:
         raise ConfigError("--db records the result for a bat: give --bat BAT.toml too", source="command line")
     result = analyze(read_recording(args.file), _modal_settings(args))
@@ -97,6 +118,11 @@ def cmd_modal_simulate(args: argparse.Namespace) -> int:
     from rig.modal import SimSettings, bat_modes, simulate, write_csv
     from rig.modal.uff import write_uff
 
+    check_flags(args, BOUNDS)
+    if args.double_hit is not None and args.double_hit > args.hits:
+        raise ConfigError(
+            f"--double-hit {args.double_hit} is beyond --hits {args.hits}", source="command line"
+        )
     hoops: float | tuple[float, ...] = 1800.0 if not args.hoop else tuple(args.hoop)
     if isinstance(hoops, tuple) and len(hoops) == 1:
         hoops = hoops[0]  # one hoop frequency: bat_modes adds the second hoop mode

@@ -10,10 +10,27 @@ from typing import Any
 import numpy as np
 
 from rig.cli.common import (
+    Bounds,
+    check_flags,
     emit,
     param_override,
     positive_int,
 )
+
+# Physical ranges of the flags (docs/procedures.md, "Bounds"): a ball at 1-100 m/s (100 m/s is
+# 224 mph); a barrel's hoop mode and a bat's MOI as a bat file bounds them; an impact point on the
+# barrel, 0.05 m to 36 in (a 42 in bat's tip) from the pivot. A curve of 2000 points already
+# resolves the optimum to 5 Hz over the whole hoop range and takes about two seconds.
+BOUNDS: Bounds = {
+    "speed": ("speed", 1.0, 100.0, "m/s"),
+    "hoop": ("hoop_hz", 200.0, 10000.0, "Hz"),
+    "hoop_min": ("hoop_min", 200.0, 10000.0, "Hz"),
+    "hoop_max": ("hoop_max", 200.0, 10000.0, "Hz"),
+    "moi": ("moi_kgm2", 0.01, 1.0, "kg m^2"),
+    "impact_from_pivot": ("impact_from_pivot_m", 0.05, 0.9144, "m"),
+    "points": ("points", 2, 2000, "(2000 points resolve the optimum to 5 Hz)"),
+    "repeats": ("repeats", 1, 100, ""),
+}
 
 
 def _model_parent() -> argparse.ArgumentParser:
@@ -33,9 +50,10 @@ def _model_parent() -> argparse.ArgumentParser:
 
 
 def _params(args: argparse.Namespace) -> Any:
-    from rig.physics.params import CollisionParams
+    from rig.physics.params import CollisionParams, check_physical
 
-    return CollisionParams.build(**dict(args.overrides))
+    check_flags(args, BOUNDS)
+    return check_physical(CollisionParams.build(**dict(args.overrides)))
 
 
 def _rtol(args: argparse.Namespace, default: float) -> float:
@@ -163,6 +181,7 @@ def cmd_accuracy(args: argparse.Namespace) -> int:
     """rig model accuracy: the work-precision study of the collision solvers."""
     from rig.physics.precision import work_precision
 
+    check_flags(args, BOUNDS)
     study = work_precision(quick=args.quick, repeats=args.repeats)
     if args.plot:
         from rig.report.precision_plots import plot_work_precision
@@ -195,32 +214,34 @@ def add_parsers(sub: Any) -> None:
     parent = _model_parent()
 
     p = msub.add_parser("cor", parents=[parent], help="COR of one collision")
-    p.add_argument("--speed", type=float, required=True, help="inbound ball speed, m/s")
+    p.add_argument("--speed", type=float, required=True, help="inbound ball speed, m/s (1-100)")
     g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--hoop", type=float, help="hoop frequency of the barrel, Hz")
+    g.add_argument("--hoop", type=float, help="hoop frequency of the barrel, Hz (200-10000)")
     g.add_argument("--rigid", action="store_true", help="a rigid barrel (f_hoop -> infinity)")
     p.set_defaults(handler=cmd_cor)
 
     p = msub.add_parser("curve", parents=[parent], help="efficiency eta(f) = COR(f)/COR_rigid")
-    p.add_argument("--speed", type=float, required=True, help="inbound ball speed, m/s")
-    p.add_argument("--hoop-min", type=float, required=True, help="lowest hoop frequency, Hz")
-    p.add_argument("--hoop-max", type=float, required=True, help="highest hoop frequency, Hz")
-    p.add_argument("--points", type=positive_int, default=200, help="grid points, evenly spaced")
+    p.add_argument("--speed", type=float, required=True, help="inbound ball speed, m/s (1-100)")
+    p.add_argument("--hoop-min", type=float, required=True, help="lowest hoop frequency, Hz (200-10000)")
+    p.add_argument("--hoop-max", type=float, required=True, help="highest hoop frequency, Hz (200-10000)")
+    p.add_argument("--points", type=positive_int, default=200, help="grid points, evenly spaced (2-2000)")
     p.add_argument("--plot", metavar="FILE", help="write a plot (PNG and SVG beside it)")
     p.set_defaults(handler=cmd_curve)
 
     p = msub.add_parser("bat", parents=[parent], help="e_A and BBCOR of a bat on the pivot")
-    p.add_argument("--speed", type=float, required=True, help="inbound ball speed, m/s")
+    p.add_argument("--speed", type=float, required=True, help="inbound ball speed, m/s (1-100)")
     g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--hoop", type=float, help="hoop frequency of the barrel, Hz")
+    g.add_argument("--hoop", type=float, help="hoop frequency of the barrel, Hz (200-10000)")
     g.add_argument("--rigid", action="store_true", help="a rigid barrel (a wood bat)")
-    p.add_argument("--moi", type=float, required=True, help="MOI about the pivot, kg m^2")
-    p.add_argument("--impact-from-pivot", type=float, required=True, help="pivot-to-impact distance Q, m")
+    p.add_argument("--moi", type=float, required=True, help="MOI about the pivot, kg m^2 (0.01-1)")
+    p.add_argument(
+        "--impact-from-pivot", type=float, required=True, help="pivot-to-impact distance Q, m (0.05-0.9144)"
+    )
     p.set_defaults(handler=cmd_bat)
 
     p = msub.add_parser("accuracy", help="work-precision study: error against cost of each solver")
     p.add_argument("--plot", metavar="FILE", help="write the plots (PNG and SVG)")
     p.add_argument("--json", action="store_true", help="print the rows as JSON")
     p.add_argument("--quick", action="store_true", help="fewer tolerances and methods (a smoke run)")
-    p.add_argument("--repeats", type=positive_int, default=5, help="timed repeats (best of N)")
+    p.add_argument("--repeats", type=positive_int, default=5, help="timed repeats (best of N, 1-100)")
     p.set_defaults(handler=cmd_accuracy)

@@ -6,13 +6,23 @@ from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
 from rig.core.tomlfile import read_toml, table, validate
 from rig.core.units import INCH, OUNCE
 
 PIVOT_FROM_KNOB_IN = 6.0  # NCAA/ASTM F2398 pivot point
 PIVOT_FROM_KNOB_M = PIVOT_FROM_KNOB_IN * INCH
+
+# Physical bounds of a bat (docs/procedures.md, "Bounds"). Length: youth bats start near 24 in and
+# the longest legal bat is 42 in (MLB rule 3.02). Weight: 10-50 oz spans tee-ball to fungo bats.
+# Hoop frequency: hollow barrels ring at about 1-4 kHz; 200-10000 Hz leaves room either side while
+# the model still returns a ball (below ~10 Hz the barrel swallows it: v_out < 0). MOI about the
+# pivot: a 20 in, 10 oz bat has about 0.01 kg m^2, a 42 in, 50 oz bat about 0.6; 1 kg m^2 is no bat.
+LENGTH_IN = (20.0, 42.0)
+WEIGHT_OZ = (10.0, 50.0)
+HOOP_HZ = (200.0, 10000.0)
+MOI_KGM2 = (0.01, 1.0)
 
 
 class Barrel(StrEnum):
@@ -29,13 +39,33 @@ class BatSpec(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     id: Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9._-]+$")]
-    length_in: Annotated[float, Field(gt=20.0, lt=40.0)]
-    weight_oz: Annotated[float, Field(gt=10.0, lt=50.0)]
+    length_in: Annotated[float, Field(ge=LENGTH_IN[0], le=LENGTH_IN[1], description="20-42 in")]
+    weight_oz: Annotated[float, Field(ge=WEIGHT_OZ[0], le=WEIGHT_OZ[1], description="10-50 oz")]
     barrel: Barrel
-    hoop_hz: Annotated[float, Field(gt=0.0)] | None = None
-    moi_kgm2: Annotated[float, Field(gt=0.0, lt=1.0)] | None = None  # about the pivot 6 in from the knob
+    hoop_hz: Annotated[float, Field(ge=HOOP_HZ[0], le=HOOP_HZ[1], description="200-10000 Hz")] | None = None
+    # about the pivot 6 in from the knob
+    moi_kgm2: Annotated[float, Field(ge=MOI_KGM2[0], le=MOI_KGM2[1])] | None = None
     moi_u_kgm2: Annotated[float, Field(gt=0.0, lt=0.1)] | None = None  # standard u of an entered moi_kgm2
-    balance_point_in: Annotated[float, Field(gt=0.0, lt=40.0)] | None = None  # from the knob end
+    # from the knob end, on the bat past the pivot
+    balance_point_in: Annotated[float, Field(gt=PIVOT_FROM_KNOB_IN, lt=LENGTH_IN[1])] | None = None
+
+    @field_validator("balance_point_in")
+    @classmethod
+    def _on_the_bat(cls, v: float | None, info: ValidationInfo) -> float | None:
+        # On the bat beyond the pivot; and the parallel-axis theorem puts the MOI about the pivot
+        # at no less than m d^2 (d: pivot to balance point).
+        length, weight, moi = (info.data.get(k) for k in ("length_in", "weight_oz", "moi_kgm2"))
+        if v is None or length is None or weight is None:
+            return v
+        if not v < length:
+            raise ValueError(f"{v:g} in must lie on the bat, before its tip at {length:g} in")
+        m_d2 = weight * OUNCE * (v * INCH - PIVOT_FROM_KNOB_M) ** 2
+        if moi is not None and moi < m_d2:
+            raise ValueError(
+                f"with moi_kgm2 = {moi:g} it needs MOI >= m d^2 = {m_d2:.4f} kg m^2: "
+                "no bat has a negative MOI about its centre of mass"
+            )
+        return v
 
     @property
     def length_m(self) -> float:

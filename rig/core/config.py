@@ -24,25 +24,48 @@ class Ports(_Model):
     clamp: str
 
 
+# A cannon rig is a few metres long (muzzle to bat about 1.5-3 m): no gate sits farther than 5 m
+# from the impact point. The nearest gate must be clear of the bat and of the ball in contact: a
+# ball's diameter (74 mm) plus a barrel's radius (33 mm), about 0.1 m. Gates closer than 20 mm
+# apart time a ball at 80 m/s over less than 250 us.
+RIG_LENGTH_M = 5.0
+NEAREST_GATE_M = 0.1
+MIN_GATE_GAP_M = 0.02
+
+
 class GateGeometry(_Model):
     """Gate distances from the impact point along the ball path, farthest (gate 1) first, m."""
 
-    positions_m: tuple[float, float, float] = (0.75, 0.50, 0.25)
-    position_uncertainty_m: Annotated[float, Field(ge=0.0)] = 0.000127  # +-0.005 in
+    positions_m: tuple[float, float, float] = Field(
+        (0.75, 0.50, 0.25), description="m, falling, within 0.1-5 m of the impact point, >= 20 mm apart"
+    )
+    # A gate placed no better than 2 cm (8 % of a 0.25 m spacing) cannot support a certificate.
+    position_uncertainty_m: Annotated[float, Field(ge=0.0, le=0.02)] = 0.000127  # +-0.005 in
 
     @field_validator("positions_m")
     @classmethod
     def _farthest_first(cls, v: tuple[float, float, float]) -> tuple[float, float, float]:
         if not v[0] > v[1] > v[2] >= 0.0:
             raise ValueError("gate positions must be decreasing (gate 1 farthest) and >= 0")
+        if v[0] > RIG_LENGTH_M:
+            raise ValueError(f"gate 1 at {v[0]:g} m is beyond a rig's {RIG_LENGTH_M:g} m")
+        if v[2] < NEAREST_GATE_M:
+            raise ValueError(f"gate 3 at {v[2]:g} m is in the bat's way: at least {NEAREST_GATE_M:g} m")
+        if min(v[0] - v[1], v[1] - v[2]) < MIN_GATE_GAP_M:
+            raise ValueError(f"gates must be at least {MIN_GATE_GAP_M * 1000:g} mm apart")
         return v
 
 
 class AimCalibration(_Model):
     """Exit speed against tank pressure, from calibration shots; aiming inverts it."""
 
-    pressure_kpa: tuple[float, ...] = (100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 800.0)
-    speed_m_s: tuple[float, ...] = (37.4, 49.6, 56.9, 61.3, 64.2, 66.0, 68.0)
+    # A tank of at most 20 bar, a ball at most 100 m/s (224 mph), at most 100 calibration points.
+    pressure_kpa: tuple[Annotated[float, Field(gt=0.0, le=2000.0)], ...] = Field(
+        (100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 800.0), max_length=100
+    )
+    speed_m_s: tuple[Annotated[float, Field(gt=0.0, le=100.0)], ...] = Field(
+        (37.4, 49.6, 56.9, 61.3, 64.2, 66.0, 68.0), max_length=100
+    )
 
     @model_validator(mode="after")
     def _monotone(self) -> AimCalibration:
@@ -64,13 +87,16 @@ class AimCalibration(_Model):
 
 
 class Timeouts(_Model):
-    """How long the controller waits, s. Every wait has a deadline."""
+    """How long the controller waits, s. Every wait has a deadline, of seconds to minutes."""
 
-    reply_s: Annotated[float, Field(gt=0.0)] = 1.0
-    pressure_ready_s: Annotated[float, Field(gt=0.0)] = 120.0
-    stage_s: Annotated[float, Field(gt=0.0)] = 30.0
-    shot_window_s: Annotated[float, Field(gt=0.0)] = 0.5  # silence that ends a shot's gate events
-    recoil_s: Annotated[float, Field(gt=0.0)] = 0.02  # the encoder reports within ms of the impact,
+    # a device answers in ms; 50 ms carries a 32-byte reply at 9600 baud
+    reply_s: Annotated[float, Field(ge=0.05, le=60.0)] = 1.0
+    pressure_ready_s: Annotated[float, Field(ge=1.0, le=1800.0)] = 120.0  # a fill: 1 s to 30 min
+    stage_s: Annotated[float, Field(ge=1.0, le=600.0)] = 30.0  # a stage crosses the bat: 1 s to 10 min
+    # silence that ends a shot's gate events: >= 0.1 s, the time a slow (8 m/s) rebound needs to
+    # clear 0.75 m of gates
+    shot_window_s: Annotated[float, Field(ge=0.1, le=60.0)] = 0.5
+    recoil_s: Annotated[float, Field(gt=0.0, le=60.0)] = 0.02  # the encoder reports within ms of the impact,
     # long before the rebound has cleared the far gate, so little waiting is left by then
 
 
@@ -113,7 +139,8 @@ class RigConfig(_Model):
     aim: AimCalibration = AimCalibration()
     timeouts: Timeouts = Timeouts()
     impact_from_pivot_m: Annotated[float, Field(gt=0.1, lt=0.9)] = 0.56
-    cannon_cycle_s: Annotated[float, Field(gt=0.0)] = 45.0  # refill and reload between shots [assumed]
+    cannon_cycle_s: Annotated[float, Field(ge=1.0, le=3600.0)] = 45.0  # refill and reload between shots
+    # [assumed]; 1 s to an hour
     air: Air = Air()
     pendulum: Pendulum = Pendulum()
 

@@ -52,6 +52,29 @@ class CollisionParams(BaseModel):
 
 DEFAULT_PARAMS = CollisionParams()
 
+# What a real ball and barrel can be, for values a user or a scene file gives (the solver itself
+# accepts the wider ranges its hard-case tests explore). A baseball weighs 142-149 g and a softball
+# 178-198 g; the paper's stiffness, damping and barrel mass are 60e6, 5000 and 0.09 kg, and the
+# ranges leave at least two decades either side of them.
+PHYSICAL_RANGES: dict[str, tuple[float, float, str]] = {
+    "m1": (0.05, 0.5, "kg"),
+    "k1": (1e4, 1e10, "N/m^(1+a)"),
+    "c1": (0.0, 1e6, "N s/m^(1+b)"),
+    "a": (0.0, 1.0, ""),
+    "b": (0.0, 1.0, ""),
+    "m2": (1e-3, 1.0, "kg"),
+    "c2": (0.0, 1e5, "N s/m"),
+}
+
+
+def check_physical(params: CollisionParams) -> CollisionParams:
+    """`params` if every constant lies in PHYSICAL_RANGES; else ParameterError naming the first."""
+    for name, (low, high, unit) in PHYSICAL_RANGES.items():
+        value = getattr(params, name)
+        if not low <= value <= high:
+            raise ParameterError(name, value, f"must lie within {low:g}-{high:g} {unit}".rstrip())
+    return params
+
 
 def _check_finite_positive(name: str, value: float, unit: str) -> float:
     try:

@@ -23,7 +23,7 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from rig.core.bat import Barrel
+from rig.core.bat import HOOP_HZ, LENGTH_IN, MOI_KGM2, WEIGHT_OZ, Barrel
 from rig.core.errors import ConfigError
 
 COLUMNS = (
@@ -49,11 +49,13 @@ class PopulationBat(BaseModel):
 
     bat_id: Annotated[str, Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9._-]+$")]
     barrel: Barrel
-    hoop_hz: Annotated[float, Field(gt=0.0)]
-    bending_hz: Annotated[float, Field(gt=0.0)] | None = None
-    length_in: Annotated[float, Field(gt=20.0, lt=40.0)] | None = None
-    weight_oz: Annotated[float, Field(gt=10.0, lt=50.0)] | None = None
-    moi_kgm2: Annotated[float, Field(gt=0.0, lt=1.0)] | None = None
+    # the bat file's bounds (rig.core.bat); a first bending mode lies near 150-200 Hz, 20-5000 Hz
+    # takes in any bat's
+    hoop_hz: Annotated[float, Field(ge=HOOP_HZ[0], le=HOOP_HZ[1])]
+    bending_hz: Annotated[float, Field(ge=20.0, le=5000.0)] | None = None
+    length_in: Annotated[float, Field(ge=LENGTH_IN[0], le=LENGTH_IN[1])] | None = None
+    weight_oz: Annotated[float, Field(ge=WEIGHT_OZ[0], le=WEIGHT_OZ[1])] | None = None
+    moi_kgm2: Annotated[float, Field(ge=MOI_KGM2[0], le=MOI_KGM2[1])] | None = None
     besr: Annotated[float, Field(gt=0.0, lt=2.0)] | None = None
     bbs: Annotated[float, Field(gt=0.0, lt=100.0)] | None = None
     bbcor: Annotated[float, Field(gt=0.0, lt=1.0)] | None = None
@@ -88,7 +90,10 @@ def _read_csv(path: Path, text: str) -> list[PopulationBat]:
     if not lines:
         raise ConfigError("no header and no rows", source=str(path))
     reader = csv.reader(io.StringIO("\n".join(line for _, line in lines)))
-    rows = list(reader)
+    try:
+        rows = list(reader)
+    except csv.Error as exc:
+        raise ConfigError(f"not a readable CSV file: {exc}", source=str(path)) from None
     header = [c.strip() for c in rows[0]]
     unknown = [c for c in header if c not in COLUMNS]
     if unknown:
@@ -128,6 +133,10 @@ def load_population(path: str | Path) -> list[PopulationBat]:
         text = path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
         raise ConfigError("no such file", source=str(path)) from None
+    except (UnicodeDecodeError, IsADirectoryError) as exc:
+        raise ConfigError(f"not a readable text file: {exc}", source=str(path)) from None
+    if "\x00" in text:
+        raise ConfigError("not a text file: it holds NUL bytes", source=str(path))
     bats = _read_toml(path, text) if path.suffix.lower() == ".toml" else _read_csv(path, text)
     seen: set[str] = set()
     for b in bats:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import random
 from typing import TYPE_CHECKING, Annotated, ClassVar
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from rig.physics import CollisionParams
 from simulators.records import Crossing, Outgoing
@@ -37,7 +37,7 @@ CHAINED_HOOKS = (
 SLOTS = ("flight", "collision", "ticks", "recoil", "environment")
 
 Probability = Annotated[float, Field(ge=0.0, le=1.0)]
-ShotNumber = Annotated[int, Field(ge=1)]
+ShotNumber = Annotated[int, Field(ge=1, le=10_000)]  # a run fires tens of shots; a ball lasts ~1000
 
 
 class EffectConfig(BaseModel):
@@ -46,7 +46,7 @@ class EffectConfig(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     slot: ClassVar[str | None] = None  # the default component this effect replaces, if any
-    enabled: bool = Field(True, description="false: listed but left out (costs nothing)")
+    enabled: StrictBool = Field(True, description="false: listed but left out (costs nothing)")
 
     def build(self, scene: Scene, rng: random.Random) -> Effect:
         """The effect object this configuration describes."""
@@ -56,7 +56,9 @@ class EffectConfig(BaseModel):
 class FaultConfig(EffectConfig):
     """A fault strikes on the listed shots, and/or at random with the scene's seed."""
 
-    shots: tuple[ShotNumber, ...] = Field((), description="shot numbers (1-based FIRE count) it strikes")
+    shots: tuple[ShotNumber, ...] = Field(
+        (), max_length=1000, description="shot numbers (1-based FIRE count) it strikes"
+    )
     probability: Probability = Field(0.0, description="chance per opportunity, drawn with the scene seed")
 
 

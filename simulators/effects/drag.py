@@ -24,9 +24,11 @@ class DragConfig(EffectConfig):
 
     kind: Literal["drag"] = "drag"
     slot: ClassVar[str | None] = "flight"
-    drag_coefficient: float = Field(0.35, gt=0.0, le=2.0, description="Cd, dimensionless")
-    air_density: float = Field(1.20, gt=0.0, le=2.0, description="kg/m^3")
-    ball_diameter_m: float = Field(0.0737, gt=0.0, le=0.2, description="m (2.9 in)")
+    # Physical bounds: a sphere's Cd stays above ~0.07 past the drag crisis and below ~1.5; air from
+    # a high-altitude lab (~0.7 kg/m^3) to cold sea-level air (~1.4); a ball from 2 in to a softball.
+    drag_coefficient: float = Field(0.35, ge=0.05, le=1.5, description="Cd, dimensionless, 0.05-1.5")
+    air_density: float = Field(1.20, ge=0.5, le=1.5, description="kg/m^3, 0.5-1.5")
+    ball_diameter_m: float = Field(0.0737, ge=0.05, le=0.12, description="m (2.9 in), 0.05-0.12")
 
     def build(self, scene: Scene, rng: random.Random) -> Effect:
         """A Drag."""

@@ -32,7 +32,9 @@ class EnvironmentConfig(EffectConfig):
     rh_pct: float = Field(50.0, ge=0.0, le=100.0)
     temp_swing_c: float = Field(1.5, ge=0.0, le=20.0, description="amplitude of the daily-ish swing")
     rh_swing_pct: float = Field(5.0, ge=0.0, le=50.0)
-    period_s: float = Field(3600.0, gt=0.0, description="period of the swing, virtual s")
+    period_s: float = Field(
+        3600.0, ge=1.0, le=1e6, description="period of the swing, virtual s (1 s-12 days)"
+    )
     noise_c: float = Field(0.05, ge=0.0, le=5.0, description="sensor noise, one sigma")
     noise_pct: float = Field(0.3, ge=0.0, le=10.0)
     damping_per_c: float = Field(-0.005, ge=-0.1, le=0.1, description="relative change of c1 per C")

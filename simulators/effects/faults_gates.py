@@ -9,7 +9,7 @@ from __future__ import annotations
 import random
 from typing import TYPE_CHECKING, Literal
 
-from pydantic import Field
+from pydantic import Field, StrictBool
 
 from simulators.effects.base import Effect, FaultConfig, Strikes
 from simulators.records import Crossing
@@ -23,7 +23,7 @@ class MissedTriggerConfig(FaultConfig):
 
     kind: Literal["missed_trigger"] = "missed_trigger"
     gate: int = Field(2, ge=1, le=16)
-    inbound: bool = Field(True, description="true: the inbound crossing is missed; false: the rebound")
+    inbound: StrictBool = Field(True, description="true: the inbound crossing is missed; false: the rebound")
 
     def build(self, scene: Scene, rng: random.Random) -> MissedTrigger:
         """A MissedTrigger."""
@@ -52,7 +52,7 @@ class DoubleTriggerConfig(FaultConfig):
 
     kind: Literal["double_trigger"] = "double_trigger"
     gate: int = Field(1, ge=1, le=16)
-    inbound: bool = True
+    inbound: StrictBool = True
     delay_us: float = Field(40.0, gt=0.0, le=1e5, description="second break after the first, us")
 
     def build(self, scene: Scene, rng: random.Random) -> DoubleTrigger:

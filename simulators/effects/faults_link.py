@@ -40,7 +40,7 @@ class GarbledConfig(FaultConfig):
     kind: Literal["garbled"] = "garbled"
     device: Device = "gates"
     message: Literal["reply", "event"] = "event"
-    name: str | None = Field(None, description="command verb (reply) or event name; none: any")
+    name: str | None = Field(None, max_length=32, description="command verb (reply) or event name; none: any")
 
     def build(self, scene: Scene, rng: random.Random) -> Garbled:
         """A Garbled."""
@@ -69,7 +69,9 @@ class DroppedReplyConfig(FaultConfig):
 
     kind: Literal["dropped_reply"] = "dropped_reply"
     device: Device = "cannon"
-    name: str | None = Field(None, description="command verb whose reply is dropped; none: any")
+    name: str | None = Field(
+        None, max_length=32, description="command verb whose reply is dropped; none: any"
+    )
 
     def build(self, scene: Scene, rng: random.Random) -> DroppedReply:
         """A DroppedReply."""

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 import random
-from typing import TYPE_CHECKING, ClassVar, Literal
+from typing import TYPE_CHECKING, Annotated, ClassVar, Literal
 
 from pydantic import Field
 
@@ -25,7 +25,9 @@ class GateTimingConfig(EffectConfig):
     kind: Literal["gate_timing"] = "gate_timing"
     slot: ClassVar[str | None] = "ticks"
     jitter_ns: float = Field(20.0, ge=0.0, le=1e5, description="trigger jitter, one sigma, ns")
-    latency_ns: tuple[float, ...] = Field((), description="fixed trigger delay of gate 1, 2, ... in ns")
+    latency_ns: tuple[Annotated[float, Field(ge=-1e6, le=1e6)], ...] = Field(
+        (), max_length=16, description="fixed trigger delay of gate 1, 2, ... in ns (within +-1 ms)"
+    )
 
     def build(self, scene: Scene, rng: random.Random) -> Effect:
         """A GateTiming."""

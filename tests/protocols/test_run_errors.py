@@ -18,20 +18,40 @@ ROOT = Path(__file__).resolve().parents[2]
 SAMPLE_BAT = ROOT / "protocols" / "examples" / "sample-bat.toml"
 
 
+MISMEASURING_RIG = """
+[ports]
+cannon = "sim://cannon?scene=ideal"
+gates = "sim://gates?scene=ideal"
+clamp = "sim://clamp?scene=ideal"
+[gates]
+positions_m = [4.9, 2.0, 0.5]  # not where the rig's gates are: every speed is measured wrong
+"""
+
+
 def test_cli_mid_run_error_is_an_interruption(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    """A bat file with a 1 Hz hoop frequency breaks the model cross-check at the verdict."""
-    bat = tmp_path / "hoop1.toml"
-    bat.write_text(SAMPLE_BAT.read_text().replace("hoop_hz = 3600.0", "hoop_hz = 1.0"))
+    """A rig config with the gates in the wrong places sends the aim beyond the calibration mid-run."""
+    rig = tmp_path / "rig.toml"
+    rig.write_text(MISMEASURING_RIG)
     db = tmp_path / "r.db"
-    code = main(["certify", "--procedure", "bbcor", "--bat", str(bat), "--sim", "ideal", "--db", str(db)])
+    argv = ["certify", "--procedure", "bbcor", "--bat", str(SAMPLE_BAT), "--config", str(rig)]
+    code = main([*argv, "--db", str(db)])
     err = capsys.readouterr().err
-    assert code == 3 and "Traceback" not in err
+    assert code == 3 and "Traceback" not in err and "outside the aim calibration" in err
     run_id = err.split("rig certify --resume ")[1].split()[0]
-    assert f"resume with: rig certify --resume {run_id} --sim ideal --db {db}" in err
+    assert f"resume with: rig certify --resume {run_id} --config {rig} --db {db}" in err
     with Store.open(db) as store:
-        last = store.entries(run_id)[-1]
+        entries = store.entries(run_id)
         assert store.run(run_id).status == "running" and store.verify().ok
+    last = entries[-1]
     assert last.kind == "RunInterrupted" and last.payload["reason"] in err
+    requested = [e.payload["index"] for e in entries if e.kind == "ShotRequested"]
+    resolved = [e.payload["index"] for e in entries if e.kind in ("ShotMeasured", "ShotRejected")]
+    assert requested == resolved  # stopped before requesting a shot it could not aim: none lost
+    # the config corrected (here: the simulated rig's own), the run resumes and reaches a verdict
+    assert main(["certify", "--resume", run_id, "--sim", "ideal", "--db", str(db)]) in (0, 1)
+    with Store.open(db) as store:
+        assert store.run(run_id).status == "finished" and store.verify().ok
+        assert all(n == 1 for n in check_fires(store.entries(run_id)).values())
 
 
 @pytest.mark.parametrize(
@@ -46,10 +66,11 @@ def test_api_mid_run_error_records_the_interruption_and_resumes(
 ) -> None:
     bat = BatSpec.load(SAMPLE_BAT)
     good = sim_config("ideal", bat=bat)
-    data = good.model_dump()
-    for key, value in change.items():
-        data[key] = {**data[key], **value} if isinstance(value, dict) else value
-    bad = type(good).model_validate(data)
+    # past the files' bounds (which refuse these up front): the generic path must still hold
+    update = {
+        k: getattr(good, k).model_copy(update=v) if isinstance(v, dict) else v for k, v in change.items()
+    }
+    bad = good.model_copy(update=update)
     with Store.open(tmp_path / "r.db") as store:
         out = certify(store, Procedure.load("bbcor"), bat, bad)
         assert out.status == "interrupted" and out.reason
