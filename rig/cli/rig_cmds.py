@@ -89,10 +89,14 @@ def cmd_sim_serve(args: argparse.Namespace) -> int:
         from rig.core.bat import BatSpec
         from rig.session import scene_with_bat
 
+        bat = BatSpec.load(args.bat)  # a bad file is refused naming itself
         try:
-            scene = scene_with_bat(scene, BatSpec.load(args.bat))
+            scene = scene_with_bat(scene, bat)
         except ValidationError as exc:
             reason = exc.errors()[0]["msg"].removeprefix("Value error, ")
+            raise ConfigError(f"this bat does not fit scene {args.scene!r}: {reason}", args.bat) from None
+        except ConfigError as exc:  # the scene's own refusal: say which file it was about
+            reason = exc.reason.removeprefix("Value error, ")
             raise ConfigError(f"this bat does not fit scene {args.scene!r}: {reason}", args.bat) from None
     serve(scene, kind=args.kind, base_port=args.base_port)
     return 0
