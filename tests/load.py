@@ -79,3 +79,15 @@ def wall_clock_share(procs: list[subprocess.Popen[str]], seconds: float = 1.0) -
     t0 = time.monotonic()
     time.sleep(seconds)
     return (sum(cpu_seconds(p.pid) for p in procs) - before) / (time.monotonic() - t0)
+
+
+def stop_group(proc: subprocess.Popen[str], timeout_s: float = 10.0) -> None:
+    """Ctrl-C a child's process group (as a terminal would), then kill it if it does not end."""
+    import signal
+
+    os.killpg(proc.pid, signal.SIGINT)
+    try:
+        proc.wait(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait()

@@ -11,20 +11,17 @@ import time
 from collections.abc import Iterator
 from pathlib import Path
 
+from tests.load import cpu_load
+
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE_BAT = ROOT / "protocols" / "examples" / "sample-bat.toml"
 
 
 @contextlib.contextmanager
 def burners(n: int = 2) -> Iterator[None]:
-    """`n` CPU-bound processes running beside the test (ended by their pids afterwards)."""
-    procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
-    try:
+    """`n` CPU-bound processes running beside the test (tests.load: bounded in time, always reaped)."""
+    with cpu_load(n):
         yield
-    finally:
-        for p in procs:
-            p.kill()
-            p.wait()
 
 
 def certify_child(db: Path, *args: str) -> subprocess.Popen[str]:

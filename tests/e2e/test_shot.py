@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import os
-import signal
 import subprocess
 import sys
 import time
@@ -26,6 +24,7 @@ from rig.session import RigSession, sim_config
 from rig.store import Store
 from simulators.scene import Scene
 from simulators.urlhandler import get_world, register, reset_worlds
+from tests.load import stop_group
 
 RIG = [sys.executable, "-m", "rig.cli"]
 SERVE = [*RIG, "sim", "serve"]
@@ -172,12 +171,7 @@ def served(*args: str) -> Iterator[dict[str, str]]:
         assert set(urls) == {"cannon", "gates", "clamp"}, server.stderr.read() if server.poll() else urls
         yield urls
     finally:
-        os.killpg(server.pid, signal.SIGINT)
-        try:
-            server.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            os.killpg(server.pid, signal.SIGKILL)
-            server.wait()
+        stop_group(server)
         server.stdout.close()
         server.stderr.close()
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import signal
 import socket
 import subprocess
 import sys
@@ -19,6 +18,7 @@ from rig.physics import DEFAULT_PARAMS, PivotedBat, predict_bat
 from simulators.scene import Scene
 from simulators.serve import serve
 from simulators.warmup import warm_up
+from tests.load import stop_group
 from tests.sim.hosts import Port
 
 WAIT_S = 5.0
@@ -176,15 +176,6 @@ def _serve_process(*extra: str) -> tuple[subprocess.Popen[str], dict[str, str]]:
     return server, urls
 
 
-def _stop(server: subprocess.Popen[str]) -> None:
-    os.killpg(server.pid, signal.SIGINT)
-    try:
-        server.wait(timeout=10)
-    except subprocess.TimeoutExpired:
-        os.killpg(server.pid, signal.SIGKILL)
-        server.wait()
-
-
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX process groups")
 @pytest.mark.usefixtures("cpu_load")
 def test_rig_sim_serve_answers_the_first_fire_within_the_device_promise() -> None:
@@ -209,4 +200,4 @@ def test_rig_sim_serve_answers_the_first_fire_within_the_device_promise() -> Non
         assert [parse_crossing(gates.wait_event("G")).gate for _ in range(6)] == [1, 2, 3, 3, 2, 1]
         assert first_fire_s < 0.1
     finally:
-        _stop(server)
+        stop_group(server)

@@ -9,7 +9,6 @@ import subprocess
 import sys
 import textwrap
 from collections import Counter
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -46,20 +45,9 @@ KILLED_RUNNER = textwrap.dedent("""
 """)
 
 
-@pytest.fixture
-def burners() -> Iterator[None]:
-    """Two CPU-bound processes for the duration of the test."""
-    procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
-    try:
-        yield
-    finally:
-        for p in procs:
-            p.kill()
-            p.wait()
-
-
 @pytest.mark.slow
-def test_two_resumes_at_once_after_a_kill_only_one_fires(tmp_path: Path, burners: None) -> None:
+@pytest.mark.usefixtures("cpu_load")
+def test_two_resumes_at_once_after_a_kill_only_one_fires(tmp_path: Path) -> None:
     db = tmp_path / "r.db"
     killed = subprocess.Popen(
         [sys.executable, "-c", KILLED_RUNNER, str(db), str(SAMPLE_BAT)],
