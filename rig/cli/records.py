@@ -132,17 +132,28 @@ def cmd_runs(args: argparse.Namespace) -> int:
 
     with open_db(args) as store:
         runs = store.runs()
+        stopped = {r.run_id for r in runs if _stopped(store, r)}
     if args.json:
-        json.dump([r.__dict__ for r in runs], sys.stdout, indent=2)
+        rows = [{**r.__dict__, "interrupted": r.run_id in stopped} for r in runs]
+        json.dump(rows, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
     table = Table(title=f"Runs in {args.db or 'rig-records.db'}")
     for col in ("run", "procedure", "bat", "started (UTC)", "status", "verdict"):
         table.add_column(col)
     for r in runs:
-        table.add_row(r.run_id[:12], r.procedure, r.bat_id, r.started_utc[:19], r.status, r.verdict or "")
+        status = "interrupted" if r.run_id in stopped else r.status
+        table.add_row(r.run_id[:12], r.procedure, r.bat_id, r.started_utc[:19], status, r.verdict or "")
     Console().print(table)
     return 0
+
+
+def _stopped(store: Any, run: Any) -> bool:
+    """An open run whose last entry records its interruption: nothing is running it."""
+    if run.status != "running":
+        return False
+    last = store.entry(run.last_seq)
+    return last is not None and last.kind == "RunInterrupted"
 
 
 def cmd_report(args: argparse.Namespace) -> int:

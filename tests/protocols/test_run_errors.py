@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -47,11 +48,17 @@ def test_cli_mid_run_error_is_an_interruption(tmp_path: Path, capsys: pytest.Cap
     requested = [e.payload["index"] for e in entries if e.kind == "ShotRequested"]
     resolved = [e.payload["index"] for e in entries if e.kind in ("ShotMeasured", "ShotRejected")]
     assert requested == resolved  # stopped before requesting a shot it could not aim: none lost
+    assert main(["runs", "--db", str(db), "--json"]) == 0  # marked interrupted, not left "running"
+    (row,) = json.loads(capsys.readouterr().out)
+    assert row["run_id"] == run_id and row["status"] == "running" and row["interrupted"] is True
     # the config corrected (here: the simulated rig's own), the run resumes and reaches a verdict
     assert main(["certify", "--resume", run_id, "--sim", "ideal", "--db", str(db)]) in (0, 1)
     with Store.open(db) as store:
         assert store.run(run_id).status == "finished" and store.verify().ok
         assert all(n == 1 for n in check_fires(store.entries(run_id)).values())
+    capsys.readouterr()
+    assert main(["runs", "--db", str(db), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)[0]["interrupted"] is False  # finished now
 
 
 @pytest.mark.parametrize(
