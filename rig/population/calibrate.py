@@ -89,7 +89,14 @@ def fit_bats(bats: Sequence[PopulationBat], metric: str) -> list[FitBat]:
         value = b.metric(metric)
         assert value is not None
         out.append(
-            FitBat(b.bat_id, b.hoop_hz, PivotedBat(moi_kgm2=b.moi_kgm2, impact_from_pivot_m=q), alpha, beta, value)
+            FitBat(
+                b.bat_id,
+                b.hoop_hz,
+                PivotedBat(moi_kgm2=b.moi_kgm2, impact_from_pivot_m=q),
+                alpha,
+                beta,
+                value,
+            )
         )
     return out
 
@@ -151,7 +158,14 @@ def fit_variant(
 
     tol = 1e-10 if covariance else 1e-7  # a leave-one-out refit starts at the full fit's optimum
     res = least_squares(
-        residuals, x0, bounds=(lo, hi), x_scale=scale, diff_step=1e-5, xtol=tol, ftol=tol * 1e-2, gtol=tol * 1e-2
+        residuals,
+        x0,
+        bounds=(lo, hi),
+        x_scale=scale,
+        diff_step=1e-5,
+        xtol=tol,
+        ftol=tol * 1e-2,
+        gtol=tol * 1e-2,
     )
     values = {n: float(v) for n, v in zip(names, res.x, strict=True)}
     n, p = len(bats), len(names)
@@ -240,8 +254,12 @@ def calibrate(
     rows = fit_bats(bats, metric)
     check_identifiable(rows)
     reports, notes = {}, []
+    start: dict[str, float] = {}
     for name in variants:
-        fit = fit_variant(rows, name)
+        # each further variant starts from the first one's optimum (its extra parameter neutral), so
+        # it fits at least as well in sample and cannot stall in a worse local minimum
+        fit = fit_variant(rows, name, start={**START, **start})
+        start = start or fit.values
         identified = bool(np.all(np.isfinite(fit.covariance)))
         if not identified:
             if name == variants[0]:
