@@ -33,6 +33,7 @@ DEFAULT_LOCATION_IN = 6.5
 MIN_BATS = 8
 MIN_HOOP_SPAN_HZ = 400.0  # a span narrower than this cannot separate m2 from c2
 MAX_CONDITION = 1e8  # of the column-scaled Jacobian; above it a parameter is not identified
+DIFF_STEP = 1e-5  # relative step of the finite-difference Jacobian
 FIT_RTOL = 1e-9  # the collision solves inside the fit: far below any bat-to-bat scatter
 START = {"m2": DEFAULT_PARAMS.m2, "c2": DEFAULT_PARAMS.c2, "k1_scale": 1.0, "offset": 0.0}
 BOUNDS = {"m2": (1e-3, 1.0), "c2": (0.0, 1e5), "k1_scale": (0.1, 10.0), "offset": (-0.3, 0.3)}
@@ -108,14 +109,24 @@ def model_params(values: dict[str, float], base: CollisionParams = DEFAULT_PARAM
     return base.model_copy(update=update)
 
 
-def predict(bats: Sequence[FitBat], values: dict[str, float], rtol: float = FIT_RTOL) -> np.ndarray:
-    """The metric the model predicts for each bat, in one batch of compiled solves."""
-    params = model_params(values)
-    impacts = [impact_for(params, SPEED_M_S, b.hoop_hz, b.pivoted) for b in bats]
+def predict_many(
+    bats: Sequence[FitBat], sets: Sequence[dict[str, float]], rtol: float = FIT_RTOL
+) -> np.ndarray:
+    """The metric predicted for each bat (columns) under each set of values (rows): one batch."""
+    impacts = []
+    for values in sets:
+        params = model_params(values)
+        impacts += [impact_for(params, SPEED_M_S, b.hoop_hz, b.pivoted) for b in bats]
     e_a, _ = solve_batch(impacts, rtol=rtol)
     alpha = np.array([b.alpha for b in bats])
     beta = np.array([b.beta for b in bats])
-    return alpha + beta * e_a + values.get("offset", 0.0)
+    offsets = np.array([[v.get("offset", 0.0)] for v in sets])
+    return alpha + beta * e_a.reshape(len(sets), len(bats)) + offsets
+
+
+def predict(bats: Sequence[FitBat], values: dict[str, float], rtol: float = FIT_RTOL) -> np.ndarray:
+    """The metric the model predicts for each bat, in one batch of compiled solves."""
+    return predict_many(bats, [values], rtol)[0]
 
 
 @dataclass(frozen=True)
@@ -161,8 +172,9 @@ def fit_variant(
         residuals,
         x0,
         bounds=(lo, hi),
+        jac="2-point",
+        diff_step=DIFF_STEP,
         x_scale=scale,
-        diff_step=1e-5,
         xtol=tol,
         ftol=tol * 1e-2,
         gtol=tol * 1e-2,
