@@ -282,5 +282,11 @@ def calibrate(
             notes.append(f"variant {name}: not identified (condition number {fit.condition:.3g}); left out")
             reports[name] = VariantReport(fit, np.full(len(rows), np.nan), False)
             continue
+        for n, v in fit.values.items():
+            lo, hi = BOUNDS[n][0], _upper(rows, n)
+            if min(v - lo, hi - v) <= 1e-6 * max(abs(hi - lo), 1.0):
+                notes.append(
+                    f"variant {name}: {n} = {v:.4g} at its bound ({lo:g}-{hi:.4g}); its sigma is unreliable"
+                )
         reports[name] = VariantReport(fit, leave_one_out(rows, fit), True)
     return Calibration(metric, tuple(rows), reports, choose(reports), tuple(notes))

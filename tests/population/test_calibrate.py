@@ -107,6 +107,17 @@ def test_covariance_matches_a_monte_carlo_of_regenerated_populations() -> None:
     assert np.mean(est[:, 0]) == pytest.approx(TRUE["m2"], abs=2 * sigma[0] / math.sqrt(24) + 0.002)
 
 
+def test_a_further_variant_does_not_stall_in_a_worse_local_minimum() -> None:
+    """Noise-free bats at 3000-4000 Hz: started at the paper's values, m2+c2+k1_scale stalled at
+    m2 = 0.088 kg, c2 = 1520 N s/m; started from the m2+c2 optimum it finds the truth."""
+    cal = calibrate(population(n=10, hoop=(3000.0, 4000.0), noise=0.0), variants=("m2+c2", "m2+c2+k1_scale"))
+    fit = cal.reports["m2+c2+k1_scale"].fit
+    assert fit.values["m2"] == pytest.approx(TRUE["m2"], rel=1e-4)
+    assert fit.values["c2"] == pytest.approx(TRUE["c2"], rel=1e-4)
+    assert fit.values["k1_scale"] == pytest.approx(1.0, rel=1e-5)
+    assert fit.scatter < 1e-6
+
+
 def test_loo_keeps_the_simpler_variant_when_the_offset_is_not_needed() -> None:
     cal = calibrate(population(seed=1), variants=("m2+c2", "m2+c2+offset"))
     assert cal.chosen == "m2+c2"
