@@ -63,6 +63,8 @@ def _print(record: dict[str, Any]) -> None:
     for n, row in zip(names, record["covariance"], strict=True):
         cov.add_row(n, *(f"{x:.3g}" for x in row))
     console.print(cov)
+    for note in record["notes"]:
+        console.print(f"note: {note}")
     console.print(
         f"chosen: {record['variant']}; bat-to-bat scatter after the fit {record['scatter']:.4f},"
         f" leave-one-out prediction RMSE {record['loo_rmse']:.4f}"

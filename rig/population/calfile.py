@@ -72,6 +72,7 @@ class CalibrationFile(BaseModel):
     selection: str
     variants: list[dict[str, Any]]
     bats: list[dict[str, Any]]
+    notes: list[str] = []
     provenance: Provenance
 
     @model_validator(mode="after")
@@ -136,6 +137,7 @@ def calibration_record(cal: Calibration, data: bytes, data_file: str) -> dict[st
             }
             for b, p, e in zip(cal.bats, predicted, loo, strict=True)
         ],
+        "notes": list(cal.notes),
         "provenance": {
             "data_file": data_file,
             "data_sha256": hashlib.sha256(data).hexdigest(),

@@ -243,3 +243,30 @@ def test_cli_refusal_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[s
     err = capsys.readouterr().err.strip()
     assert rc == 2 and "\n" not in err and "too few bats: 5" in err
     assert not (tmp_path / "c.json").exists()
+
+
+def test_each_bat_enters_through_eq5_at_its_own_or_the_default_location() -> None:
+    """metric = alpha + beta e_A: BBCOR k + (1 + k) e_A with k = m Q^2 / I, BESR 1/2 + e_A."""
+    with_loc, without = population(n=2, seed=7), population(n=2, seed=7, locations=False)
+    for bats, loc in ((with_loc, [b.location_in for b in with_loc]), (without, [6.5, 6.5])):
+        for row, bat, where in zip(fit_bats(bats, "bbcor"), bats, loc, strict=True):
+            assert bat.length_in is not None and bat.moi_kgm2 is not None and where is not None
+            q = (bat.length_in - where - 6.0) * INCH
+            k = 0.145 * q * q / bat.moi_kgm2
+            assert row.pivoted.impact_from_pivot_m == pytest.approx(q, rel=1e-12)
+            assert (row.alpha, row.beta) == pytest.approx((k, 1.0 + k), rel=1e-9)
+    besr = [b.model_copy(update={"besr": 0.7}) for b in with_loc]
+    assert all((r.alpha, r.beta) == pytest.approx((0.5, 1.0)) for r in fit_bats(besr, "besr"))
+
+
+def test_a_damaged_calibration_file_is_refused_naming_the_field(tmp_path: Path) -> None:
+    from rig.core.errors import ConfigError
+
+    data = write_population_csv(population(n=10, seed=8), tmp_path / "pop.csv")
+    out = tmp_path / "cal.json"
+    assert main(["model", "calibrate", "--data", str(data), "--output", str(out)]) == 0
+    record = json.loads(out.read_text())
+    record["covariance"] = record["covariance"][:1]
+    out.write_text(json.dumps(record))
+    with pytest.raises(ConfigError, match="covariance must be"):
+        load_calibration(out)
