@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from rig.cli import calibrate
 from rig.cli.common import (
     Bounds,
     check_flags,
@@ -204,7 +205,7 @@ MODEL_DOC = "The ball-barrel collision model (founding paper, Eqs. 1-2)."
 
 
 def add_parsers(sub: Any) -> None:
-    """`rig model cor|curve|bat|accuracy`."""
+    """`rig model cor|curve|bat|accuracy|calibrate`."""
     model = sub.add_parser(
         "model",
         help="the ball-barrel collision model",
@@ -245,3 +246,5 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--quick", action="store_true", help="fewer tolerances and methods (a smoke run)")
     p.add_argument("--repeats", type=positive_int, default=5, help="timed repeats (best of N, 1-100)")
     p.set_defaults(handler=cmd_accuracy)
+
+    calibrate.add_parser(msub)

@@ -6,6 +6,8 @@ One bat per row (CSV) or per [[bat]] table (TOML), keys as in COLUMNS:
   hoop_hz     first hoop frequency, Hz (required)
   bending_hz  first bending frequency, Hz (optional)
   length_in, weight_oz, moi_kgm2 (about the pivot 6 in from the knob)   optional
+  location_in impact location of the measured metric, in from the barrel end (optional; where the
+              certification found its maximum)
   besr, bbs (m/s), bbcor   measured performance, each optional
   source      where the row comes from (free text; "synthetic ..." marks made-up data)
 CSV: comment lines start with '#'; the header names the columns (any order, these names only);
@@ -34,6 +36,7 @@ COLUMNS = (
     "length_in",
     "weight_oz",
     "moi_kgm2",
+    "location_in",
     "besr",
     "bbs",
     "bbcor",
@@ -56,6 +59,8 @@ class PopulationBat(BaseModel):
     length_in: Annotated[float, Field(ge=LENGTH_IN[0], le=LENGTH_IN[1])] | None = None
     weight_oz: Annotated[float, Field(ge=WEIGHT_OZ[0], le=WEIGHT_OZ[1])] | None = None
     moi_kgm2: Annotated[float, Field(ge=MOI_KGM2[0], le=MOI_KGM2[1])] | None = None
+    # a scan location lies on the bat: (0, 36] in from the barrel end, as the procedure's bounds
+    location_in: Annotated[float, Field(gt=0.0, le=36.0)] | None = None
     besr: Annotated[float, Field(gt=0.0, lt=2.0)] | None = None
     bbs: Annotated[float, Field(gt=0.0, lt=100.0)] | None = None
     bbcor: Annotated[float, Field(gt=0.0, lt=1.0)] | None = None

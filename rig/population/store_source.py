@@ -3,7 +3,8 @@
 For each registered bat: hoop_hz from its registered spec, else from its latest ModalResult
 entry; first bending frequency from that ModalResult; BESR, BBS and BBCOR the means over the
 valid hits (purpose 'valid', at the run's chosen location) of every finished run of the bat, each
-metric as rig.measure.metrics computed it per shot (ShotMeasured). Bats with no hoop frequency
+metric as rig.measure.metrics computed it per shot (ShotMeasured); location_in the mean over those
+runs of the chosen location (RunFinished). Bats with no hoop frequency
 are left out, with a note.
 """
 
@@ -36,6 +37,8 @@ def _run_metrics(store: Store, run_id: str) -> tuple[dict[str, list[float]], flo
         for name in METRICS:
             if isinstance(metrics.get(name), int | float):
                 out[name].append(float(metrics[name]))
+    if out and isinstance(location, int | float):
+        out["location_in"].append(float(location))  # once per run: the bat's mean chosen location
     moi = finished[-1].get("moi_kgm2")
     return out, float(moi) if isinstance(moi, int | float) else None
 

@@ -124,3 +124,12 @@ def test_modal_result_reaches_the_certification_cross_check(
     (bbcor_bin,) = study["fig6"]["metrics"]["bbcor"]
     assert bbcor_bin["mean"] == pytest.approx(record["verdict"]["mean"], rel=1e-9)
     assert study["synthetic"] is False
+    # and the location the run chose, for the calibration's k = m Q^2 / I
+    from rig.population.store_source import bats_from_store
+
+    with Store.open(db) as store:
+        (row,), _ = bats_from_store(store)
+        (finished,) = [
+            e.payload for r in store.runs() for e in store.entries(r.run_id, kinds=["RunFinished"])
+        ]
+    assert row.location_in == finished["location_in"] and 0 < row.location_in < 36

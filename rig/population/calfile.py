@@ -1,0 +1,181 @@
+"""The calibration file: the chosen variant's parameters and covariance, and where they came from.
+
+JSON, written by `rig model calibrate` and read back with `load_calibration` (validated: unknown
+keys, a covariance of the wrong shape or a non-finite value are refused with the file named).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
+
+import rig
+from rig.core.errors import ConfigError
+from rig.physics import CollisionParams
+from rig.population.calibrate import (
+    DEFAULT_LOCATION_IN,
+    UNITS,
+    VARIANTS,
+    Calibration,
+    model_params,
+    predict,
+)
+from rig.population.model import SPEED_M_S
+
+KIND = "rig-model-calibration"
+FORMAT = 1
+SELECTION = (
+    "leave-one-out prediction error; the simplest variant whose mean squared LOO error lies within one"
+    " standard error of the best one's"
+)
+
+
+class Provenance(BaseModel):
+    """Where the calibration came from."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+    data_file: str
+    data_sha256: str
+    n_bats: int
+    hoop_min_hz: float
+    hoop_max_hz: float
+    created_utc: str
+    software: str
+
+
+class CalibrationFile(BaseModel):
+    """The file's contents (the chosen variant; every variant's scores under `variants`)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+    kind: Literal["rig-model-calibration"]
+    format: Literal[1]
+    metric: Literal["bbcor", "besr", "bbs"]
+    speed_m_s: float
+    default_location_in: float
+    variant: str
+    parameters: dict[str, float]
+    uncertainty: dict[str, float]
+    units: dict[str, str]
+    covariance: list[list[float]]
+    scatter: float
+    loo_rmse: float
+    model_params: CollisionParams
+    selection: str
+    variants: list[dict[str, Any]]
+    bats: list[dict[str, Any]]
+    notes: list[str] = []
+    provenance: Provenance
+
+    @model_validator(mode="after")
+    def _shapes(self) -> CalibrationFile:
+        names = VARIANTS.get(self.variant)
+        if names is None:
+            raise ValueError(f"unknown variant {self.variant!r}; known: {', '.join(VARIANTS)}")
+        if tuple(self.parameters) != names:
+            raise ValueError(f"variant {self.variant} has parameters {', '.join(names)}")
+        if len(self.covariance) != len(names) or any(len(r) != len(names) for r in self.covariance):
+            raise ValueError(f"covariance must be {len(names)} x {len(names)}")
+        return self
+
+
+def _num(x: float) -> float | None:
+    return float(x) if math.isfinite(x) else None
+
+
+def calibration_record(cal: Calibration, data: bytes, data_file: str) -> dict[str, Any]:
+    """The JSON record of a calibration, with the data's hash and the software's version."""
+    fit = cal.fit
+    predicted = predict(cal.bats, fit.values)
+    loo = cal.reports[cal.chosen].loo_errors
+    hoops = [b.hoop_hz for b in cal.bats]
+    variants = []
+    for name, rep in cal.reports.items():
+        variants.append(
+            {
+                "variant": name,
+                "parameters": rep.fit.values,
+                "uncertainty": {k: _num(v) for k, v in rep.fit.errors().items()},
+                "scatter": _num(rep.fit.scatter),
+                "loo_rmse": _num(rep.loo_rmse),
+                "identified": rep.identified,
+                "condition_number": _num(rep.fit.condition),
+            }
+        )
+    return {
+        "kind": KIND,
+        "format": FORMAT,
+        "metric": cal.metric,
+        "speed_m_s": SPEED_M_S,
+        "default_location_in": DEFAULT_LOCATION_IN,
+        "variant": cal.chosen,
+        "parameters": fit.values,
+        "uncertainty": fit.errors(),
+        "units": {n: UNITS[n] for n in fit.names},
+        "covariance": fit.covariance.tolist(),
+        "scatter": fit.scatter,
+        "loo_rmse": cal.reports[cal.chosen].loo_rmse,
+        "model_params": model_params(fit.values).model_dump(),
+        "selection": SELECTION,
+        "variants": variants,
+        "bats": [
+            {
+                "bat_id": b.bat_id,
+                "hoop_hz": b.hoop_hz,
+                "measured": b.measured,
+                "predicted": float(p),
+                "residual": b.measured - float(p),
+                "loo_error": float(e),
+            }
+            for b, p, e in zip(cal.bats, predicted, loo, strict=True)
+        ],
+        "notes": list(cal.notes),
+        "provenance": {
+            "data_file": data_file,
+            "data_sha256": hashlib.sha256(data).hexdigest(),
+            "n_bats": len(cal.bats),
+            "hoop_min_hz": min(hoops),
+            "hoop_max_hz": max(hoops),
+            "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+            "software": f"rig {rig.__version__}",
+        },
+    }
+
+
+def write_calibration(record: dict[str, Any], path: str | Path) -> Path:
+    """Write the record as JSON (validated first, so that what is written can be read back)."""
+    CalibrationFile.model_validate(record)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(record, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    return path
+
+
+def load_calibration(path: str | Path) -> CalibrationFile:
+    """Read and validate a calibration file; ConfigError names the file and the first problem."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ConfigError("no such file", source=str(path)) from None
+    except (UnicodeDecodeError, IsADirectoryError, json.JSONDecodeError) as exc:
+        raise ConfigError(f"not a calibration file: {exc}", source=str(path)) from None
+    try:
+        return CalibrationFile.model_validate(data)
+    except ValidationError as exc:
+        first = exc.errors()[0]
+        field = ".".join(str(p) for p in first["loc"]) or "file"
+        raise ConfigError(first["msg"], source=str(path), field=field) from None
+
+
+def covariance_matrix(cal: CalibrationFile) -> np.ndarray:
+    """The chosen variant's parameter covariance as an array."""
+    return np.array(cal.covariance, dtype=float)

@@ -1,0 +1,292 @@
+"""Calibration of the collision model on measured bats: the barrel's m2 and c2, and what else the data need.
+
+The founding paper fits the ball (k1, c1, a, b) to rigid-cylinder tests and validates only the
+*normalized* efficiency; the barrel's effective hoop mass m2 and damping c2 are generic values.
+Here they are fitted to a population of measured bats (least squares on the chosen metric, each
+bat at its own hoop frequency, MOI and impact location, k = m Q^2 / I). Variants add one
+parameter each (VARIANTS); the variant is chosen by leave-one-out prediction error with the
+one-standard-error rule: the simplest variant whose mean squared LOO error lies within one
+standard error (of the paired difference) of the best one's.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from rig.core.bat import PIVOT_FROM_KNOB_M
+from rig.core.errors import RigError
+from rig.core.units import INCH
+from rig.measure.metrics import compute_metrics
+from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat, solve_batch
+from rig.physics.bat import impact_for
+from rig.population.dataset import METRICS, PopulationBat
+from rig.population.model import BALL_MASS_KG, SPEED_M_S
+
+# Where the ball strikes when a row gives no location_in: the middle of 6.0-7.0 in from the barrel
+# end, where the BBCOR procedure's scan finds its maximum on most bats.
+DEFAULT_LOCATION_IN = 6.5
+MIN_BATS = 8
+MIN_HOOP_SPAN_HZ = 400.0  # a span narrower than this cannot separate m2 from c2
+MAX_CONDITION = 1e8  # of the column-scaled Jacobian; above it a parameter is not identified
+DIFF_STEP = 1e-5  # relative step of the finite-difference Jacobian
+FIT_RTOL = 1e-9  # the collision solves inside the fit: far below any bat-to-bat scatter
+START = {"m2": DEFAULT_PARAMS.m2, "c2": DEFAULT_PARAMS.c2, "k1_scale": 1.0, "offset": 0.0}
+BOUNDS = {"m2": (1e-3, 1.0), "c2": (0.0, 1e5), "k1_scale": (0.1, 10.0), "offset": (-0.3, 0.3)}
+UNITS = {"m2": "kg", "c2": "N s/m", "k1_scale": "", "offset": "(metric)"}
+VARIANTS: dict[str, tuple[str, ...]] = {
+    "m2+c2": ("m2", "c2"),
+    "m2+c2+k1_scale": ("m2", "c2", "k1_scale"),
+    "m2+c2+offset": ("m2", "c2", "offset"),
+}
+
+
+class CalibrationRefused(RigError):
+    """The data cannot identify the model's parameters; the message names the cause."""
+
+
+@dataclass(frozen=True)
+class FitBat:
+    """What the fit needs of one bat: the metric = alpha + beta e_A (rig.measure.metrics)."""
+
+    bat_id: str
+    hoop_hz: float
+    pivoted: PivotedBat
+    alpha: float
+    beta: float
+    measured: float
+
+
+def _metric_line(metric: str, q: float, moi: float, length_m: float) -> tuple[float, float]:
+    """alpha, beta with metric = alpha + beta e_A, from the rig's own metric code at e_A = 0 and 1."""
+    m0 = getattr(compute_metrics(SPEED_M_S, 0.0, q, moi, BALL_MASS_KG, length_m), metric)
+    m1 = getattr(compute_metrics(SPEED_M_S, SPEED_M_S, q, moi, BALL_MASS_KG, length_m), metric)
+    return m0, m1 - m0
+
+
+def fit_bats(bats: Sequence[PopulationBat], metric: str) -> list[FitBat]:
+    """Check the rows the fit needs; CalibrationRefused names the first missing value."""
+    if metric not in METRICS:
+        raise CalibrationRefused(f"unknown metric {metric!r}; known: {', '.join(METRICS)}")
+    for column in ("moi_kgm2", "length_in", metric):
+        lacking = [b.bat_id for b in bats if getattr(b, column) is None]
+        if lacking:
+            raise CalibrationRefused(
+                f"missing column {column}: no value for {len(lacking)} of {len(bats)} bats"
+                f" (first {lacking[0]}); the fit needs hoop_hz, moi_kgm2, length_in and {metric}"
+            )
+    out = []
+    for b in bats:
+        assert b.moi_kgm2 is not None and b.length_in is not None
+        location = DEFAULT_LOCATION_IN if b.location_in is None else b.location_in
+        q = (b.length_in - location) * INCH - PIVOT_FROM_KNOB_M
+        if q <= 0.05:
+            raise CalibrationRefused(f"bat {b.bat_id}: impact {location:g} in from the end is off the barrel")
+        alpha, beta = _metric_line(metric, q, b.moi_kgm2, b.length_in * INCH)
+        value = b.metric(metric)
+        assert value is not None
+        out.append(
+            FitBat(
+                b.bat_id,
+                b.hoop_hz,
+                PivotedBat(moi_kgm2=b.moi_kgm2, impact_from_pivot_m=q),
+                alpha,
+                beta,
+                value,
+            )
+        )
+    return out
+
+
+def model_params(values: dict[str, float], base: CollisionParams = DEFAULT_PARAMS) -> CollisionParams:
+    """The collision constants for fitted values (the ball's from the paper, m1 the rig's ball)."""
+    update = {"m1": BALL_MASS_KG, "m2": values.get("m2", base.m2), "c2": values.get("c2", base.c2)}
+    update["k1"] = base.k1 * values.get("k1_scale", 1.0)
+    return base.model_copy(update=update)
+
+
+def predict_many(
+    bats: Sequence[FitBat], sets: Sequence[dict[str, float]], rtol: float = FIT_RTOL
+) -> np.ndarray:
+    """The metric predicted for each bat (columns) under each set of values (rows): one batch."""
+    impacts = []
+    for values in sets:
+        params = model_params(values)
+        impacts += [impact_for(params, SPEED_M_S, b.hoop_hz, b.pivoted) for b in bats]
+    e_a, _ = solve_batch(impacts, rtol=rtol)
+    alpha = np.array([b.alpha for b in bats])
+    beta = np.array([b.beta for b in bats])
+    offsets = np.array([[v.get("offset", 0.0)] for v in sets])
+    return alpha + beta * e_a.reshape(len(sets), len(bats)) + offsets
+
+
+def predict(bats: Sequence[FitBat], values: dict[str, float], rtol: float = FIT_RTOL) -> np.ndarray:
+    """The metric the model predicts for each bat, in one batch of compiled solves."""
+    return predict_many(bats, [values], rtol)[0]
+
+
+@dataclass(frozen=True)
+class Fit:
+    """One variant fitted to a set of bats."""
+
+    variant: str
+    names: tuple[str, ...]
+    values: dict[str, float]
+    covariance: np.ndarray  # s^2 (J^T J)^-1, in the parameters' own units
+    scatter: float  # sqrt(SSR / (n - p)): bat-to-bat scatter the model leaves
+    residuals: np.ndarray
+    condition: float
+
+    def errors(self) -> dict[str, float]:
+        """One-sigma uncertainty of each parameter."""
+        return {n: float(math.sqrt(self.covariance[i, i])) for i, n in enumerate(self.names)}
+
+
+def _upper(bats: Sequence[FitBat], name: str) -> float:
+    hi = BOUNDS[name][1]
+    if name == "m2":  # the hoop mass is part of the bat: below I/Q^2 of every bat
+        hi = min(hi, 0.95 * min(b.pivoted.effective_mass for b in bats))
+    return hi
+
+
+def fit_variant(
+    bats: Sequence[FitBat], variant: str, start: dict[str, float] | None = None, covariance: bool = True
+) -> Fit:
+    """Least squares of the measured metric on the model's prediction for one variant."""
+    names = VARIANTS[variant]
+    measured = np.array([b.measured for b in bats])
+    lo = np.array([BOUNDS[n][0] for n in names])
+    hi = np.array([_upper(bats, n) for n in names])
+    x0 = np.clip([(start or START).get(n, START[n]) for n in names], lo, hi)
+    scale = np.array([max(abs(START[n]), 1e-2) for n in names])
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        return predict(bats, dict(zip(names, x, strict=True))) - measured
+
+    tol = 1e-10 if covariance else 1e-7  # a leave-one-out refit starts at the full fit's optimum
+    res = least_squares(
+        residuals,
+        x0,
+        bounds=(lo, hi),
+        jac="2-point",
+        diff_step=DIFF_STEP,
+        x_scale=scale,
+        xtol=tol,
+        ftol=tol * 1e-2,
+        gtol=tol * 1e-2,
+    )
+    values = {n: float(v) for n, v in zip(names, res.x, strict=True)}
+    n, p = len(bats), len(names)
+    scatter = float(math.sqrt(2.0 * res.cost / (n - p))) if n > p else float("nan")
+    J = res.jac * scale  # columns per unit of each parameter's scale
+    cond = float(np.linalg.cond(J)) if covariance else float("nan")
+    cov = np.full((p, p), np.nan)
+    if covariance and math.isfinite(cond) and cond < MAX_CONDITION:
+        cov = scatter**2 * np.linalg.inv(J.T @ J) * np.outer(scale, scale)
+    return Fit(variant, names, values, cov, scatter, res.fun.copy(), cond)
+
+
+@dataclass(frozen=True)
+class VariantReport:
+    """A variant's fit to all the bats and its leave-one-out prediction errors."""
+
+    fit: Fit
+    loo_errors: np.ndarray  # measured - predicted for each bat, the bat left out of the fit
+    identified: bool
+
+    @property
+    def loo_rmse(self) -> float:
+        """Root mean square of the leave-one-out prediction errors."""
+        return float(np.sqrt(np.mean(self.loo_errors**2)))
+
+
+def leave_one_out(bats: Sequence[FitBat], full: Fit) -> np.ndarray:
+    """For each bat: its measured value minus the prediction of a fit to the others."""
+    out = np.empty(len(bats))
+    for i in range(len(bats)):
+        rest = [b for j, b in enumerate(bats) if j != i]
+        fit = fit_variant(rest, full.variant, start=full.values, covariance=False)
+        out[i] = bats[i].measured - float(predict([bats[i]], fit.values)[0])
+    return out
+
+
+def choose(reports: dict[str, VariantReport]) -> str:
+    """The simplest identified variant whose LOO mean squared error is within one SE of the best.
+
+    SE: the standard error of the mean of the bats' paired differences in squared LOO error; among
+    variants with as many parameters, the lower LOO error comes first.
+    """
+    usable = {k: r for k, r in reports.items() if r.identified}
+    best = min(usable, key=lambda k: usable[k].loo_rmse)
+    for name in sorted(usable, key=lambda k: (len(VARIANTS[k]), usable[k].loo_rmse)):
+        diff = usable[name].loo_errors ** 2 - usable[best].loo_errors ** 2
+        se = float(np.std(diff, ddof=1) / math.sqrt(diff.size)) if diff.size > 1 else 0.0
+        if float(np.mean(diff)) <= se:
+            return name
+    return best
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """The chosen variant, every variant's scores, and the data it came from."""
+
+    metric: str
+    bats: tuple[FitBat, ...]
+    reports: dict[str, VariantReport]
+    chosen: str
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def fit(self) -> Fit:
+        """The chosen variant's fit to all the bats."""
+        return self.reports[self.chosen].fit
+
+
+def check_identifiable(bats: Sequence[FitBat]) -> None:
+    """CalibrationRefused when too few bats or too narrow a hoop range can identify m2 and c2."""
+    if len(bats) < MIN_BATS:
+        raise CalibrationRefused(f"too few bats: {len(bats)}; the fit needs at least {MIN_BATS}")
+    hoops = [b.hoop_hz for b in bats]
+    span = max(hoops) - min(hoops)
+    if span < MIN_HOOP_SPAN_HZ:
+        raise CalibrationRefused(
+            f"hoop frequencies span only {span:.0f} Hz ({min(hoops):.0f}-{max(hoops):.0f} Hz);"
+            f" m2 and c2 need at least {MIN_HOOP_SPAN_HZ:.0f} Hz"
+        )
+
+
+def calibrate(
+    bats: Sequence[PopulationBat], metric: str = "bbcor", variants: Sequence[str] = tuple(VARIANTS)
+) -> Calibration:
+    """Fit every variant, score each by leave-one-out prediction error, choose one."""
+    rows = fit_bats(bats, metric)
+    check_identifiable(rows)
+    reports, notes = {}, []
+    start: dict[str, float] = {}
+    for name in variants:
+        # each further variant starts from the first one's optimum (its extra parameter neutral), so
+        # it fits at least as well in sample and cannot stall in a worse local minimum
+        fit = fit_variant(rows, name, start={**START, **start})
+        start = start or fit.values
+        identified = bool(np.all(np.isfinite(fit.covariance)))
+        if not identified:
+            if name == variants[0]:
+                raise CalibrationRefused(
+                    f"singular Jacobian: the data cannot separate {', '.join(fit.names)}"
+                    f" (condition number {fit.condition:.3g})"
+                )
+            notes.append(f"variant {name}: not identified (condition number {fit.condition:.3g}); left out")
+            reports[name] = VariantReport(fit, np.full(len(rows), np.nan), False)
+            continue
+        for n, v in fit.values.items():
+            lo, hi = BOUNDS[n][0], _upper(rows, n)
+            if min(v - lo, hi - v) <= 1e-6 * max(abs(hi - lo), 1.0):
+                notes.append(
+                    f"variant {name}: {n} = {v:.4g} at its bound ({lo:g}-{hi:.4g}); its sigma is unreliable"
+                )
+        reports[name] = VariantReport(fit, leave_one_out(rows, fit), True)
+    return Calibration(metric, tuple(rows), reports, choose(reports), tuple(notes))
