@@ -18,15 +18,8 @@ import pytest
 from rig.cli import main
 from rig.store import Store
 from tests.e2e.procs import SAMPLE_BAT, burners, certify_child, count, wait_count
+from tests.protocols.test_budget import WILD  # a cannon that scatters its speed by 5 %
 from tests.protocols.wire import check_fires
-
-WILD = """
-description = "badly scattering cannon"
-seed = 3
-[[effects]]
-kind = "speed_scatter"
-sigma_rel = 0.05
-"""
 
 
 def stop_child(db: Path, run_id: str, how: str, kind: str, more: int) -> None:
