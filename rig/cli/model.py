@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from rig.cli import calibrate
+from rig.cli import calibrate, crosscheck
 from rig.cli.common import (
     Bounds,
     check_flags,
@@ -205,7 +205,7 @@ MODEL_DOC = "The ball-barrel collision model (founding paper, Eqs. 1-2)."
 
 
 def add_parsers(sub: Any) -> None:
-    """`rig model cor|curve|bat|accuracy|calibrate`."""
+    """`rig model cor|curve|bat|accuracy|calibrate|crosscheck`."""
     model = sub.add_parser(
         "model",
         help="the ball-barrel collision model",
@@ -248,3 +248,4 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(handler=cmd_accuracy)
 
     calibrate.add_parser(msub)
+    crosscheck.add_parser(msub)

@@ -32,6 +32,7 @@ from rig.physics import PivotedBat
 from rig.population.calfile import CalibrationFile, covariance_matrix
 from rig.population.calibrate import BOUNDS, FitBat, _metric_line, predict_many
 from rig.population.dataset import PopulationBat
+from rig.population.model import SPEED_M_S
 
 GRADIENT_STEP = 0.05  # of each parameter's sigma: the delta method's central-difference step
 
@@ -103,14 +104,23 @@ def t_factor(cal: CalibrationFile, coverage: float) -> float:
     return float(student_t.ppf(0.5 * (1.0 + coverage), dof(cal)))
 
 
-def _row(
-    cal: CalibrationFile, bat_id: str, hoop_hz: float, moi: float, length_in: float, location_in: float | None
-) -> FitBat:
-    """The bat as the calibration's prediction code takes it (the same geometry as its fit)."""
-    location = cal.default_location_in if location_in is None else location_in
-    q = (length_in - location) * INCH - PIVOT_FROM_KNOB_M
+def _check_calibration(cal: CalibrationFile) -> None:
+    if cal.speed_m_s != SPEED_M_S:
+        raise CrossCheckRefused(
+            f"calibration made at {cal.speed_m_s:g} m/s; this software predicts at {SPEED_M_S:g} m/s"
+        )
+
+
+def _q(bat_id: str, length_in: float, location_in: float) -> float:
+    q = (length_in - location_in) * INCH - PIVOT_FROM_KNOB_M
     if q <= 0.05:
-        raise CrossCheckRefused(f"bat {bat_id}: impact {location:g} in from the end is off the barrel")
+        raise CrossCheckRefused(f"bat {bat_id}: impact {location_in:g} in from the end is off the barrel")
+    return q
+
+
+def _row(cal: CalibrationFile, bat_id: str, hoop_hz: float, moi: float, q: float, length_in: float) -> FitBat:
+    """The bat as the calibration's prediction code takes it (the same geometry as its fit)."""
+    _check_calibration(cal)
     alpha, beta = _metric_line(cal.metric, q, moi, length_in * INCH)
     pivoted = PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q)
     if pivoted.effective_mass <= cal.model_params.m2:
@@ -192,7 +202,24 @@ def crosscheck_one(
     bat_id: str = "bat",
 ) -> CrossCheck:
     """One bat's cross-check (location_in None: the calibration's default location)."""
-    row = _row(cal, bat_id, hoop_hz, moi_kgm2, length_in, location_in)
+    location = cal.default_location_in if location_in is None else location_in
+    q = _q(bat_id, length_in, location)
+    return crosscheck_at(cal, hoop_hz, moi_kgm2, q, length_in, measured, u_measured, coverage, bat_id)
+
+
+def crosscheck_at(
+    cal: CalibrationFile,
+    hoop_hz: float,
+    moi_kgm2: float,
+    impact_from_pivot_m: float,
+    length_in: float,
+    measured: float | None,
+    u_measured: float | None,
+    coverage: float = 0.95,
+    bat_id: str = "bat",
+) -> CrossCheck:
+    """One bat's cross-check struck `impact_from_pivot_m` from the pivot (Q), as the rig records it."""
+    row = _row(cal, bat_id, hoop_hz, moi_kgm2, impact_from_pivot_m, length_in)
     predicted, u_model = _predict(cal, [row])
     return _check(cal, row, float(predicted[0]), float(u_model[0]), measured, u_measured, coverage)
 
@@ -221,7 +248,9 @@ def crosscheck_bats(
     rows = []
     for b in bats:
         assert b.moi_kgm2 is not None and b.length_in is not None
-        rows.append(_row(cal, b.bat_id, b.hoop_hz, b.moi_kgm2, b.length_in, b.location_in))
+        location = cal.default_location_in if b.location_in is None else b.location_in
+        q = _q(b.bat_id, b.length_in, location)
+        rows.append(_row(cal, b.bat_id, b.hoop_hz, b.moi_kgm2, q, b.length_in))
     predicted, u_model = _predict(cal, rows)
     out = []
     for b, row, p, um in zip(bats, rows, predicted, u_model, strict=True):

@@ -7,14 +7,19 @@ bat-to-bat scatter of known size; the calibration then fits them with its own ba
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 from scipy.stats import t as student_t
 
+from rig.cli import main
 from rig.physics import DEFAULT_PARAMS, PivotedBat, predict_bat
-from rig.population.calfile import CalibrationFile, calibration_record
+from rig.population import write_population_csv
+from rig.population.calfile import CalibrationFile, calibration_record, write_calibration
 from rig.population.calibrate import calibrate
 from rig.population.crosscheck import CrossCheckRefused, crosscheck_bats, crosscheck_one
 from rig.population.dataset import PopulationBat
@@ -58,9 +63,19 @@ def bats(n: int, seed: int, shift: float = 0.0, prefix: str = "B") -> list[Popul
 
 
 @pytest.fixture(scope="module")
-def cal() -> CalibrationFile:
+def record() -> dict[str, Any]:
     fitted = calibrate(bats(40, seed=11), variants=("m2+c2",))
-    return CalibrationFile.model_validate(calibration_record(fitted, b"synthetic", "synthetic.csv"))
+    return calibration_record(fitted, b"synthetic", "synthetic.csv")
+
+
+@pytest.fixture(scope="module")
+def cal(record: dict[str, Any]) -> CalibrationFile:
+    return CalibrationFile.model_validate(record)
+
+
+@pytest.fixture(scope="module")
+def cal_path(record: dict[str, Any], tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return write_calibration(record, tmp_path_factory.mktemp("cal") / "cal.json")
 
 
 def test_interval_covers_95_percent_of_fresh_legal_bats(cal: CalibrationFile) -> None:
@@ -149,3 +164,85 @@ def test_refusals_name_the_cause(cal: CalibrationFile) -> None:
         crosscheck_bats(cal, [bat], coverage=1.0)
     with pytest.raises(CrossCheckRefused, match="off the barrel"):
         crosscheck_one(cal, 2000.0, 0.19, 33.0, 30.0, None, None)
+
+
+def _cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    rc = main(["model", "crosscheck", *argv])
+    out = capsys.readouterr()
+    return rc, out.out, out.err
+
+
+def test_cli_json_lists_each_bat(cal_path: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    legal, altered = bats(6, seed=17, prefix="L"), bats(6, seed=18, shift=0.05, prefix="X")
+    data = write_population_csv(legal + altered, tmp_path / "bats.csv")
+    rc, out, _ = _cli(capsys, "--data", str(data), "--calibration", str(cal_path), "--json")
+    assert rc == 0
+    rows = json.loads(out)
+    assert [r["bat_id"] for r in rows] == [b.bat_id for b in legal + altered]
+    assert all(r["flagged"] for r in rows[6:]) and sum(r["flagged"] for r in rows[:6]) <= 1
+    for r, b in zip(rows, legal + altered, strict=True):
+        assert r["measured"] == pytest.approx(b.bbcor)
+        assert r["interval"][0] < r["predicted"] < r["interval"][1]
+        assert r["coverage"] == 0.95 and r["u_model"] > 0 and r["u_scatter"] > 0
+        truth = true_bbcor(b.hoop_hz, b.moi_kgm2, b.length_in, b.location_in)  # type: ignore[arg-type]
+        assert abs(r["predicted"] - truth) < 4 * r["u_model"]
+
+
+def test_cli_table_states_the_coverage(
+    cal_path: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    data = write_population_csv(
+        bats(3, seed=19) + bats(1, seed=20, shift=0.05, prefix="X"), tmp_path / "b.csv"
+    )
+    rc, out, _ = _cli(capsys, "--data", str(data), "--calibration", str(cal_path), "--coverage", "0.9")
+    assert rc == 0
+    assert "coverage 90 %" in out and "38 degrees of freedom" in out
+    assert "FLAGGED" in out and "1 of 4 bats flagged" in out
+    assert "give no u_bbcor" in out
+
+
+@pytest.mark.parametrize(
+    ("case", "cause"),
+    [
+        ("no-data", "no such file"),
+        ("no-cal", "no such file"),
+        ("bad-cal", "covariance must be"),
+        ("no-metric", "no bbcor values"),
+        ("coverage", "coverage 1.5 must lie between 0 and 1"),
+        ("no-moi", "missing column moi_kgm2"),
+    ],
+)
+def test_cli_refusals_are_one_line(
+    case: str, cause: str, cal_path: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    rows = bats(3, seed=21)
+    if case == "no-metric":
+        rows = [b.model_copy(update={"bbcor": None}) for b in rows]
+    if case == "no-moi":
+        rows = [b.model_copy(update={"moi_kgm2": None}) for b in rows]
+    data = write_population_csv(rows, tmp_path / "b.csv")
+    calibration = cal_path
+    if case == "bad-cal":
+        broken = json.loads(cal_path.read_text())
+        broken["covariance"] = broken["covariance"][:1]
+        calibration = tmp_path / "broken.json"
+        calibration.write_text(json.dumps(broken))
+    argv = ["--data", str(data), "--calibration", str(calibration)]
+    if case == "no-data":
+        argv[1] = str(tmp_path / "absent.csv")
+    if case == "no-cal":
+        argv[3] = str(tmp_path / "absent.json")
+    if case == "coverage":
+        argv += ["--coverage", "1.5"]
+    rc, out, err = _cli(capsys, *argv)
+    assert rc == 2 and out == ""
+    assert "\n" not in err.strip() and cause in err
+
+
+def test_cli_marks_a_bat_outside_the_hoop_range(
+    cal_path: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bat = bats(1, seed=22)[0].model_copy(update={"hoop_hz": 3800.0})
+    data = write_population_csv([bat], tmp_path / "b.csv")
+    rc, out, _ = _cli(capsys, "--data", str(data), "--calibration", str(cal_path), "--json")
+    assert rc == 0 and json.loads(out)[0]["extrapolated"] is True
