@@ -17,6 +17,7 @@ from rig.cli.common import (
     param_override,
     positive_int,
 )
+from rig.core.errors import ConfigError
 
 # Physical ranges of the flags (docs/procedures.md, "Bounds"): a ball at 1-100 m/s (100 m/s is
 # 224 mph); a barrel's hoop mode and a bat's MOI as a bat file bounds them; an impact point on the
@@ -174,8 +175,86 @@ def cmd_bat(args: argparse.Namespace) -> int:
             "besr": "e_a + 1/2",
         },
     }
-    emit(args, payload, "Pivoted-bat prediction")
+    if args.calibration:
+        payload["calibrated"] = _calibrated(args, bat)
+    elif args.measured is not None or args.u_measured is not None or args.length is not None:
+        raise ConfigError(
+            "--measured, --u-measured and --length need --calibration CAL.json", source="rig model bat"
+        )
+    if args.json or not args.calibration:
+        emit(args, payload, "Pivoted-bat prediction")
+        return 0
+    _print_calibrated(payload["calibrated"])
     return 0
+
+
+def _calibrated(args: argparse.Namespace, bat: Any) -> dict[str, Any]:
+    """The calibrated model's prediction and interval for this bat (--calibration CAL.json)."""
+    from rig.population.calfile import load_calibration
+    from rig.population.crosscheck import crosscheck_at
+
+    if args.rigid:
+        raise ConfigError(
+            "--calibration needs --hoop: the calibration is of the hoop-mode model", source="rig model bat"
+        )
+    if args.overrides:
+        raise ConfigError(
+            "--set and --calibration exclude each other: the calibration sets m2, c2", source="rig model bat"
+        )
+    cal = load_calibration(args.calibration)
+    if abs(args.speed - cal.speed_m_s) > 1e-9:
+        raise ConfigError(
+            f"--speed {args.speed:g}: the calibration predicts at {cal.speed_m_s:g} m/s",
+            source="rig model bat",
+        )
+    if cal.metric == "bbs" and args.length is None:
+        raise ConfigError(
+            "a BBS calibration needs --length (in): the swing model uses it", source="rig model bat"
+        )
+    length = 33.0 if args.length is None else args.length  # BBCOR and BESR do not depend on it
+    check = crosscheck_at(
+        cal,
+        args.hoop,
+        bat.moi_kgm2,
+        bat.impact_from_pivot_m,
+        length,
+        args.measured,
+        args.u_measured,
+        args.coverage,
+    )
+    out = check.as_dict()
+    out["calibration"] = args.calibration
+    out["calibration_variant"] = cal.variant
+    out["calibration_parameters"] = dict(cal.parameters)
+    out["calibration_provenance"] = cal.provenance.model_dump()
+    out["bat_id"] = "(command line)"
+    return out
+
+
+def _print_calibrated(c: dict[str, Any]) -> None:
+    from rich.console import Console
+
+    console = Console()
+    prov = c["calibration_provenance"]
+    lo, hi = c["interval"]
+    console.print(
+        f"calibrated {c['metric']} at {c['hoop_hz']:.0f} Hz: {c['predicted']:.4f},"
+        f" {100 * c['coverage']:g} % prediction interval {lo:.4f} - {hi:.4f}"
+        f" (t = {c['t_factor']:.3f}, {c['dof']} dof; u_model {c['u_model']:.4f},"
+        f" u_scatter {c['u_scatter']:.4f}, u_measured {c['u_measured']:.4f})"
+    )
+    if c["extrapolated"]:
+        console.print(
+            f"note: {c['hoop_hz']:.0f} Hz is outside the calibration's {prov['hoop_min_hz']:.0f}-"
+            f"{prov['hoop_max_hz']:.0f} Hz: extrapolated"
+        )
+    if c["measured"] is not None:
+        verdict = "FLAGGED: outside the interval" if c["flagged"] else "consistent"
+        console.print(f"measured {c['measured']:.4f}, z = {c['z']:+.2f}: {verdict}")
+    console.print(
+        f"calibration {c['calibration']} ({c['calibration_variant']}): {prov['n_bats']} bats,"
+        f" data sha256 {prov['data_sha256'][:12]}..., {prov['created_utc']}, {prov['software']}"
+    )
 
 
 def cmd_accuracy(args: argparse.Namespace) -> int:
@@ -238,6 +317,17 @@ def add_parsers(sub: Any) -> None:
     p.add_argument(
         "--impact-from-pivot", type=float, required=True, help="pivot-to-impact distance Q, m (0.05-0.9144)"
     )
+    p.add_argument(
+        "--calibration",
+        metavar="CAL.json",
+        help="also the calibrated prediction and its interval (rig model calibrate)",
+    )
+    p.add_argument(
+        "--coverage", type=float, default=0.95, help="the interval's coverage (with --calibration)"
+    )
+    p.add_argument("--measured", type=float, help="a measured value to cross-check (with --calibration)")
+    p.add_argument("--u-measured", type=float, help="its standard uncertainty, k = 1 (with --calibration)")
+    p.add_argument("--length", type=float, help="bat length, in (with a BBS calibration)")
     p.set_defaults(handler=cmd_bat)
 
     p = msub.add_parser("accuracy", help="work-precision study: error against cost of each solver")

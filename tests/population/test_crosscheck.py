@@ -246,3 +246,40 @@ def test_cli_marks_a_bat_outside_the_hoop_range(
     data = write_population_csv([bat], tmp_path / "b.csv")
     rc, out, _ = _cli(capsys, "--data", str(data), "--calibration", str(cal_path), "--json")
     assert rc == 0 and json.loads(out)[0]["extrapolated"] is True
+
+
+def test_model_bat_with_a_calibration(cal_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    q = (33.0 - 6.5 - 6.0) * INCH
+    truth = true_bbcor(2400.0, 0.19, 33.0, 6.5)
+    base = [
+        "model",
+        "bat",
+        "--speed",
+        "60.8",
+        "--hoop",
+        "2400",
+        "--moi",
+        "0.19",
+        "--impact-from-pivot",
+        str(q),
+    ]
+    argv = [*base, "--calibration", str(cal_path), "--measured", str(truth + 0.05), "--u-measured", "0.004"]
+    assert main([*argv, "--json"]) == 0
+    c = json.loads(capsys.readouterr().out)["calibrated"]
+    assert abs(c["predicted"] - truth) < 4 * c["u_model"]
+    half = student_t.ppf(0.975, 38) * math.sqrt(c["u_model"] ** 2 + c["u_scatter"] ** 2 + 0.004**2)
+    assert c["interval"] == pytest.approx([c["predicted"] - half, c["predicted"] + half], rel=1e-12)
+    assert c["flagged"] is True and c["z"] > 5 and not c["extrapolated"]
+    assert c["calibration_provenance"]["n_bats"] == 40
+    assert main(argv) == 0
+    text = capsys.readouterr().out
+    assert "95 % prediction interval" in text and "FLAGGED" in text and "40 bats" in text
+    for extra, cause in (
+        (["--speed", "50"], "--speed 50: the calibration predicts at 60.8 m/s"),
+        (["--set", "m2=0.1"], "--set and --calibration exclude each other"),
+    ):
+        assert main([*argv, *extra]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and cause in err, err
+    assert main([*base, "--measured", "0.5"]) == 2
+    assert "need --calibration" in capsys.readouterr().err
