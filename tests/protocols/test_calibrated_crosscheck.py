@@ -13,6 +13,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from scipy.stats import t as student_t
 
@@ -26,6 +27,7 @@ from rig.core.errors import ConfigError
 from rig.physics import PivotedBat, predict_bat
 from rig.population import write_population_csv
 from rig.population.calfile import load_calibration
+from rig.report.cert_plots import model_curve
 from rig.report.certificate import render
 from rig.report.record import run_record
 from rig.session import sim_config
@@ -106,6 +108,8 @@ def test_a_calibrated_run_records_and_uses_the_calibration(
     assert prov["created_utc"] in md and prov["software"] in md
     assert ("FLAGGED" in md) is cc["flagged"] and ("| result | consistent" in md) is not cc["flagged"]
     assert "<html" in render(record, "html", figures_dir=tmp_path / "figs")
+    curve = model_curve(record, np.array([BAT.hoop_hz]))  # the certificate's figure: the calibrated model
+    assert curve is not None and curve[0][0] == pytest.approx(cc["predicted"], abs=1e-6)
     live = LiveRun()
     with Store.open(tmp_path / "r.db") as store:
         for event in history(store, out.run_id):
