@@ -47,6 +47,7 @@ COLUMNS = (
     "source",
 )
 METRICS = ("besr", "bbs", "bbcor")
+U_COLUMNS = ("u_besr", "u_bbs", "u_bbcor")
 
 
 class PopulationBat(BaseModel):
@@ -173,9 +174,11 @@ def write_population_csv(
     for c in comments:
         out.write(f"# {c}\n")
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(COLUMNS)
-    for b in bats:
-        d = b.model_dump(mode="json")
-        writer.writerow(["" if d[c] is None else d[c] for c in COLUMNS])
+    rows = [b.model_dump(mode="json") for b in bats]
+    # the uncertainty columns only when some bat has one: files without them stay as they were
+    columns = [c for c in COLUMNS if c not in U_COLUMNS or any(d[c] is not None for d in rows)]
+    writer.writerow(columns)
+    for d in rows:
+        writer.writerow(["" if d[c] is None else d[c] for c in columns])
     path.write_text(out.getvalue(), encoding="utf-8")
     return path

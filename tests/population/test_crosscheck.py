@@ -17,6 +17,7 @@ import pytest
 from scipy.stats import t as student_t
 
 from rig.cli import main
+from rig.core.errors import ConfigError
 from rig.physics import DEFAULT_PARAMS, PivotedBat, predict_bat
 from rig.population import write_population_csv
 from rig.population.calfile import CalibrationFile, calibration_record, write_calibration
@@ -283,3 +284,17 @@ def test_model_bat_with_a_calibration(cal_path: Path, capsys: pytest.CaptureFixt
         assert "\n" not in err and cause in err, err
     assert main([*base, "--measured", "0.5"]) == 2
     assert "need --calibration" in capsys.readouterr().err
+
+
+def test_the_uncertainty_columns_round_trip_and_stay_out_when_empty(tmp_path: Path) -> None:
+    from rig.population import load_population
+
+    rows = bats(3, seed=23)
+    plain = write_population_csv(rows, tmp_path / "plain.csv")
+    assert "u_bbcor" not in plain.read_text().splitlines()[0]
+    rows[1] = rows[1].model_copy(update={"u_bbcor": 0.0042})
+    back = load_population(write_population_csv(rows, tmp_path / "u.csv"))
+    assert [b.u_bbcor for b in back] == [None, 0.0042, None] and back[1].u_metric("bbcor") == 0.0042
+    (tmp_path / "bad.csv").write_text("bat_id,barrel,hoop_hz,u_bbcor\nX,wood,2000,-0.1\n")
+    with pytest.raises(ConfigError, match="u_bbcor"):
+        load_population(tmp_path / "bad.csv")
