@@ -152,6 +152,12 @@ def cmd_study(args: argparse.Namespace) -> int:
     """rig study: the population study, hoop frequency against bending and performance (paper section 5)."""
     from rig.population import load_population, run_study
 
+    if args.certify is not None:
+        from rig.cli.study_certify import run as certify_population
+
+        code = certify_population(args)
+        if code or not (args.json or args.plot_dir or args.calibration):
+            return code
     bats, sources, notes = [], [], []
     data = args.data
     if not data and not args.db:
@@ -266,4 +272,18 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--db", metavar="FILE", help="also the bats of this record store")
     p.add_argument("--plot-dir", metavar="DIR", help="write Fig. 5 and Fig. 6 (PNG and SVG) here")
     p.add_argument("--json", action="store_true", help="print the study as JSON")
+    p.add_argument(
+        "--certify",
+        type=positive_int,
+        metavar="N",
+        help="first certify N simulated bats (hoop 1400-3000 Hz) into --db on the simulated rig",
+    )
+    p.add_argument("--scene", default="lab", help="simulated rig for --certify (default lab)")
+    p.add_argument("--seed", type=int, default=0, help="population seed for --certify (default 0)")
+    p.add_argument("--altered", type=int, default=0, metavar="K", help="of the N bats, K altered (ALT- ids)")
+    p.add_argument(
+        "--alteration", type=float, default=0.025, metavar="BBCOR", help="altered bats' extra BBCOR (0.025)"
+    )
+    p.add_argument("--procedure", default="bbcor", help="procedure for --certify (default bbcor)")
+    p.add_argument("--calibration", metavar="CAL.json", help="overlay this calibrated model on Fig. 6")
     p.set_defaults(handler=cmd_study)
