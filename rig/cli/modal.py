@@ -182,7 +182,12 @@ def cmd_study(args: argparse.Namespace) -> int:
         raise ConfigError(f"bat id(s) in more than one source: {', '.join(twice)}", source="rig study")
     if not bats:
         raise ConfigError("no bats with a hoop frequency in the given sources", source="rig study")
-    study = run_study(bats, sources, notes)
+    calibration = None
+    if args.calibration:
+        from rig.population.calfile import load_calibration
+
+        calibration = load_calibration(args.calibration)  # a bad file: one line naming it
+    study = run_study(bats, sources, notes, calibration, args.calibration or "")
     if args.plot_dir:
         from rig.report.population_plots import plot_population
 
@@ -213,10 +218,25 @@ def cmd_study(args: argparse.Namespace) -> int:
         console.print(f"{material}: {d['n']} bats, hoop {d['hoop_min_hz']:.0f}-{d['hoop_max_hz']:.0f} Hz")
     for name, t in study.trend.items():
         if t.get("slope_per_khz") is not None:
+            calibrated = t.get("calibrated_slope_per_khz")
             console.print(
                 f"{name}: {t['slope_per_khz']:+.4g} per 1000 Hz"
-                f" (model {t.get('model_slope_per_khz', 0.0):+.4g}), r = {t['r']:.3f}"
+                f" (model {t.get('model_slope_per_khz', 0.0):+.4g}"
+                + ("" if calibrated is None else f", calibrated {calibrated:+.4g}")
+                + f"), r = {t['r']:.3f}"
             )
+    cal = study.calibrated
+    if cal is not None:
+        metric = cal["metric"]
+        points = ", ".join(
+            f"{h:.0f} Hz {v:.4f}"
+            for h, v in zip(cal["hoop_hz"], cal[metric], strict=True)
+            if h % 500 == 0
+        )
+        console.print(
+            f"calibrated model ({cal['variant']}, {args.calibration}, LOO RMSE {cal['loo_rmse']:.4f}):"
+            f" {metric} {points}"
+        )
     for note in study.notes:
         console.print(f"note: {note}")
     return 0
