@@ -150,8 +150,10 @@ def cmd_modal_simulate(args: argparse.Namespace) -> int:
 
 def cmd_study(args: argparse.Namespace) -> int:
     """rig study: the population study, hoop frequency against bending and performance (paper section 5)."""
+    from rig.cli.study_certify import check_args
     from rig.population import load_population, run_study
 
+    check_args(args)
     if args.certify is not None:
         from rig.cli.study_certify import run as certify_population
 

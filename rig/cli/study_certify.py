@@ -52,6 +52,10 @@ def bats_dir(db: str) -> Path:
 
 def check_args(args: argparse.Namespace) -> None:
     """One clear line for each flag out of range (exit 2)."""
+    if args.certify is None:
+        if args.altered or args.seed:
+            raise ConfigError("--altered and --seed go with --certify N", source="command line")
+        return
     if not args.db:
         raise ConfigError("--certify needs --db STORE: the runs go into that store", source="command line")
     if args.data:
@@ -149,7 +153,9 @@ def certify_population(args: argparse.Namespace) -> Tally:
     from simulators.urlhandler import drop_world
 
     check_args(args)
-    Scene.load(args.scene)  # a bad scene is refused before anything is written
+    scene = Scene.load(args.scene)  # a bad scene is refused before anything is written
+    if args.altered:
+        scene.with_alteration(args.alteration)  # ... and one that cannot alter a bat
     procedure = Procedure.load(args.procedure)
     bats = simulated_population(args.certify, args.seed, args.altered, args.alteration)
     folder = write_bat_files(args, bats)
@@ -210,7 +216,8 @@ def certify_population(args: argparse.Namespace) -> Tally:
                     "hoop_hz": bat.spec.hoop_hz,
                     "altered": bat.altered,
                     "verdict": verdict.get("verdict"),
-                    "bbcor": verdict.get("mean"),
+                    "metric": verdict.get("metric"),
+                    "value": verdict.get("mean"),
                     "location_in": verdict.get("location_in"),
                     "seconds": seconds,
                     "resumed": state == "resume",
@@ -235,11 +242,12 @@ def print_summary(tally: Tally, args: argparse.Namespace) -> None:
     legal, altered = [r for r in done if not r["altered"]], [r for r in done if r["altered"]]
     groups = (("legal", legal), ("altered", altered))
     for label, rows in groups:
-        values = [r["bbcor"] for r in rows if r["bbcor"] is not None]
+        values = [r["value"] for r in rows if r["value"] is not None]
         if values:
             fails = sum(1 for r in rows if r["verdict"] != "PASS")
+            metric = str(rows[0]["metric"] or "metric").upper()
             console.print(
-                f"  {label}: {len(values)} bats, BBCOR {min(values):.4f}-{max(values):.4f}"
+                f"  {label}: {len(values)} bats, {metric} {min(values):.4f}-{max(values):.4f}"
                 f" (mean {statistics.fmean(values):.4f}), {fails} not PASS"
             )
     if tally.seconds:

@@ -149,6 +149,9 @@ def test_a_signal_keeps_the_finished_runs_and_a_rerun_resumes_without_duplicates
         (["--certify", "3", "--db", "{db}", "--altered", "4"], "--altered 4"),
         (["--certify", "3", "--db", "{db}", "--alteration", "0"], "--alteration 0"),
         (["--certify", "3", "--db", "{db}", "--scene", "no-such-scene"], "no such scene"),
+        (["--certify", "3", "--db", "{db}", "--scene", "ideal", "--altered", "1"], "no trampoline effect"),
+        (["--certify", "3", "--db", "{db}", "--procedure", "nope"], "no such procedure"),
+        (["--data", "x.csv", "--altered", "1"], "go with --certify"),
     ],
 )
 def test_bad_flags_are_refused_with_one_line(
@@ -158,7 +161,7 @@ def test_bad_flags_are_refused_with_one_line(
     assert main(["study", *[f.replace("{db}", db) for f in flags]]) == 2
     err = capsys.readouterr().err
     assert cause in err and "Traceback" not in err
-    assert not Path(db).exists()
+    assert not Path(db).exists() and not (tmp_path / "pop-bats").exists()
 
 
 def test_other_flags_on_the_same_store_are_refused(
