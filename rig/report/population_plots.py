@@ -72,7 +72,18 @@ def plot_metrics_vs_hoop(study: PopulationStudy, path: str | Path) -> list[Path]
                 study.model[name],
                 color="C3",
                 lw=1.5,
-                label="model: mean over the bats' own MOI and length",
+                label="model, paper's constants: mean over the bats' own MOI and length",
+            )
+        cal = study.calibrated
+        if cal is not None and cal.get(name):
+            offset = "" if name == cal["metric"] else " (no offset)" if "offset" in cal["parameters"] else ""
+            ax.plot(
+                cal["hoop_hz"],
+                cal[name],
+                color="C2",
+                lw=1.8,
+                ls="--",
+                label=f"calibrated model ({cal['variant']}, {cal['provenance']['n_bats']} bats){offset}",
             )
         ax.set_ylabel(METRIC_LABEL[name])
         ax.grid(alpha=0.3)
