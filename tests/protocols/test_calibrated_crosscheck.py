@@ -245,3 +245,19 @@ def test_a_bad_calibration_stops_the_run_before_anything_is_recorded(
         with pytest.raises(ConfigError, match=cause):
             certify(store, proc, BAT, config)
         assert store.runs() == []
+
+
+def test_an_unusable_recorded_calibration_leaves_the_verdict_uncalibrated(lab: Path) -> None:
+    from protocols.evaluate import cross_check
+
+    quick = Procedure.load(lab / "proc.toml")
+    recorded = run_calibration(quick, sim_config("ideal", bat=BAT))
+    assert recorded is not None
+    q = BAT.impact_from_pivot_m(6.5)
+    good = cross_check(quick, BAT, 60.8, q, 0.19, 0.5, 0.004, recorded)
+    assert good["calibrated"] is True
+    damaged = copy.deepcopy(recorded)
+    damaged["file"]["covariance"] = [[1.0]]
+    cc = cross_check(quick, BAT, 60.8, q, 0.19, 0.5, 0.004, damaged)
+    assert cc["calibrated"] is False and cc["flagged"] is None
+    assert cc["note"].startswith("recorded calibration not usable (") and "covariance must be" in cc["note"]
