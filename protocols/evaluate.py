@@ -365,10 +365,17 @@ def cross_check(
     if bat.barrel is Barrel.WOOD or bat.hoop_hz is None:
         note = "the calibration is of the barrel's hoop mode; a wood barrel is rigid: " + UNCALIBRATED
         return _uncalibrated(p, bat, v_in, q, moi, measured, note)
-    cal = CalibrationFile.model_validate(calibration["file"])
-    c = crosscheck_at(
-        cal, bat.hoop_hz, moi, q, bat.length_in, measured, u, p.cross_check_coverage, bat_id=bat.id
-    )
+    try:
+        cal = CalibrationFile.model_validate(calibration["file"])
+        c = crosscheck_at(
+            cal, bat.hoop_hz, moi, q, bat.length_in, measured, u, p.cross_check_coverage, bat_id=bat.id
+        )
+    except (RigError, ValueError, KeyError) as exc:  # the cross-check informs; it never stops a verdict
+        errors = getattr(exc, "errors", None)  # a pydantic ValidationError: its first message
+        reason = errors()[0]["msg"] if callable(errors) else str(exc).splitlines()[0]
+        return _uncalibrated(
+            p, bat, v_in, q, moi, measured, f"recorded calibration not usable ({reason}): {UNCALIBRATED}"
+        )
     prov = cal.provenance
     where = f" (outside the calibration's {prov.hoop_min_hz:.0f}-{prov.hoop_max_hz:.0f} Hz: extrapolated)"
     note = (

@@ -245,3 +245,40 @@ def test_a_bad_calibration_stops_the_run_before_anything_is_recorded(
         with pytest.raises(ConfigError, match=cause):
             certify(store, proc, BAT, config)
         assert store.runs() == []
+
+
+def test_an_unusable_recorded_calibration_leaves_the_verdict_uncalibrated(lab: Path) -> None:
+    from protocols.evaluate import cross_check
+
+    quick = Procedure.load(lab / "proc.toml")
+    recorded = run_calibration(quick, sim_config("ideal", bat=BAT))
+    assert recorded is not None
+    q = BAT.impact_from_pivot_m(6.5)
+    good = cross_check(quick, BAT, 60.8, q, 0.19, 0.5, 0.004, recorded)
+    assert good["calibrated"] is True
+    damaged = copy.deepcopy(recorded)
+    damaged["file"]["covariance"] = [[1.0]]
+    cc = cross_check(quick, BAT, 60.8, q, 0.19, 0.5, 0.004, damaged)
+    assert cc["calibrated"] is False and cc["flagged"] is None
+    assert cc["note"].startswith("recorded calibration not usable (") and "covariance must be" in cc["note"]
+
+
+def test_cli_certify_report_and_verify_with_a_calibration(
+    lab: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bat = tmp_path / "bat.toml"
+    bat.write_text(
+        '[bat]\nid = "CLI-2200"\nlength_in = 33.0\nweight_oz = 30.0\nbarrel = "aluminium"\n'
+        "hoop_hz = 2200.0\nmoi_kgm2 = 0.19\nbalance_point_in = 22.0\n"
+    )
+    db = str(tmp_path / "r.db")
+    argv = ["certify", "--procedure", str(lab / "proc.toml"), "--bat", str(bat), "--sim", "ideal", "--db", db]
+    assert main([*argv, "--json"]) in (0, 1)
+    record = json.loads(capsys.readouterr().out)
+    cc = record["cross_check"]
+    assert cc["calibrated"] is True and cc["interval"][0] < cc["predicted"] < cc["interval"][1]
+    assert cc["calibration"]["sha256"] == hashlib.sha256((lab / "cal.json").read_bytes()).hexdigest()
+    assert main(["report", "last", "--db", db, "--format", "md", "--figures", str(tmp_path / "f")]) == 0
+    md = capsys.readouterr().out
+    assert "prediction interval (95 %)" in md and cc["calibration"]["sha256"] in md
+    assert main(["verify", "--db", db]) == 0
