@@ -34,8 +34,8 @@ from pathlib import Path
 
 import numpy as np
 
-from rig.population.calfile import CalibrationFile, calibration_record
 from rig.cli import main as rig_main
+from rig.population.calfile import CalibrationFile, calibration_record
 from rig.population.calibrate import calibrate
 from rig.population.crosscheck import crosscheck_bats
 from rig.population.simulate import SimulatedBat, simulated_population
@@ -99,9 +99,13 @@ def certified_tier(scene: Scene, n: int, seed: int) -> tuple[float, float]:
             train, _ = bats_from_store(store)
         with Store.open(Path(tmp) / "test.db") as store:
             test, _ = bats_from_store(store)
-    print(f"tier 1: {n + 20} bats certified on the simulated lab in {wall:.0f} s ({wall / (n + 20):.2f} s each)")
+    print(
+        f"tier 1: {n + 20} bats certified on the simulated lab in {wall:.0f} s ({wall / (n + 20):.2f} s each)"
+    )
     every = {**train_bats, **test_bats}
-    err = [b.bbcor - true_metric(scene, every[b.bat_id], b.location_in or 0.0) for b in train + test if b.bbcor]
+    err = [
+        b.bbcor - true_metric(scene, every[b.bat_id], b.location_in or 0.0) for b in train + test if b.bbcor
+    ]
     us = [b.u_bbcor for b in train + test if b.u_bbcor is not None]
     locs = [b.location_in for b in train + test if b.location_in is not None]
     print(
@@ -205,7 +209,10 @@ def figure(tally: Tally, out_dir: Path, noise: float) -> list[Path]:
     ax.errorbar(
         xs,
         rates,
-        yerr=[[r - c[0] for r, c in zip(rates, cis, strict=True)], [c[1] - r for r, c in zip(rates, cis, strict=True)]],
+        yerr=[
+            [r - c[0] for r, c in zip(rates, cis, strict=True)],
+            [c[1] - r for r, c in zip(rates, cis, strict=True)],
+        ],
         marker="o",
         capsize=3,
         label="flagged (95 % Wilson interval)",
@@ -235,7 +242,9 @@ def main() -> None:
     p.add_argument("--bats", type=int, default=40)
     p.add_argument("--certified", type=int, default=40, help="tier 1: bats certified to calibrate (0: skip)")
     p.add_argument("--noise", type=float, default=0.001, help="sd of a certified mean when tier 1 is skipped")
-    p.add_argument("--u", type=float, default=0.003, help="recorded u of a certified mean when tier 1 is skipped")
+    p.add_argument(
+        "--u", type=float, default=0.003, help="recorded u of a certified mean when tier 1 is skipped"
+    )
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--figure", type=Path, default=None, help="write crosscheck-power.svg/png here")
     a = p.parse_args()
@@ -247,7 +256,10 @@ def main() -> None:
     tally = Tally()
     for r in range(a.populations):
         one_population(scene, a.seed + r, a.bats, noise, u, tally)
-        print(f"  population {r + 1}/{a.populations}: {tally.variants[-1]}, LOO RMSE {tally.loo_rmse[-1]:.4f}", flush=True)
+        print(
+            f"  population {r + 1}/{a.populations}: {tally.variants[-1]}, LOO RMSE {tally.loo_rmse[-1]:.4f}",
+            flush=True,
+        )
     report(tally, a.populations, a.bats, noise, u, spread)
     if a.figure:
         for path in figure(tally, a.figure, noise):
