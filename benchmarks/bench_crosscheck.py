@@ -246,13 +246,22 @@ def main() -> None:
         "--u", type=float, default=0.003, help="recorded u of a certified mean when tier 1 is skipped"
     )
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument(
+        "--spread", type=float, default=None, help="bat-to-bat spread, BBCOR (default: the lab scene's)"
+    )
     p.add_argument("--figure", type=Path, default=None, help="write crosscheck-power.svg/png here")
     a = p.parse_args()
     scene = Scene.load("lab")
+    if a.spread is not None:  # the Monte Carlo's world only; tier 1 certifies on the scene as shipped
+        effects = [
+            {**e.model_dump(), "spread_bbcor": a.spread} if e.kind == "trampoline" else e.model_dump()
+            for e in scene.effects
+        ]
+        scene = Scene.model_validate({**scene.model_dump(), "effects": effects})
     spread = next(e.spread_bbcor for e in scene.effects if e.kind == "trampoline")  # type: ignore[attr-defined]
     noise, u = a.noise, a.u
     if a.certified:
-        noise, u = certified_tier(scene, a.certified, a.seed + 900)
+        noise, u = certified_tier(Scene.load("lab"), a.certified, a.seed + 900)
     tally = Tally()
     for r in range(a.populations):
         one_population(scene, a.seed + r, a.bats, noise, u, tally)
