@@ -131,14 +131,21 @@ def _row(cal: CalibrationFile, bat_id: str, hoop_hz: float, moi: float, q: float
     return FitBat(bat_id, hoop_hz, pivoted, alpha, beta, math.nan)
 
 
-def _steps(cal: CalibrationFile) -> list[tuple[dict[str, float], dict[str, float], float]]:
-    """For each parameter: the values one step up, one step down, and the span between them."""
+def _steps(
+    cal: CalibrationFile, rows: Sequence[FitBat]
+) -> list[tuple[dict[str, float], dict[str, float], float]]:
+    """For each parameter: the values one step up, one step down, and the span between them.
+
+    m2 never steps past any checked bat's own I/Q^2 (the model has no barrel heavier than the bat).
+    """
     cov = covariance_matrix(cal)
     out = []
     for i, name in enumerate(cal.parameters):
         x = cal.parameters[name]
         h = GRADIENT_STEP * math.sqrt(max(cov[i, i], 0.0)) or 1e-6 * max(abs(x), 1.0)
         lo, hi = BOUNDS[name]
+        if name == "m2":
+            hi = min(hi, 0.5 * (x + min(r.pivoted.effective_mass for r in rows)))
         up, down = min(x + h, hi), max(x - h, lo)  # one-sided at a bound
         out.append(({**cal.parameters, name: up}, {**cal.parameters, name: down}, up - down))
     return out
@@ -146,7 +153,7 @@ def _steps(cal: CalibrationFile) -> list[tuple[dict[str, float], dict[str, float
 
 def _predict(cal: CalibrationFile, rows: Sequence[FitBat]) -> tuple[np.ndarray, np.ndarray]:
     """Predictions and u_model for each row, in one batch of solves (centre and +-step per parameter)."""
-    steps = _steps(cal)
+    steps = _steps(cal, rows)
     sets = [dict(cal.parameters)] + [s for up, down, _ in steps for s in (up, down)]
     values = predict_many(rows, sets)
     centre = values[0]

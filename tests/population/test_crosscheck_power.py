@@ -95,3 +95,26 @@ def test_power_on_one_population_meets_the_goal() -> None:
     assert rmse <= 0.007
     # the interval is not trivially wide: a legal bat's half-width stays below the alteration
     assert max(c.interval[1] - c.predicted for c in legal) < 0.025
+
+
+def test_gradient_step_stays_below_the_bats_own_mass() -> None:
+    """A loosely identified m2 close to a bat's I/Q^2: the delta method's step must not cross it.
+
+    Before, the step up (0.05 sigma) put m2 above the bat's effective mass and the solve raised.
+    """
+    rng = np.random.default_rng(3)
+    train = measured_population(LAB, simulated_population(12, 3), scan_maximum, 0.0005, rng, u=0.001)
+    cal = calibrate(train, "bbcor", variants=("m2+c2+k1_scale",))
+    record = calibration_record(cal, b"sim", "sim")
+    bat = train[0].model_copy(update={"bat_id": "HEAVY-M2"})
+    assert bat.moi_kgm2 is not None and bat.length_in is not None and bat.location_in is not None
+    q = (bat.length_in - bat.location_in) * INCH - LAB.rig.pivot_from_knob_m
+    eff = bat.moi_kgm2 / q**2
+    record["parameters"] = {**record["parameters"], "m2": 0.98 * eff}
+    record["model_params"] = {**record["model_params"], "m2": 0.98 * eff}
+    cov = np.array(record["covariance"])
+    cov[0, 0] = (0.5 * eff) ** 2  # sigma of m2 half the bat's mass: a step of 0.05 sigma crosses it
+    cov[0, 1:] = cov[1:, 0] = 0.0
+    record["covariance"] = cov.tolist()
+    (check,) = crosscheck_bats(CalibrationFile.model_validate(record), [bat])
+    assert math.isfinite(check.u_model) and check.u_model > 0.0
