@@ -253,11 +253,7 @@ def main() -> None:
     a = p.parse_args()
     scene = Scene.load("lab")
     if a.spread is not None:  # the Monte Carlo's world only; tier 1 certifies on the scene as shipped
-        effects = [
-            {**e.model_dump(), "spread_bbcor": a.spread} if e.kind == "trampoline" else e.model_dump()
-            for e in scene.effects
-        ]
-        scene = Scene.model_validate({**scene.model_dump(), "effects": effects})
+        scene = scene.with_effect("trampoline", spread_bbcor=a.spread)
     spread = next(e.spread_bbcor for e in scene.effects if e.kind == "trampoline")  # type: ignore[attr-defined]
     noise, u = a.noise, a.u
     if a.certified:

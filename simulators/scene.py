@@ -185,15 +185,23 @@ class Scene(BaseModel):
 
     def with_alteration(self, bbcor: float) -> Scene:
         """This scene with its bat altered: `bbcor` more BBCOR (trampoline effect's alteration_bbcor)."""
-        effects = [e.model_dump() for e in self.effects]
-        kinds = [e["kind"] for e in effects]
-        if "trampoline" not in kinds:
+        if not any(e.kind == "trampoline" for e in self.effects):
             raise ConfigError("the scene has no trampoline effect: a bat cannot be altered", self.name)
-        effects[kinds.index("trampoline")]["alteration_bbcor"] = bbcor
+        return self.with_effect("trampoline", alteration_bbcor=bbcor)
+
+    def with_effect(self, kind: str, **values: float) -> Scene:
+        """This scene with fields of its `kind` effect replaced (the bat keeps what it was given).
+
+        The scene is rebuilt from the fields that were set, so that a later `with_bat` still
+        replaces the bat's properties the scene's own [bat] table does not give.
+        """
+        effects = [{**e.model_dump(), **values} if e.kind == kind else e.model_dump() for e in self.effects]
+        if not any(e["kind"] == kind for e in effects):
+            raise ConfigError(f"the scene has no {kind} effect", self.name)
         try:
-            return self.model_validate({**self.model_dump(), "effects": effects})
+            return self.model_validate({**self.model_dump(exclude_unset=True), "effects": effects})
         except ValidationError as exc:
-            raise _config_error(f"simulated rig {self.name!r}, alteration", exc) from None
+            raise _config_error(f"simulated rig {self.name!r}, {kind}", exc) from None
 
     def active_effects(self) -> list[Any]:
         """The effect configurations that are enabled, in scene order."""

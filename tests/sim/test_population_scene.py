@@ -124,3 +124,16 @@ def test_scenes_without_the_new_keys_keep_the_papers_barrel() -> None:
     assert isinstance(tramp, Trampoline) and tramp.offset_bbcor == 0.0
     params = old.ball
     assert tramp.barrel(params) is params
+
+
+def test_an_effect_changed_before_the_bat_still_takes_the_bat() -> None:
+    """with_effect / with_alteration, then with_bat: the bat's properties still arrive (they were
+    silently the scene's default bat before, since a full dump marked every bat field as set)."""
+    from simulators.scene import Scene
+
+    lab = Scene.load("lab")
+    changed = lab.with_effect("trampoline", spread_bbcor=0.008).with_bat(hoop_hz=2500.0, moi_kgm2=0.2)
+    assert changed.bat.hoop_hz == 2500.0 and changed.bat.moi_kgm2 == 0.2
+    assert next(e for e in changed.effects if e.kind == "trampoline").spread_bbcor == 0.008
+    altered = lab.with_alteration(0.02).with_bat(hoop_hz=2100.0)
+    assert altered.bat.hoop_hz == 2100.0
