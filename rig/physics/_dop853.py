@@ -38,6 +38,10 @@ STATUS_TIME_LIMIT = 1
 STATUS_MAX_STEPS = 2
 STATUS_STEP_UNDERFLOW = 3
 STATUS_NOT_FINITE = 4
+STATUS_FOLLOW = 5  # first contact solved; the ball may meet the barrel again: the caller follows on
+
+SCREEN_POINTS = 256  # samples of free flight per barrel period (and per escape window)
+SCREEN_MAX_SAMPLES = 200_000
 
 _SAFETY = 0.9
 _MIN_FACTOR = 0.2
@@ -302,6 +306,8 @@ def solve_one(
                 out_state[i] = tmp[i]
                 if not math.isfinite(tmp[i]):
                     return math.nan, t, nfev, steps, STATUS_NOT_FINITE
+            if may_meet_again(tmp, p):
+                return -tmp[1] / v0, t + x * h, nfev, steps, STATUS_FOLLOW
             return -tmp[1] / v0, t + x * h, nfev, steps, STATUS_OK
         factor = _MAX_FACTOR if err == 0.0 else min(_MAX_FACTOR, _SAFETY * err**_EXPONENT)
         if rejected:
@@ -313,6 +319,98 @@ def solve_one(
         for i in range(6):
             y[i] = ynew[i]
             f[i] = fnew[i]
+
+
+@nb.njit(cache=True, inline="always")
+def _rhs_free(y: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """Out of contact: ball in free flight, barrel (and body) ringing on their own."""
+    out[0] = y[1]
+    out[1] = 0.0
+    out[2] = y[3]
+    fs = p[6] * (y[2] - y[4]) + p[7] * (y[3] - y[5])
+    out[3] = -fs / p[5]
+    out[4] = y[5]
+    out[5] = fs * p[8]
+
+
+@nb.njit(cache=True)
+def may_meet_again(y0: np.ndarray, p: np.ndarray) -> bool:
+    """After a separation: False when no later contact is possible (the separation is final).
+
+    A rigid barrel recedes at a constant speed, so once the ball is slower no contact can come.
+    A flexible barrel is bounded: the ball is out of reach for good once it is beyond the
+    barrel's largest excursion and slower than the barrel's centre of mass (equations.escape_time).
+    Until then free flight is sampled (RK4, 256 points per barrel period): g = F/|d|^b first falls
+    from 0; if it ever turns to rise while the ball overlaps the barrel (d > 0) and comes within
+    twice its last change of zero, a new contact is possible and True is returned (also when the
+    escape takes too long to sample). True only asks for a closer look, it is never an answer.
+    """
+    x1 = y0[0]
+    v1 = y0[1]
+    if p[10] != 0.0:
+        return v1 > y0[3]
+    m2 = p[5]
+    k2 = p[6]
+    inv_body = p[8]
+    if inv_body == 0.0:
+        centre = 0.0
+        speed_c = 0.0
+        share = 1.0
+        r = y0[2]
+        vr = y0[3]
+        mu = m2
+    else:
+        mb = 1.0 / inv_body
+        mass = m2 + mb
+        centre = (m2 * y0[2] + mb * y0[4]) / mass
+        speed_c = (m2 * y0[3] + mb * y0[5]) / mass
+        share = mb / mass
+        r = y0[2] - y0[4]
+        vr = y0[3] - y0[5]
+        mu = m2 * mb / mass
+    if v1 >= speed_c:
+        return True
+    reach = share * math.sqrt(r * r + mu * vr * vr / k2)
+    lead = x1 - centre + reach
+    if lead <= 0.0:
+        return False
+    t_escape = lead / (speed_c - v1)
+    period = 2.0 * math.pi * math.sqrt(mu / k2)
+    dt = min(t_escape, period) / SCREEN_POINTS
+    n = math.ceil(t_escape / dt)
+    if n > SCREEN_MAX_SAMPLES:
+        return True
+    y = y0.copy()
+    k1 = np.zeros(6)
+    k2v = np.zeros(6)
+    k3 = np.zeros(6)
+    k4 = np.zeros(6)
+    tmp = np.zeros(6)
+    g_old = 0.0
+    falling = True
+    for _ in range(n):
+        _rhs_free(y, p, k1)
+        for i in range(6):
+            tmp[i] = y[i] + 0.5 * dt * k1[i]
+        _rhs_free(tmp, p, k2v)
+        for i in range(6):
+            tmp[i] = y[i] + 0.5 * dt * k2v[i]
+        _rhs_free(tmp, p, k3)
+        for i in range(6):
+            tmp[i] = y[i] + dt * k3[i]
+        _rhs_free(tmp, p, k4)
+        for i in range(6):
+            y[i] += dt / 6.0 * (k1[i] + 2.0 * k2v[i] + 2.0 * k3[i] + k4[i])
+        g = _gfun(y, p)
+        d = y[0] - y[2]
+        if g >= g_old:
+            falling = False
+        if not falling and d > 0.0 and g > -2.0 * abs(g - g_old):
+            return True
+        if d > 0.0 and g > 0.0:
+            return True
+        g_old = g
+    return False
 
 
 @nb.njit(cache=True, parallel=True)

@@ -85,14 +85,19 @@ def separation_function(d: float, dd: float, p: CollisionParams) -> float:
     return spring + p.c1 * dd
 
 
-def make_rhs(imp: Impact, energy: bool = False) -> Callable[[float, np.ndarray], list[float]]:
+def make_rhs(
+    imp: Impact, energy: bool = False, free: bool = False
+) -> Callable[[float, np.ndarray], list[float]]:
     """Right-hand side for solve_ivp over the reduced states of `imp`.
 
     States: ball (x1, v1), then barrel (x2, v2) unless rigid, then body (x3, v3) if free. With
-    `energy`, two quadratures follow: work dissipated in the ball and in the barrel damper.
+    `energy`, two quadratures follow: work dissipated in the ball and in the barrel damper. With
+    `free`, the ball is out of contact: no contact force (ball in free flight, barrel ringing).
     """
     p = imp.params
     m1, k1, c1, a, b, m2, c2 = p.m1, p.k1, p.c1, p.a, p.b, p.m2, p.c2
+    if free:
+        k1 = c1 = 0.0
     k2 = imp.k2
     body = imp.body_mass
     if imp.rigid:
@@ -172,3 +177,60 @@ def mechanical_energy(imp: Impact, y: np.ndarray) -> dict[str, float]:
     if imp.body_mass is not None:
         out["body_kinetic"] = 0.5 * imp.body_mass * v3**2
     return out
+
+
+def contact_scale(imp: Impact) -> float:
+    """Magnitude of the separation function g in contact: k1 L^(1+a-b) + c1 v0, L the compression scale."""
+    p = imp.params
+    length = p.compression_scale(imp.speed)
+    return p.k1 * length ** (1.0 + p.a - p.b) + p.c1 * imp.speed
+
+
+def contact_indicator(imp: Impact, y: np.ndarray) -> float:
+    """> 0 exactly when the ball presses on the barrel (d > 0 and F > 0): min(d G/L, g).
+
+    Continuous where g is; it rises through zero where a new contact begins, whether the ball
+    meets the barrel's surface again (d through 0) or F turns positive while d > 0.
+    """
+    d, dd = relative_motion(imp, y)
+    length = imp.params.compression_scale(imp.speed)
+    return min(d * contact_scale(imp) / length, separation_function(d, dd, imp.params))
+
+
+def escape_time(imp: Impact, y: np.ndarray) -> float:
+    """After a separation: time after which the ball can never touch the barrel again (0: never
+    again from now on; inf: a new contact is certain or cannot be excluded this way).
+
+    Out of contact the barrel (with the body, if free) is a damped linear system whose centre of
+    mass moves at a constant speed V and whose energy of vibration E never grows; so the barrel's
+    surface stays within reach = (share of the relative motion) * sqrt(2 E / k2) of that centre.
+    The ball moves at a constant v1. If v1 <= V, the ball's lead over the centre of mass never
+    grows, so once x1 - X <= -reach we have d = x1 - x2 <= 0 for ever: no contact (contact needs
+    d > 0). That happens at the latest after (x1 - X + reach) / (V - v1). A rigid barrel has
+    reach 0 and d' = v1 - V constant, so g = k1 d|d|^(a-b) + c1 d' falls for ever once d' <= 0.
+    """
+    p = imp.params
+    s = [float(v) for v in y[: imp.n_states]]
+    x1, v1 = s[0], s[1]
+    if imp.rigid:
+        v_base = 0.0 if imp.body_mass is None else s[3]
+        return 0.0 if v1 <= v_base else math.inf
+    x2, v2 = s[2], s[3]
+    k2 = imp.k2
+    if imp.body_mass is None:
+        centre, speed_c, share = 0.0, 0.0, 1.0
+        r, vr, mu = x2, v2, p.m2
+    else:
+        x3, v3 = s[4], s[5]
+        mass = p.m2 + imp.body_mass
+        centre = (p.m2 * x2 + imp.body_mass * x3) / mass
+        speed_c = (p.m2 * v2 + imp.body_mass * v3) / mass
+        share = imp.body_mass / mass
+        r, vr, mu = x2 - x3, v2 - v3, p.m2 * imp.body_mass / mass
+    reach = share * math.sqrt(r * r + mu * vr * vr / k2)
+    lead = x1 - centre + reach
+    if lead <= 0.0 and v1 <= speed_c:
+        return 0.0
+    if v1 >= speed_c:
+        return math.inf
+    return lead / (speed_c - v1)
