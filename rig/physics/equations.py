@@ -234,3 +234,14 @@ def escape_time(imp: Impact, y: np.ndarray) -> float:
     if v1 >= speed_c:
         return math.inf
     return lead / (speed_c - v1)
+
+
+def damping_rate(imp: Impact, y: np.ndarray) -> float:
+    """Decay rate of the relative motion under the ball's damping, c1 |d|^b / (reduced mass), 1/s."""
+    p = imp.params
+    d, _ = relative_motion(imp, y)
+    if imp.rigid:
+        inv = 1.0 / p.m1 + (0.0 if imp.body_mass is None else 1.0 / (p.m2 + imp.body_mass))
+    else:
+        inv = 1.0 / p.m1 + 1.0 / p.m2
+    return p.c1 * abs(d) ** p.b * inv

@@ -18,6 +18,7 @@ from rig.core.errors import ParameterError, SolverError
 from rig.physics.equations import (
     Impact,
     contact_indicator,
+    damping_rate,
     escape_time,
     initial_state,
     make_rhs,
@@ -211,6 +212,20 @@ class _Phases:
                     break
         if sol.status != 1 or len(sol.t_events[0]) == 0:
             raise SolverError(f"contact did not end within {self.t_max:.3g} s at {self.where}")
+        if len(sol.t) >= 3:
+            # The end is located on the dense output of the step that holds it; with b ~ 0 the
+            # relative motion decays at ~c1/m fast enough that a stable step is far too long for
+            # its interpolant (the kernel's _damping_rate). Retake that step short enough.
+            t_prev, y_prev = float(sol.t[-2]), sol.y[:, -2]
+            lam = damping_rate(imp, y_prev)
+            kappa = min(1.0, (40320.0 * self.rtol) ** 0.125)
+            h_est = max(float(sol.t[-1]) - t_prev, t_prev - float(sol.t[-3]))
+            if lam * h_est > kappa:
+                extra = dict(self.options, max_step=0.9 * kappa / lam)
+                extra.pop("first_step", None)
+                sol = self._solve(fun, t_prev, t_stop, y_prev, [ended, dip], **extra)
+                if sol.status != 1 or len(sol.t_events[0]) == 0:
+                    raise SolverError(f"contact did not end within {self.t_max:.3g} s at {self.where}")
         t_end = float(sol.t_events[0][0])
         if t_end < t0 or (t_end == 0.0 and t0 == 0.0):
             raise SolverError(f"contact ended at t = {t_end!r} (before it began) at {self.where}")
