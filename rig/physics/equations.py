@@ -233,7 +233,26 @@ def escape_time(imp: Impact, y: np.ndarray) -> float:
         return 0.0
     if v1 >= speed_c:
         return math.inf
-    return lead / (speed_c - v1)
+    wait = lead / (speed_c - v1)
+    if imp.body_mass is None:
+        wait = min(wait, _force_escape_time(imp, x1, v1, reach))
+    return wait
+
+
+def _force_escape_time(imp: Impact, x1: float, v1: float, reach: float) -> float:
+    """Clamped barrel: when g = k1 d|d|^(a-b) + c1 (v1 - v2) must stay < 0 for ever.
+
+    The barrel's speed never exceeds w reach (w = sqrt(k2/m2), energy bound) and d <= x1 + reach.
+    If the ball recedes faster (v1 + w reach < 0), g <= k1 (x1 + reach)^(1+a-b) - c1 (-v1 - w reach),
+    whose first term only falls as the ball leaves: once it is below the second, no contact can
+    begin. inf when this bound says nothing.
+    """
+    p = imp.params
+    margin = -v1 - math.sqrt(imp.k2 / p.m2) * reach
+    if margin <= 0.0 or p.c1 == 0.0:
+        return math.inf
+    x_safe = (p.c1 * margin / p.k1) ** (1.0 / (1.0 + p.a - p.b)) - reach
+    return max(0.0, (x1 - x_safe) / -v1)
 
 
 def damping_rate(imp: Impact, y: np.ndarray) -> float:

@@ -250,7 +250,9 @@ class _Phases:
         met.direction = 1  # type: ignore[attr-defined]
         # short steps so that a brief new contact cannot hide inside one step
         period = math.inf if imp.hoop_hz is None else 1.0 / imp.hoop_hz
-        max_step = min(period / 32.0, 50.0 * imp.time_scale())
+        # (capped at 20000 steps a flight: a creeping ball on a stiff ringing barrel can take
+        # ~1e5 barrel periods to get out of reach; there a contact shorter than a step may be missed)
+        max_step = max(min(period / 32.0, 50.0 * imp.time_scale()), horizon / 20000.0)
         sol = self._solve(self.free_fun, t0, t0 + horizon, y0, [met], max_step=max_step)
         if sol.status == 1 and len(sol.t_events[0]):
             return True, float(sol.t_events[0][0]), np.asarray(sol.y_events[0][0], dtype=float)
