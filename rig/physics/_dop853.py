@@ -397,7 +397,7 @@ def may_meet_again(y0: np.ndarray, p: np.ndarray) -> bool:
     if lead <= 0.0:
         return False
     t_escape = lead / (speed_c - v1)
-    if inv_body == 0.0 and p[2] > 0.0:
+    if inv_body == 0.0 and p[2] > 0.0 and 1.0 + p[3] - p[4] > 0.0:
         # g <= k1 (x1 + reach)^(1+a-b) - c1 (-v1 - w reach): no contact once that is < 0
         margin = -v1 - math.sqrt(k2 / m2) * reach
         if margin > 0.0:

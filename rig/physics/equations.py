@@ -249,7 +249,7 @@ def _force_escape_time(imp: Impact, x1: float, v1: float, reach: float) -> float
     """
     p = imp.params
     margin = -v1 - math.sqrt(imp.k2 / p.m2) * reach
-    if margin <= 0.0 or p.c1 == 0.0:
+    if margin <= 0.0 or p.c1 == 0.0 or 1.0 + p.a - p.b <= 0.0:
         return math.inf
     x_safe = (p.c1 * margin / p.k1) ** (1.0 / (1.0 + p.a - p.b)) - reach
     return max(0.0, (x1 - x_safe) / -v1)

@@ -107,7 +107,7 @@ def check_physical(imp: Impact, res: CollisionResult) -> None:
     if imp.rigid:
         # The barrel is fixed, so receding from it means rebounding: COR >= 0. A flexible barrel can
         # still be moving forward at separation and the ball with it (v1 < v2 but v1 > 0), so there
-        # COR < 0 is physical, e.g. about -0.4 at 100 Hz with the paper's constants.
+        # COR < 0 is physical (the ball leaves for good only if the barrel cannot catch it up).
         if p.c1 > 0.0:
             assert res.cor >= 0.0
         else:
@@ -395,19 +395,22 @@ GRAZING_HOOPS = np.arange(150.0, 156.8, 0.25)  # paper's constants at 60.8 m/s
 
 @pytest.mark.parametrize("name", ["fast", "reference"])
 def test_grazing_separation_is_not_skipped(paper_params: CollisionParams, name: str) -> None:
-    """Near 155 Hz F dips below zero for ~40 us at 0.56 ms; contact must end there (COR ~ -0.40).
+    """Near 155 Hz F dips below zero for ~40 us at 0.56 ms: a brief separation, then contact again.
 
-    The model's COR jumps from -0.40 to +0.27 at ~156.9 Hz, where that first dip vanishes; below
-    it the solvers return either answer depending on rtol (fast: 0.265 at 1e-10, -0.401 at 1e-12).
+    The first zero of F must still be found (the independent oracle locates it; the solvers must
+    report more than one contact there), and the COR is the ball's speed after the last contact:
+    ~+0.26, continuous in the hoop frequency (it used to be the -0.40 of the first zero, jumping to
+    +0.27 at ~156.9 Hz). tests/physics/test_recontact.py checks the COR against a clipped-force solve.
     """
     solver = CONVERGENCE_SOLVERS["fast" if name == "fast" else "DOP853"]
     missed = []
     for hoop in GRAZING_HOOPS:
-        cor, t_end = first_separation(paper_params, 60.8, float(hoop), max_step=1e-6)
+        cor_first, _ = first_separation(paper_params, 60.8, float(hoop), max_step=1e-6)
+        assert cor_first < 0.0  # the ball is still moving into the barrel at the first zero of F
         res = solver(Impact(paper_params, 60.8, float(hoop)), 1e-10)
-        if abs(res.cor - cor) > 1e-6 or abs(res.contact_time_s / t_end - 1.0) > 1e-6:
-            missed.append((float(hoop), res.cor, cor))
-    assert not missed, f"first separation missed at (hoop, COR, true COR): {missed}"
+        if res.contacts < 2 or not 0.2 < res.cor < 0.3:
+            missed.append((float(hoop), res.cor, res.contacts))
+    assert not missed, f"brief separation missed at (hoop, COR, contacts): {missed}"
 
 
 def test_light_barrel_contact_outlasting_time_limit() -> None:

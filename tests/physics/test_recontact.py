@@ -103,3 +103,21 @@ def test_kernel_agrees_with_reference_through_re_contacts(
     assert -1.0 <= kern.cor <= 1.0
     assert kern.cor == pytest.approx(ref.cor, abs=1e-5)
     assert kern.contacts == ref.contacts
+
+
+def test_cli_reports_the_number_of_contacts(capsys: pytest.CaptureFixture[str]) -> None:
+    """`rig model cor` with a = 0 at 200 Hz: three contacts, COR as the clipped oracle has it."""
+    import json
+
+    from rig.cli import main
+
+    assert main(["model", "cor", "--speed", "60.8", "--hoop", "200", "--set", "a=0", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    cor, contacts = clipped_oracle(CollisionParams.build(a=0.0), 60.8, 200.0, 0.012)
+    assert out["contacts"] == contacts == 3
+    assert out["cor"] == pytest.approx(cor, abs=2e-6)
+    argv = ["model", "curve", "--speed", "60.8", "--hoop-min", "200", "--hoop-max", "2000"]
+    assert main([*argv, "--points", "4", "--set", "a=0", "--json"]) == 0
+    curve_out = json.loads(capsys.readouterr().out)
+    assert curve_out["contacts"][0] == 3
+    assert len(curve_out["contacts"]) == 4
