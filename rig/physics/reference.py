@@ -75,6 +75,7 @@ def _first_step(imp: Impact, first_step: float | str) -> dict[str, float]:
 
 
 MAX_CONTACTS = 1000
+MAX_FLIGHT_STEPS = 40_000  # free-flight steps allowed in all (~1 s) before refusing
 
 
 def solve_reference(
@@ -164,6 +165,7 @@ class _Phases:
             atol = np.concatenate([atol, [rtol * ke0, rtol * ke0]])
         self.atol = atol
         self.nfev = 0
+        self.flight_steps = 0
         self.released = 0.0  # ball's elastic energy dropped over free flights, J
         self.t_max = _time_limit(imp)
         self.where = f"speed {imp.speed:g} m/s, hoop {imp.hoop_hz or 'rigid'} Hz, {method} rtol {rtol:g}"
@@ -245,6 +247,7 @@ class _Phases:
         imp = self.imp
 
         def met(t: float, y: np.ndarray) -> float:
+            self._spend()
             # the flight starts at g = 0 (to within the event's tolerance): counting its start as
             # out of contact lets a gap so brief that it closes inside the first step be seen
             c = contact_indicator(imp, y)
@@ -261,6 +264,15 @@ class _Phases:
         if sol.status == 1 and len(sol.t_events[0]):
             return True, float(sol.t_events[0][0]), np.asarray(sol.y_events[0][0], dtype=float)
         return False, float(sol.t[-1]), np.asarray(sol.y[:, -1], dtype=float)
+
+    def _spend(self) -> None:
+        """Count a step of a free flight; refuse once the budget is spent."""
+        self.flight_steps += 1
+        if self.flight_steps > MAX_FLIGHT_STEPS:
+            raise SolverError(
+                f"the ball creeps off for more than {MAX_FLIGHT_STEPS} steps of free flight (a very slow"
+                f" rebound from a stiff or over-damped barrel) at {self.where}"
+            )
 
     def _stored(self, y: np.ndarray) -> float:
         return mechanical_energy(self.imp, y)["ball_stored"]
