@@ -226,9 +226,10 @@ class _Phases:
             lam = damping_rate(imp, y_prev)
             kappa = min(1.0, (40320.0 * self.rtol) ** 0.125)
             h_est = max(float(sol.t[-1]) - t_prev, t_prev - float(sol.t[-3]))
-            if lam * h_est > kappa:
+            if lam * h_est > kappa and self.method in ("DOP853", "RK45"):  # explicit methods only
                 extra = dict(self.options, max_step=0.9 * kappa / lam)
                 extra.pop("first_step", None)
+                t_last = min(t_last, float(sol.t[-1]) + 2.0 * h_est)
                 sol = self._solve(fun, t_prev, t_last, y_prev, [ended, dip], **extra)
                 if sol.status != 1 or len(sol.t_events[0]) == 0:
                     raise SolverError(f"contact did not end within {self.t_max:.3g} s at {self.where}")
