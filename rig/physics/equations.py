@@ -227,16 +227,49 @@ def escape_time(imp: Impact, y: np.ndarray) -> float:
         speed_c = (p.m2 * v2 + imp.body_mass * v3) / mass
         share = imp.body_mass / mass
         r, vr, mu = x2 - x3, v2 - v3, p.m2 * imp.body_mass / mass
-    reach = share * math.sqrt(r * r + mu * vr * vr / k2)
+    amplitude = math.sqrt(r * r + mu * vr * vr / k2)
+    reach = share * amplitude
     lead = x1 - centre + reach
     if lead <= 0.0 and v1 <= speed_c:
         return 0.0
     if v1 >= speed_c:
         return math.inf
+    if g_cannot_rise(imp, x1 - x2, speed_c - v1, amplitude, share, mu):
+        return 0.0
     wait = lead / (speed_c - v1)
     if imp.body_mass is None:
         wait = min(wait, _force_escape_time(imp, x1, v1, reach))
     return wait
+
+
+def g_cannot_rise(imp: Impact, d0: float, recede: float, amplitude: float, share: float, mu: float) -> bool:
+    """Out of contact, g = k1 d|d|^(a-b) + c1 d' can never rise above zero while d > 0 (proof below).
+
+    The barrel rings about its centre of mass with an amplitude A that never grows, so its speed
+    and acceleration relative to that centre are at most share w A and share (k2 + c2 w) A / mu
+    (w = sqrt(k2/mu)). If the ball recedes from the centre faster than the barrel's largest speed,
+    by `margin`, then d' <= -margin for ever: contact needs k1 d^(1+a-b) > c1 margin (d > d_crit)
+    and d only falls. Where d > d_crit, g' = k1 (1+a-b) d^(a-b) d' - c1 a2 <= -k1 (1+a-b) q margin
+    + c1 a2max (q the least d^(a-b) there); if that is negative, g only falls wherever it could be
+    positive, and it starts from zero at the separation. Same test as the kernel's g_cannot_rise.
+    """
+    p = imp.params
+    expo = 1.0 + p.a - p.b
+    if p.c1 <= 0.0 or expo <= 0.0:
+        return False
+    k2 = imp.k2
+    w = math.sqrt(k2 / mu)
+    margin = recede - share * w * amplitude
+    if margin <= 0.0:
+        return False
+    if d0 <= 0.0:
+        return True
+    d_crit = (p.c1 * margin / p.k1) ** (1.0 / expo)
+    if d0 <= d_crit:
+        return True
+    q = d_crit ** (expo - 1.0) if expo >= 1.0 else d0 ** (expo - 1.0)
+    a2max = share * (k2 + p.c2 * w) * amplitude / mu
+    return p.k1 * expo * q * margin > p.c1 * a2max
 
 
 def _force_escape_time(imp: Impact, x1: float, v1: float, reach: float) -> float:

@@ -206,7 +206,11 @@ class _Phases:
 
         dip.direction = 1  # type: ignore[attr-defined]  # g' from - to +: a minimum of g
         t_stop = t0 + self.t_max
-        sol = self._solve(fun, t0, t_stop, y0, [ended, dip], **self.options)
+        options = self.options
+        if t0 > 0.0 and imp.hoop_hz is not None:
+            # a later contact may be a brief touch of a ringing barrel: steps short enough to see it end
+            options = dict(options, max_step=1.0 / (32.0 * imp.hoop_hz))
+        sol = self._solve(fun, t0, t_stop, y0, [ended, dip], **options)
         t_last = t_stop
         if sol.status == 1 and len(sol.t_events[0]):
             t_sep = float(sol.t_events[0][0])
@@ -214,7 +218,7 @@ class _Phases:
                 if t0 < t_m < t_sep and separation_function(*relative_motion(imp, y_m), p) < 0.0:
                     # F dipped below zero inside one step: contact really ended before t_m
                     t_last = float(t_m)
-                    sol = self._solve(fun, t0, t_last, y0, [ended, dip], **self.options)
+                    sol = self._solve(fun, t0, t_last, y0, [ended, dip], **options)
                     break
         if sol.status != 1 or len(sol.t_events[0]) == 0:
             raise SolverError(f"contact did not end within {self.t_max:.3g} s at {self.where}")
@@ -227,7 +231,7 @@ class _Phases:
             kappa = min(1.0, (40320.0 * self.rtol) ** 0.125)
             h_est = max(float(sol.t[-1]) - t_prev, t_prev - float(sol.t[-3]))
             if lam * h_est > kappa and self.method in ("DOP853", "RK45"):  # explicit methods only
-                extra = dict(self.options, max_step=0.9 * kappa / lam)
+                extra = dict(options, max_step=min(0.9 * kappa / lam, options.get("max_step", math.inf)))
                 extra.pop("first_step", None)
                 t_last = min(t_last, float(sol.t[-1]) + 2.0 * h_est)
                 sol = self._solve(fun, t_prev, t_last, y_prev, [ended, dip], **extra)

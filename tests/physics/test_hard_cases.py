@@ -15,7 +15,7 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
-from hypothesis import currently_in_test_context, event, given, note
+from hypothesis import currently_in_test_context, event, example, given, note
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
@@ -180,6 +180,10 @@ NOISE = 1e-9  # COR noise of the solvers at rtol 1e-12
 
 
 @given(speed=SPEED, a=EXPONENT, b=EXPONENT, c1=st.sampled_from([0.0, 5000.0]) | log_uniform(100.0, 2e4))
+# b = 0, a = 1, an over-damped ball: it creeps off at 1.4e-6 m/s while a 1 MHz barrel rings under it
+# (27 attometres): ~85 touches, each ~1 us, change the COR by 1.6e-10 in all (a clipped-force solve
+# agrees). Following them once stepped over a touch and ran to the time limit ("contact did not end").
+@example(speed=1.0, a=1.0, b=0.0, c1=9652.93130545939)
 def test_rigid_barrel_is_the_limit_of_the_flexible_one(speed: float, a: float, b: float, c1: float) -> None:
     """Over all exponents: |COR(1 MHz) - COR_rigid| < 2e-5 and smaller than at 20 kHz and 96 kHz.
 
