@@ -289,11 +289,15 @@ def _force_escape_time(imp: Impact, x1: float, v1: float, reach: float) -> float
 
 
 def damping_rate(imp: Impact, y: np.ndarray) -> float:
-    """Decay rate of the relative motion under the ball's damping, c1 |d|^b / (reduced mass), 1/s."""
+    """Decay rate of the relative motion under the ball's damping, c1 |d|^b / (reduced mass), 1/s,
+    where it exceeds twice the contact's own rate sqrt(k1 (1+a) |d|^a / reduced mass); else 0."""
     p = imp.params
     d, _ = relative_motion(imp, y)
     if imp.rigid:
         inv = 1.0 / p.m1 + (0.0 if imp.body_mass is None else 1.0 / (p.m2 + imp.body_mass))
     else:
         inv = 1.0 / p.m1 + 1.0 / p.m2
-    return p.c1 * abs(d) ** p.b * inv
+    lam = p.c1 * abs(d) ** p.b * inv
+    if lam * lam <= 4.0 * p.k1 * (1.0 + p.a) * abs(d) ** p.a * inv:
+        return 0.0
+    return lam

@@ -194,7 +194,14 @@ def test_rigid_barrel_is_the_limit_of_the_flexible_one(speed: float, a: float, b
     """
     params = CollisionParams.build(a=a, b=b, c1=c1)
     rigid = fast.solve(Impact(params, speed), 1e-12).cor
-    cor, _ = curve.cor_grid(params, speed, RIGID_LIMIT_HOOPS, 1e-12)
+    try:
+        cor, _ = curve.cor_grid(params, speed, RIGID_LIMIT_HOOPS, 1e-12)
+    except SolverError as exc:
+        # b ~ 0 only (the issue allows a refusal at b = 0): an over-damped ball creeping off at
+        # ~1e-9 m/s (0.01 m/s in, COR ~ 1e-7) is touched again and again by the ringing barrel for
+        # seconds (seen at a = 1, b = 1e-12, c1 = 10810, 95.6 kHz)
+        assert b < 1e-6 and "creeps off" in str(exc)
+        return
     gap = np.abs(cor - rigid)
     note(f"gaps {gap}")
     assert gap[-1] < 2e-5

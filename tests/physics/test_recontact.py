@@ -38,12 +38,16 @@ def clipped_oracle(params: CollisionParams, speed: float, hoop: float, t_end: fl
 
     atol = 1e-12 * np.array([1e-2, speed, 1e-2, speed])
     grid = np.linspace(0.0, t_end, 200_001)
+    # max_step 1 us (contacts here last ~1 ms, the briefest separation ~40 us); 0.2 us gives the
+    # same COR to 4e-12 at four times the cost
     sol = solve_ivp(
-        rhs, (0.0, t_end), [0.0, speed, 0.0, 0.0], "DOP853", rtol=1e-11, atol=atol, max_step=2e-7, t_eval=grid
+        rhs, (0.0, t_end), [0.0, speed, 0.0, 0.0], "DOP853", rtol=1e-11, atol=atol, max_step=1e-6, t_eval=grid
     )
     assert sol.status == 0
     x1, v1, x2, v2 = sol.y
-    pressing = np.array([force(p - q, u - w) > 0.0 for p, u, q, w in zip(x1, v1, x2, v2, strict=True)])
+    d = x1 - x2
+    overlap = np.where(d > 0.0, d, 0.0)
+    pressing = (d > 0.0) & (k1 * overlap ** (1.0 + a) + c1 * (v1 - v2) * overlap**b > 0.0)
     contacts = int(pressing[0]) + int(np.sum(pressing[1:] & ~pressing[:-1]))
     # out of reach for good at the end: ball receding, beyond the barrel's largest excursion
     reach = math.sqrt(x2[-1] ** 2 + m2 * v2[-1] ** 2 / k2)
