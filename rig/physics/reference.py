@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
 
 from rig.core.errors import ParameterError, SolverError
 from rig.physics.equations import (
@@ -265,10 +266,41 @@ class _Phases:
         # (capped at 20000 steps a flight: a creeping ball on a stiff ringing barrel can take
         # ~1e5 barrel periods to get out of reach; there a contact shorter than a step may be missed)
         max_step = max(min(period / 32.0, 50.0 * imp.time_scale()), horizon / 20000.0)
-        sol = self._solve(self.free_fun, t0, t0 + horizon, y0, [met], max_step=max_step)
-        if sol.status == 1 and len(sol.t_events[0]):
-            return True, float(sol.t_events[0][0]), np.asarray(sol.y_events[0][0], dtype=float)
+        def peak(t: float, y: np.ndarray) -> float:
+            return relative_motion(imp, y)[1]  # d' falling through 0: a maximum of the overlap d
+
+        peak.direction = -1  # type: ignore[attr-defined]
+        sol = self._solve(
+            self.free_fun, t0, t0 + horizon, y0, [met, peak], max_step=max_step, dense_output=True
+        )
+        t_met = float(sol.t_events[0][0]) if sol.status == 1 and len(sol.t_events[0]) else math.inf
+        for t_p, y_p in zip(sol.t_events[1], sol.y_events[1], strict=True):
+            # A graze (the barrel barely catching the ball) can be far shorter than a step, so the
+            # indicator is negative at both ends of the step that holds it; but d peaks inside
+            # it, and d' changes sign over a long time, so the peak is found. d > 0 there: contact.
+            if t_p >= t_met:
+                break
+            if contact_indicator(imp, y_p) > 0.0:
+                return True, *self._contact_start(sol, t0, float(t_p))
+        if math.isfinite(t_met):
+            return True, t_met, np.asarray(sol.y_events[0][0], dtype=float)
         return False, float(sol.t[-1]), np.asarray(sol.y[:, -1], dtype=float)
+
+    def _contact_start(self, sol: Any, t0: float, t_peak: float) -> tuple[float, np.ndarray]:
+        """Where the indicator rises through 0 before a peak of d inside the contact (dense output)."""
+        imp = self.imp
+
+        def level(t: float) -> float:
+            return contact_indicator(imp, sol.sol(t))
+
+        before = sol.t[sol.t < t_peak]
+        t_lo = float(before[-1]) if before.size else t0
+        if t_lo <= t0 or level(t_lo) >= 0.0:
+            t_lo = t0 + 1e-9 * (t_peak - t0)
+        if level(t_lo) >= 0.0:
+            return t_lo, np.asarray(sol.sol(t_lo), dtype=float)
+        t_c = brentq(level, t_lo, t_peak, xtol=1e-14 * max(1.0, t_peak), rtol=4.0 * np.finfo(float).eps)
+        return float(t_c), np.asarray(sol.sol(t_c), dtype=float)
 
     def _spend(self) -> None:
         """Count a step of a free flight; refuse once the budget is spent."""

@@ -125,3 +125,19 @@ def test_cli_reports_the_number_of_contacts(capsys: pytest.CaptureFixture[str]) 
     curve_out = json.loads(capsys.readouterr().out)
     assert curve_out["contacts"][0] == 3
     assert len(curve_out["contacts"]) == 4
+
+
+def test_a_graze_shorter_than_a_free_flight_step_is_a_contact() -> None:
+    """a = 0 at 219.26 Hz: the barrel catches the ball a third time for 64 us (d peaks at ~8 nm),
+    shorter than a free-flight step (1/32 period, 143 us). It once went unseen there (2 contacts,
+    COR 0.2206 against the oracle's 0.2256) while 219.25 Hz had 3: a jump of 5e-3 in 0.01 Hz."""
+    params = CollisionParams.build(a=0.0)
+    cor, contacts = clipped_oracle(params, 60.8, 219.26, 0.012)
+    assert contacts == 3
+    imp = Impact(params, 60.8, 219.26)
+    for res in (solve_reference(imp, "DOP853", 1e-10), fast.solve(imp)):
+        assert res.contacts == contacts
+        assert res.cor == pytest.approx(cor, abs=2e-6)
+    hoops = np.arange(219.0, 219.5001, 0.01)
+    cors, _ = curve.cor_grid(params, 60.8, hoops, 1e-10)
+    assert np.abs(np.diff(cors)).max() < 2e-4  # slope ~7e-3 per Hz: ~7e-5 a step
