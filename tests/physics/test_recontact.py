@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
 from rig.physics import curve, fast
-from rig.physics.equations import Impact
+from rig.physics.equations import Impact, escape_time
 from rig.physics.params import CollisionParams
 from rig.physics.reference import solve_reference
 
@@ -141,3 +141,35 @@ def test_a_graze_shorter_than_a_free_flight_step_is_a_contact() -> None:
     hoops = np.arange(219.0, 219.5001, 0.01)
     cors, _ = curve.cor_grid(params, 60.8, hoops, 1e-10)
     assert np.abs(np.diff(cors)).max() < 2e-4  # slope ~7e-3 per Hz: ~7e-5 a step
+
+
+@pytest.mark.parametrize("body", [None, 0.5])
+@pytest.mark.parametrize("speed", [26.8, 60.8])
+def test_separations_proved_final_stay_final(
+    paper: CollisionParams, speed: float, body: float | None
+) -> None:
+    """Bat-like barrels (1.4-20 kHz): the closed-form proof settles the separation without integrating;
+    an independent free flight (written here, run 20 barrel periods on a fine grid) never presses again."""
+    k1, c1, a, b, m2, c2 = paper.k1, paper.c1, paper.a, paper.b, paper.m2, paper.c2
+    for hoop in np.geomspace(1400.0, 2e4, 7):
+        imp = Impact(paper, speed, float(hoop), body_mass=body)
+        res = fast.solve(imp, 1e-10)
+        assert res.contacts == 1
+        state = np.zeros(6)
+        state[: imp.n_states] = res.final_state[: imp.n_states]
+        assert escape_time(imp, state) == 0.0  # proved, not sampled
+        k2 = m2 * (2.0 * math.pi * hoop) ** 2
+        mb = math.inf if body is None else body
+
+        def free(t: float, y: np.ndarray, k2: float = k2, mb: float = mb) -> list[float]:
+            spring = k2 * (y[2] - y[4]) + c2 * (y[3] - y[5])
+            return [y[1], 0.0, y[3], -spring / m2, y[5], 0.0 if body is None else spring / mb]
+
+        t_end = 20.0 / hoop
+        grid = np.linspace(0.0, t_end, 20_001)
+        sol = solve_ivp(free, (0.0, t_end), state, "DOP853", rtol=1e-12, atol=1e-15, t_eval=grid)
+        d = sol.y[0] - sol.y[2]
+        overlap = np.where(d > 0.0, d, 0.0)
+        g = k1 * overlap ** (1.0 + a - b) + c1 * (sol.y[1] - sol.y[3])
+        # g starts at its located zero (~1e-11 N/m^b by rounding); pressing means more than that
+        assert not np.any((d > 0.0) & (g > 1e-9 * c1 * speed)), f"pressing again at {hoop:.0f} Hz"
