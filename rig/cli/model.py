@@ -81,6 +81,7 @@ def cmd_cor(args: argparse.Namespace) -> int:
         "cor_rigid": e_rigid,
         "efficiency": res.cor / e_rigid,
         "contact_time_s": res.contact_time_s,
+        "contacts": res.contacts,
         "rtol": rtol,
         "nfev": res.nfev,
         "params": params.model_dump(),
@@ -114,6 +115,7 @@ def cmd_curve(args: argparse.Namespace) -> int:
         "efficiency": curve.efficiency.tolist(),
         "cor": curve.cor.tolist(),
         "contact_time_s": curve.contact_time_s.tolist(),
+        "contacts": [] if curve.contacts is None else curve.contacts.tolist(),
     }
     if args.json:
         emit(args, payload, "")
@@ -134,12 +136,14 @@ def _print_curve(curve: Any, rows: int = 16) -> None:
     table = Table(
         title=f"Normalized collision efficiency at {curve.speed:g} m/s (COR_rigid = {curve.cor_rigid:.4f})"
     )
-    for col in ("hoop Hz", "COR", "eta", ""):
+    for col in ("hoop Hz", "COR", "eta", "contacts", ""):
         table.add_column(col, justify="right" if col else "left")
+    contacts = np.ones(curve.hoop_hz.size, dtype=int) if curve.contacts is None else curve.contacts
     for i in idx:
         eta = float(curve.efficiency[i])
         bar = "#" * (1 + int(30 * (eta - lo) / (hi - lo or 1.0)))
-        table.add_row(f"{curve.hoop_hz[i]:.0f}", f"{curve.cor[i]:.4f}", f"{eta:.4f}", bar)
+        row = (f"{curve.hoop_hz[i]:.0f}", f"{curve.cor[i]:.4f}", f"{eta:.4f}", str(int(contacts[i])), bar)
+        table.add_row(*row)
     console = Console()
     console.print(table)
     where = "between grid points" if curve.optimum_interior else "at the end of the grid"
