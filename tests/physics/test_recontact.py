@@ -173,3 +173,42 @@ def test_separations_proved_final_stay_final(
         g = k1 * overlap ** (1.0 + a - b) + c1 * (sol.y[1] - sol.y[3])
         # g starts at its located zero (~1e-11 N/m^b by rounding); pressing means more than that
         assert not np.any((d > 0.0) & (g > 1e-9 * c1 * speed)), f"pressing again at {hoop:.0f} Hz"
+
+
+def test_cli_curve_through_the_old_jump_is_continuous() -> None:
+    """`rig model curve` across 150-165 Hz at 60.8 m/s (the COR jumped -0.401 -> +0.268 at ~157 Hz).
+
+    The step between neighbouring points stays the size of the smooth slope, and the number of
+    contacts drops from 2 to 1 inside the range.
+    """
+    import contextlib
+    import itertools
+    import io
+    import json
+
+    from rig.cli import main
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        code = main(
+            [
+                "model",
+                "curve",
+                "--speed",
+                "60.8",
+                "--hoop-min",
+                "150",
+                "--hoop-max",
+                "165",
+                "--points",
+                "61",
+                "--json",
+            ]
+        )
+    assert code == 0
+    d = json.loads(out.getvalue())
+    cor = d["cor"]
+    steps = [abs(b - a) for a, b in itertools.pairwise(cor)]
+    assert all(c > 0 for c in cor)
+    assert max(steps) < 3 * sorted(steps)[len(steps) // 2]
+    assert d["contacts"][0] == 2 and d["contacts"][-1] == 1
