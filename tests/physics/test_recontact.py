@@ -182,8 +182,8 @@ def test_cli_curve_through_the_old_jump_is_continuous() -> None:
     contacts drops from 2 to 1 inside the range.
     """
     import contextlib
-    import itertools
     import io
+    import itertools
     import json
 
     from rig.cli import main
