@@ -37,6 +37,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_scene.py
 	$(BIN)/python benchmarks/bench_certify.py
 	$(BIN)/python benchmarks/bench_serve.py --repeat 2
+	$(BIN)/python benchmarks/bench_crosscheck.py --populations 5
 
 accuracy: $(STAMP)
 	$(BIN)/python benchmarks/accuracy_doc.py

@@ -2,12 +2,19 @@
 
 The decision rule (docs/procedures.md): with guarded acceptance a bat passes only when its mean
 metric plus the expanded uncertainty k u stays within the limit; with the simple rule, when the
-mean alone does. The model cross-check predicts the metric from the bat's hoop frequency.
+mean alone does. The model cross-check predicts the metric from the bat's hoop frequency: with a
+calibration (rig model calibrate; named by the procedure or the rig config, recorded whole in
+RunStarted) it gives the calibrated prediction interval and flags a bat outside it
+(rig.population.crosscheck); without one it shows the raw prediction and flags nothing, because
+the model's absolute level is not validated.
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 from dataclasses import asdict, replace
+from pathlib import Path
 from typing import Any
 
 from protocols.procedure import Metric, Procedure
@@ -16,7 +23,7 @@ from protocols.state import RunState
 from rig.core.bat import Barrel, BatSpec
 from rig.core.config import RigConfig
 from rig.core.devices import Environment, Recoil
-from rig.core.errors import RigError
+from rig.core.errors import ConfigError, RigError
 from rig.measure.drag import AirDensity, lab_air
 from rig.measure.metrics import DEFAULT_SWING, DEFINITIONS, compute_metrics
 from rig.measure.model import (
@@ -33,6 +40,13 @@ from rig.measure.tradeoff import tradeoff_table
 from rig.measure.uncertainty import budget, u_with_scatter
 from rig.measure.validity import Invalidity, ValidityLimits, check_shot, is_valid
 from rig.physics import DEFAULT_PARAMS, PivotedBat, predict_bat
+from rig.population.calfile import CalibrationFile, load_calibration
+from rig.population.crosscheck import crosscheck_at
+
+UNCALIBRATED = (
+    "uncalibrated: the model's absolute value is not validated (the paper validates only normalized"
+    " efficiency); the prediction is shown, nothing is flagged"
+)
 
 NOMINAL_AIR = Environment(temperature_c=20.0, humidity_pct=50.0)  # when no check is recorded
 
@@ -234,7 +248,7 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> d
         "edition": p.edition,
         "budget": per_bat.as_dict(),
         "drag": drag_summary(config, state, inputs, name, per_bat.value(name)),
-        "cross_check": cross_check(p, bat, v_in_mean, q, moi, mean),
+        "cross_check": cross_check(p, bat, v_in_mean, q, moi, mean, u, state.calibration),
         "tradeoff": [
             r.as_dict() for r in tradeoff_table(per_hit, name, max_hits=12, cycle_s=config.cannon_cycle_s)
         ],
@@ -265,30 +279,127 @@ def drag_summary(
     }
 
 
-def cross_check(
-    p: Procedure, bat: BatSpec, v_in: float, q: float, moi: float, measured: float
+def run_calibration(p: Procedure, config: RigConfig) -> dict[str, Any] | None:
+    """The calibration a new run uses, as RunStarted records it (None: no calibration named).
+
+    Named by the procedure (`calibration`) or the rig config ([model] calibration); both naming
+    different files is refused, as are a file that does not load, another metric or another speed.
+    The record holds the file's path, sha256 and whole content, so that a resumed run and a report
+    made later use this very calibration whatever has become of the file.
+    """
+    named = {k: v for k, v in (("procedure", p.calibration), ("rig config", config.model.calibration)) if v}
+    if not named:
+        return None
+    if len({str(Path(v).resolve()) for v in named.values()}) > 1:
+        raise ConfigError(
+            f"the procedure names calibration {named['procedure']} and the rig config {named['rig config']}:"
+            " name one",
+            source="calibration",
+        )
+    by, path = next(iter(named.items()))
+    cal = load_calibration(path)
+    if cal.metric != p.standard.value:
+        raise ConfigError(
+            f"a {cal.metric} calibration; the procedure certifies {p.standard.value}", source=path
+        )
+    if abs(cal.speed_m_s - p.target_speed_m_s) > p.speed_tolerance_m_s:
+        raise ConfigError(
+            f"calibrated at {cal.speed_m_s:g} m/s; the procedure shoots at {p.target_speed_m_s:g} m/s",
+            source=path,
+        )
+    data = Path(path).read_bytes()
+    return {
+        "path": str(path),
+        "named_by": by,
+        "sha256": hashlib.sha256(data).hexdigest(),
+        "file": json.loads(data),
+    }
+
+
+def _uncalibrated(
+    p: Procedure, bat: BatSpec, v_in: float, q: float, moi: float, measured: float, note: str
 ) -> dict[str, Any]:
-    """The collision model's prediction at the bat's hoop frequency, next to the measured value."""
-    if bat.hoop_hz is None and bat.barrel is not Barrel.WOOD:
-        return {"predicted": None, "note": "no hoop frequency in the bat file: no model cross-check"}
     hoop = None if bat.barrel is Barrel.WOOD else bat.hoop_hz
     params = DEFAULT_PARAMS.model_copy(update={"m1": p.ball.mass_kg})
     pred = predict_bat(params, v_in, hoop, PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q))
     m = compute_metrics(v_in, pred.e_a * v_in, q, moi, p.ball.mass_kg, bat.length_m)
     predicted = m.as_dict()[p.standard.value]
-    diff = measured - predicted
-    flagged = abs(diff) > p.cross_check_tolerance
     return {
+        "calibrated": False,
         "predicted": predicted,
         "measured": measured,
-        "difference": diff,
-        "tolerance": p.cross_check_tolerance,
+        "difference": measured - predicted,
+        "interval": None,
+        "z": None,
         "hoop_hz": hoop,
         "model": "pivoted bat, rigid barrel" if hoop is None else "pivoted bat with hoop mode (Eqs. 1-2)",
-        "flagged": flagged,
-        "note": (
-            "measured performance out of line with the hoop frequency: possibly altered bat or rig fault"
-            if flagged
-            else "measured performance consistent with the hoop frequency"
-        ),
+        "flagged": None,
+        "consistent": None,
+        "note": note,
+    }
+
+
+def cross_check(
+    p: Procedure,
+    bat: BatSpec,
+    v_in: float,
+    q: float,
+    moi: float,
+    measured: float,
+    u: float | None = None,
+    calibration: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """The model's prediction at the bat's hoop frequency next to the measured value (u: its k = 1 u).
+
+    With `calibration` (as run_calibration records it) the calibrated prediction interval and the
+    flag; without, the uncalibrated prediction and no flag.
+    """
+    if bat.hoop_hz is None and bat.barrel is not Barrel.WOOD:
+        return {
+            "predicted": None,
+            "flagged": None,
+            "note": "no hoop frequency in the bat file: no model cross-check",
+        }
+    if calibration is None:
+        return _uncalibrated(p, bat, v_in, q, moi, measured, UNCALIBRATED)
+    if bat.barrel is Barrel.WOOD or bat.hoop_hz is None:
+        note = "the calibration is of the barrel's hoop mode; a wood barrel is rigid: " + UNCALIBRATED
+        return _uncalibrated(p, bat, v_in, q, moi, measured, note)
+    try:
+        cal = CalibrationFile.model_validate(calibration["file"])
+        c = crosscheck_at(
+            cal, bat.hoop_hz, moi, q, bat.length_in, measured, u, p.cross_check_coverage, bat_id=bat.id
+        )
+    except (RigError, ValueError, KeyError) as exc:  # the cross-check informs; it never stops a verdict
+        errors = getattr(exc, "errors", None)  # a pydantic ValidationError: its first message
+        reason = errors()[0]["msg"] if callable(errors) else str(exc).splitlines()[0]
+        return _uncalibrated(
+            p, bat, v_in, q, moi, measured, f"recorded calibration not usable ({reason}): {UNCALIBRATED}"
+        )
+    prov = cal.provenance
+    where = f" (outside the calibration's {prov.hoop_min_hz:.0f}-{prov.hoop_max_hz:.0f} Hz: extrapolated)"
+    note = (
+        "measured performance outside the calibrated model's prediction interval: possibly an altered bat"
+        " or a rig fault"
+        if c.flagged
+        else "measured performance consistent with the calibrated model at this hoop frequency"
+    ) + (where if c.extrapolated else "")
+    return {
+        **c.as_dict(),
+        "calibrated": True,
+        "consistent": not c.flagged,
+        "difference": measured - c.predicted,
+        "model": f"pivoted bat with hoop mode (Eqs. 1-2), calibrated ({cal.variant})",
+        "calibration": {
+            "path": calibration["path"],
+            "named_by": calibration["named_by"],
+            "sha256": calibration["sha256"],
+            "variant": cal.variant,
+            "parameters": dict(cal.parameters),
+            "uncertainty": dict(cal.uncertainty),
+            "scatter": cal.scatter,
+            "loo_rmse": cal.loo_rmse,
+            "provenance": prov.model_dump(),
+        },
+        "note": note,
     }

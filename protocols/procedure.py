@@ -145,7 +145,11 @@ class Procedure(_Model):
     moi: Moi = Moi()
     ring_check: StrictBool = True  # true or false; "yes" is refused
     decision: Decision = Decision()
-    cross_check_tolerance: Annotated[float, Field(gt=0.0, le=10.0)] = 0.05  # |measured - model| flag level
+    # kept so that old records' procedures still validate; the calibrated interval replaced it
+    cross_check_tolerance: Annotated[float, Field(gt=0.0, le=10.0)] = 0.05
+    # the model calibration (rig model calibrate) the cross-check uses; relative to this file
+    calibration: Annotated[str, Field(min_length=1, max_length=4096)] | None = None
+    cross_check_coverage: Annotated[float, Field(gt=0.5, lt=1.0)] = 0.95  # of the prediction interval
 
     @field_validator("limit")
     @classmethod
@@ -167,4 +171,9 @@ class Procedure(_Model):
         if str(name_or_path) in BUILTIN:
             path = BUILTIN_DIR / f"{name_or_path}.toml"
         data = read_toml(path, missing=f"no such procedure; built-in ones are {', '.join(BUILTIN)}")
-        return validate(cls, table(data, "procedure", str(path)), str(path), prefix="procedure.")
+        proc = validate(cls, table(data, "procedure", str(path)), str(path), prefix="procedure.")
+        if proc.calibration is not None:  # a relative path is relative to the procedure file
+            proc = proc.model_copy(
+                update={"calibration": str(path.parent / Path(proc.calibration).expanduser())}
+            )
+        return proc

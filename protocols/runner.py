@@ -243,12 +243,14 @@ class Runner:
 
     def _start(self) -> None:
         if not self.state.started:
+            calibration = evaluate.run_calibration(self.p, self.config)
             self.emit(
                 ev.RUN_STARTED,
                 procedure=self.p.model_dump(mode="json"),
                 bat=self.bat.model_dump(mode="json"),
                 rig=self.config.model_dump(mode="json"),
                 software={"rig": __version__, "python": platform.python_version()},
+                **({"calibration": calibration} if calibration else {}),
             )
         else:
             self.emit(ev.RUN_RESUMED, shots_so_far=len(self.state.shots))

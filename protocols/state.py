@@ -29,6 +29,7 @@ class RunState:
     """Everything the runner needs to continue a run."""
 
     started: bool = False
+    calibration: dict[str, Any] | None = None  # the model calibration RunStarted recorded
     finished: bool = False
     verdict: dict[str, Any] | None = None
     moi: dict[str, Any] | None = None
@@ -80,6 +81,7 @@ def fold(events: Iterable[RunEvent]) -> RunState:
         d = e.data
         if e.kind == ev.RUN_STARTED:
             st.started = True
+            st.calibration = d.get("calibration")
         elif e.kind == ev.RUN_RESUMED:
             # a new session may have a repaired cannon or a corrected rig config: aim from the
             # calibration again rather than from what the last session learned

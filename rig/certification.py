@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from protocols.evaluate import run_calibration
 from protocols.procedure import Procedure
 from protocols.runner import BudgetExceeded, Operator, RunControl, Runner, dry_run
 from rig.core import events as ev
@@ -140,6 +141,7 @@ def certify(
     if run_id is not None:
         _running(store, run_id, "--resume")
     if run_id is None:
+        run_calibration(procedure, config)  # a named calibration that will not load stops us here
         bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
         if bat.id not in store.bats():
             store.register_bat(bat.id, bat.model_dump(mode="json"))

@@ -50,6 +50,7 @@ def sim_config(scene: str = "ideal", rig_name: str | None = None, bat: BatSpec |
 def scene_with_bat(scene: Scene, bat: BatSpec) -> Scene:
     """`scene` whose simulated bat has the bat file's properties, except those the scene's [bat] sets."""
     return scene.with_bat(
+        id=bat.id,
         length_m=bat.length_m,
         mass_kg=bat.mass_kg,
         moi_kgm2=bat.moi_kgm2,

@@ -77,6 +77,12 @@ class SimBat(BaseModel):
 
     model_config = _FROZEN
 
+    id: str = Field(
+        "scene-bat",
+        min_length=1,
+        max_length=64,
+        description="the bat's identity (its bat file's id): seeds its own performance offset",
+    )
     # The bounds are a bat file's (rig.core.bat), in SI: 20-42 in, 10-50 oz, 0.01-1 kg m^2, 200-10000 Hz.
     length_m: float = Field(
         33 * INCH, ge=LENGTH_IN[0] * INCH, le=LENGTH_IN[1] * INCH, description="knob end to tip, m"
@@ -161,10 +167,10 @@ class Scene(BaseModel):
                 filled[slot] = spec.kind
         return self
 
-    def with_bat(self, **true_values: float) -> Scene:
+    def with_bat(self, **true_values: float | str | None) -> Scene:
         """This scene with the bat's true properties replaced, except those the scene file sets.
 
-        Keys are SimBat fields (length_m, mass_kg, moi_kgm2, balance_point_m, hoop_hz); a value
+        Keys are SimBat fields (id, length_m, mass_kg, moi_kgm2, balance_point_m, hoop_hz); a value
         the scene's own [bat] table gives wins, so a scene can override the bat file.
         """
         pinned = self.bat.model_fields_set
@@ -176,6 +182,26 @@ class Scene(BaseModel):
             error = _config_error("", exc)
             where = f"simulated rig {self.name!r} with this bat"
             raise ConfigError(error.reason, source=where, field=error.field) from None
+
+    def with_alteration(self, bbcor: float) -> Scene:
+        """This scene with its bat altered: `bbcor` more BBCOR (trampoline effect's alteration_bbcor)."""
+        if not any(e.kind == "trampoline" for e in self.effects):
+            raise ConfigError("the scene has no trampoline effect: a bat cannot be altered", self.name)
+        return self.with_effect("trampoline", alteration_bbcor=bbcor)
+
+    def with_effect(self, kind: str, **values: float) -> Scene:
+        """This scene with fields of its `kind` effect replaced (the bat keeps what it was given).
+
+        The scene is rebuilt from the fields that were set, so that a later `with_bat` still
+        replaces the bat's properties the scene's own [bat] table does not give.
+        """
+        effects = [{**e.model_dump(), **values} if e.kind == kind else e.model_dump() for e in self.effects]
+        if not any(e["kind"] == kind for e in effects):
+            raise ConfigError(f"the scene has no {kind} effect", self.name)
+        try:
+            return self.model_validate({**self.model_dump(exclude_unset=True), "effects": effects})
+        except ValidationError as exc:
+            raise _config_error(f"simulated rig {self.name!r}, {kind}", exc) from None
 
     def active_effects(self) -> list[Any]:
         """The effect configurations that are enabled, in scene order."""

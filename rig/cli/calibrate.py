@@ -11,18 +11,57 @@ from typing import Any
 from rig.core.errors import ConfigError
 
 
+def gather(data: str | None, db: str | None, who: str) -> tuple[list[Any], bytes, str, list[str]]:
+    """The bats of a population file and/or a record store's certified runs (ids unique across both).
+
+    Returns the bats, the bytes the provenance hashes (the file's bytes, then the store's rows as
+    canonical JSON), a name for the sources, and notes on store bats left out.
+    """
+    from rig.population import load_population
+
+    if not data and not db:
+        raise ConfigError("give --data POPULATION, --db STORE or both", source=who)
+    bats, blob, names, notes = [], b"", [], []
+    if data:
+        bats += load_population(data)
+        blob += Path(data).read_bytes()
+        names.append(str(data))
+    if db:
+        from rig.population.store_source import bats_from_store
+        from rig.store import Store
+
+        with Store.open(db, create=False) as store:
+            stored, notes = bats_from_store(store)
+        bats += stored
+        rows = [b.model_dump(mode="json") for b in stored]
+        blob += json.dumps(rows, sort_keys=True, separators=(",", ":")).encode()
+        names.append(f"store {db}")
+    ids = [b.bat_id for b in bats]
+    twice = sorted({i for i in ids if ids.count(i) > 1})
+    if twice:
+        raise ConfigError(f"bat id(s) in more than one source: {', '.join(twice)}", source=who)
+    return bats, blob, " + ".join(names), notes
+
+
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """rig model calibrate: the fit, its covariance, scatter and leave-one-out error; writes CAL.json."""
-    from rig.population import load_population
     from rig.population.calfile import calibration_record, write_calibration
     from rig.population.calibrate import calibrate
 
-    data, output = Path(args.data), Path(args.output)
-    if output.exists() and data.exists() and output.resolve() == data.resolve():
-        raise ConfigError("--output would overwrite the data file", source=str(output))
-    bats = load_population(data)
+    output = Path(args.output)
+    for source in (args.data, args.db):
+        if (
+            source
+            and output.exists()
+            and Path(source).exists()
+            and output.resolve() == Path(source).resolve()
+        ):
+            raise ConfigError("--output would overwrite a data source", source=str(output))
+    bats, blob, names, store_notes = gather(args.data, args.db, "rig model calibrate")
+    for note in store_notes:
+        print(f"rig: {note}", file=sys.stderr)
     cal = calibrate(bats, metric=args.metric)
-    record = calibration_record(cal, data.read_bytes(), str(data))
+    record = calibration_record(cal, blob, names)
     write_calibration(record, output)
     if args.json:
         json.dump(record, sys.stdout, indent=2, allow_nan=False)
@@ -82,12 +121,15 @@ def add_parser(msub: Any) -> None:
         description=(
             "Fit the model constants the paper's ball tests leave open (barrel hoop mass m2, damping c2,"
             " and as variants a contact-stiffness scale or an offset) to a population of measured bats;"
-            " choose the variant by leave-one-out prediction error. Needs hoop_hz, moi_kgm2, length_in"
+            " choose the variant by leave-one-out prediction error. The bats come from --data, from the"
+            " certified runs of a record store (--db), or both (bat ids must not repeat)."
+            " Needs hoop_hz, moi_kgm2, length_in"
             f" and the metric for at least {MIN_BATS} bats spanning {MIN_HOOP_SPAN_HZ:.0f} Hz; location_in"
             f" defaults to {DEFAULT_LOCATION_IN:g} in from the barrel end."
         ),
     )
-    p.add_argument("--data", required=True, metavar="POPULATION", help="population file (.csv or .toml)")
+    p.add_argument("--data", metavar="POPULATION", help="population file (.csv or .toml)")
+    p.add_argument("--db", metavar="STORE", help="also (or only) the certified bats of this record store")
     p.add_argument("--metric", choices=("bbcor", "besr", "bbs"), default="bbcor", help="metric to fit")
     p.add_argument("--output", required=True, metavar="CAL.json", help="where to write the calibration")
     p.add_argument("--json", action="store_true", help="print the calibration record as JSON")

@@ -150,8 +150,16 @@ def cmd_modal_simulate(args: argparse.Namespace) -> int:
 
 def cmd_study(args: argparse.Namespace) -> int:
     """rig study: the population study, hoop frequency against bending and performance (paper section 5)."""
+    from rig.cli.study_certify import check_args
     from rig.population import load_population, run_study
 
+    check_args(args)
+    if args.certify is not None:
+        from rig.cli.study_certify import run as certify_population
+
+        code = certify_population(args)
+        if code or not (args.json or args.plot_dir or args.calibration):
+            return code
     bats, sources, notes = [], [], []
     data = args.data
     if not data and not args.db:
@@ -176,7 +184,12 @@ def cmd_study(args: argparse.Namespace) -> int:
         raise ConfigError(f"bat id(s) in more than one source: {', '.join(twice)}", source="rig study")
     if not bats:
         raise ConfigError("no bats with a hoop frequency in the given sources", source="rig study")
-    study = run_study(bats, sources, notes)
+    calibration = None
+    if args.calibration:
+        from rig.population.calfile import load_calibration
+
+        calibration = load_calibration(args.calibration)  # a bad file: one line naming it
+    study = run_study(bats, sources, notes, calibration, args.calibration or "")
     if args.plot_dir:
         from rig.report.population_plots import plot_population
 
@@ -207,10 +220,25 @@ def cmd_study(args: argparse.Namespace) -> int:
         console.print(f"{material}: {d['n']} bats, hoop {d['hoop_min_hz']:.0f}-{d['hoop_max_hz']:.0f} Hz")
     for name, t in study.trend.items():
         if t.get("slope_per_khz") is not None:
+            calibrated = t.get("calibrated_slope_per_khz")
             console.print(
                 f"{name}: {t['slope_per_khz']:+.4g} per 1000 Hz"
-                f" (model {t.get('model_slope_per_khz', 0.0):+.4g}), r = {t['r']:.3f}"
+                f" (model {t.get('model_slope_per_khz', 0.0):+.4g}"
+                + ("" if calibrated is None else f", calibrated {calibrated:+.4g}")
+                + f"), r = {t['r']:.3f}"
             )
+    cal = study.calibrated
+    if cal is not None:
+        metric = cal["metric"]
+        points = ", ".join(
+            f"{h:.0f} Hz {v:.4f}"
+            for h, v in zip(cal["hoop_hz"], cal[metric], strict=True)
+            if h % 500 == 0
+        )
+        console.print(
+            f"calibrated model ({cal['variant']}, {args.calibration}, LOO RMSE {cal['loo_rmse']:.4f}):"
+            f" {metric} {points}"
+        )
     for note in study.notes:
         console.print(f"note: {note}")
     return 0
@@ -266,4 +294,18 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--db", metavar="FILE", help="also the bats of this record store")
     p.add_argument("--plot-dir", metavar="DIR", help="write Fig. 5 and Fig. 6 (PNG and SVG) here")
     p.add_argument("--json", action="store_true", help="print the study as JSON")
+    p.add_argument(
+        "--certify",
+        type=positive_int,
+        metavar="N",
+        help="first certify N simulated bats (hoop 1400-3000 Hz) into --db on the simulated rig",
+    )
+    p.add_argument("--scene", default="lab", help="simulated rig for --certify (default lab)")
+    p.add_argument("--seed", type=int, default=0, help="population seed for --certify (default 0)")
+    p.add_argument("--altered", type=int, default=0, metavar="K", help="of the N bats, K altered (ALT- ids)")
+    p.add_argument(
+        "--alteration", type=float, default=0.025, metavar="BBCOR", help="altered bats' extra BBCOR (0.025)"
+    )
+    p.add_argument("--procedure", default="bbcor", help="procedure for --certify (default bbcor)")
+    p.add_argument("--calibration", metavar="CAL.json", help="overlay this calibrated model on Fig. 6")
     p.set_defaults(handler=cmd_study)

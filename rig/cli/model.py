@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from rig.cli import calibrate
+from rig.cli import calibrate, crosscheck
 from rig.cli.common import (
     Bounds,
     check_flags,
@@ -17,16 +17,19 @@ from rig.cli.common import (
     param_override,
     positive_int,
 )
+from rig.core.errors import ConfigError
 
 # Physical ranges of the flags (docs/procedures.md, "Bounds"): a ball at 1-100 m/s (100 m/s is
-# 224 mph); a barrel's hoop mode and a bat's MOI as a bat file bounds them; an impact point on the
+# 224 mph); a barrel's hoop mode from 20 Hz (below a bat file's 200 Hz, so that the model's
+# repeated contacts at low frequency can be studied: docs/contacts.md) to 10 kHz, a bat's MOI as a
+# bat file bounds it; an impact point on the
 # barrel, 0.05 m to 36 in (a 42 in bat's tip) from the pivot. A curve of 2000 points already
 # resolves the optimum to 5 Hz over the whole hoop range and takes about two seconds.
 BOUNDS: Bounds = {
     "speed": ("speed", 1.0, 100.0, "m/s"),
-    "hoop": ("hoop_hz", 200.0, 10000.0, "Hz"),
-    "hoop_min": ("hoop_min", 200.0, 10000.0, "Hz"),
-    "hoop_max": ("hoop_max", 200.0, 10000.0, "Hz"),
+    "hoop": ("hoop_hz", 20.0, 10000.0, "Hz"),
+    "hoop_min": ("hoop_min", 20.0, 10000.0, "Hz"),
+    "hoop_max": ("hoop_max", 20.0, 10000.0, "Hz"),
     "moi": ("moi_kgm2", 0.01, 1.0, "kg m^2"),
     "impact_from_pivot": ("impact_from_pivot_m", 0.05, 0.9144, "m"),
     "points": ("points", 2, 2000, "(2000 points resolve the optimum to 5 Hz)"),
@@ -80,6 +83,7 @@ def cmd_cor(args: argparse.Namespace) -> int:
         "cor_rigid": e_rigid,
         "efficiency": res.cor / e_rigid,
         "contact_time_s": res.contact_time_s,
+        "contacts": res.contacts,
         "rtol": rtol,
         "nfev": res.nfev,
         "params": params.model_dump(),
@@ -113,6 +117,7 @@ def cmd_curve(args: argparse.Namespace) -> int:
         "efficiency": curve.efficiency.tolist(),
         "cor": curve.cor.tolist(),
         "contact_time_s": curve.contact_time_s.tolist(),
+        "contacts": [] if curve.contacts is None else curve.contacts.tolist(),
     }
     if args.json:
         emit(args, payload, "")
@@ -133,12 +138,14 @@ def _print_curve(curve: Any, rows: int = 16) -> None:
     table = Table(
         title=f"Normalized collision efficiency at {curve.speed:g} m/s (COR_rigid = {curve.cor_rigid:.4f})"
     )
-    for col in ("hoop Hz", "COR", "eta", ""):
+    for col in ("hoop Hz", "COR", "eta", "contacts", ""):
         table.add_column(col, justify="right" if col else "left")
+    contacts = np.ones(curve.hoop_hz.size, dtype=int) if curve.contacts is None else curve.contacts
     for i in idx:
         eta = float(curve.efficiency[i])
         bar = "#" * (1 + int(30 * (eta - lo) / (hi - lo or 1.0)))
-        table.add_row(f"{curve.hoop_hz[i]:.0f}", f"{curve.cor[i]:.4f}", f"{eta:.4f}", bar)
+        row = (f"{curve.hoop_hz[i]:.0f}", f"{curve.cor[i]:.4f}", f"{eta:.4f}", str(int(contacts[i])), bar)
+        table.add_row(*row)
     console = Console()
     console.print(table)
     where = "between grid points" if curve.optimum_interior else "at the end of the grid"
@@ -174,8 +181,86 @@ def cmd_bat(args: argparse.Namespace) -> int:
             "besr": "e_a + 1/2",
         },
     }
-    emit(args, payload, "Pivoted-bat prediction")
+    if args.calibration:
+        payload["calibrated"] = _calibrated(args, bat)
+    elif args.measured is not None or args.u_measured is not None or args.length is not None:
+        raise ConfigError(
+            "--measured, --u-measured and --length need --calibration CAL.json", source="rig model bat"
+        )
+    if args.json or not args.calibration:
+        emit(args, payload, "Pivoted-bat prediction")
+        return 0
+    _print_calibrated(payload["calibrated"])
     return 0
+
+
+def _calibrated(args: argparse.Namespace, bat: Any) -> dict[str, Any]:
+    """The calibrated model's prediction and interval for this bat (--calibration CAL.json)."""
+    from rig.population.calfile import load_calibration
+    from rig.population.crosscheck import crosscheck_at
+
+    if args.rigid:
+        raise ConfigError(
+            "--calibration needs --hoop: the calibration is of the hoop-mode model", source="rig model bat"
+        )
+    if args.overrides:
+        raise ConfigError(
+            "--set and --calibration exclude each other: the calibration sets m2, c2", source="rig model bat"
+        )
+    cal = load_calibration(args.calibration)
+    if abs(args.speed - cal.speed_m_s) > 1e-9:
+        raise ConfigError(
+            f"--speed {args.speed:g}: the calibration predicts at {cal.speed_m_s:g} m/s",
+            source="rig model bat",
+        )
+    if cal.metric == "bbs" and args.length is None:
+        raise ConfigError(
+            "a BBS calibration needs --length (in): the swing model uses it", source="rig model bat"
+        )
+    length = 33.0 if args.length is None else args.length  # BBCOR and BESR do not depend on it
+    check = crosscheck_at(
+        cal,
+        args.hoop,
+        bat.moi_kgm2,
+        bat.impact_from_pivot_m,
+        length,
+        args.measured,
+        args.u_measured,
+        args.coverage,
+    )
+    out = check.as_dict()
+    out["calibration"] = args.calibration
+    out["calibration_variant"] = cal.variant
+    out["calibration_parameters"] = dict(cal.parameters)
+    out["calibration_provenance"] = cal.provenance.model_dump()
+    out["bat_id"] = "(command line)"
+    return out
+
+
+def _print_calibrated(c: dict[str, Any]) -> None:
+    from rich.console import Console
+
+    console = Console()
+    prov = c["calibration_provenance"]
+    lo, hi = c["interval"]
+    console.print(
+        f"calibrated {c['metric']} at {c['hoop_hz']:.0f} Hz: {c['predicted']:.4f},"
+        f" {100 * c['coverage']:g} % prediction interval {lo:.4f} - {hi:.4f}"
+        f" (t = {c['t_factor']:.3f}, {c['dof']} dof; u_model {c['u_model']:.4f},"
+        f" u_scatter {c['u_scatter']:.4f}, u_measured {c['u_measured']:.4f})"
+    )
+    if c["extrapolated"]:
+        console.print(
+            f"note: {c['hoop_hz']:.0f} Hz is outside the calibration's {prov['hoop_min_hz']:.0f}-"
+            f"{prov['hoop_max_hz']:.0f} Hz: extrapolated"
+        )
+    if c["measured"] is not None:
+        verdict = "FLAGGED: outside the interval" if c["flagged"] else "consistent"
+        console.print(f"measured {c['measured']:.4f}, z = {c['z']:+.2f}: {verdict}")
+    console.print(
+        f"calibration {c['calibration']} ({c['calibration_variant']}): {prov['n_bats']} bats,"
+        f" data sha256 {prov['data_sha256'][:12]}..., {prov['created_utc']}, {prov['software']}"
+    )
 
 
 def cmd_accuracy(args: argparse.Namespace) -> int:
@@ -205,7 +290,7 @@ MODEL_DOC = "The ball-barrel collision model (founding paper, Eqs. 1-2)."
 
 
 def add_parsers(sub: Any) -> None:
-    """`rig model cor|curve|bat|accuracy|calibrate`."""
+    """`rig model cor|curve|bat|accuracy|calibrate|crosscheck`."""
     model = sub.add_parser(
         "model",
         help="the ball-barrel collision model",
@@ -217,14 +302,14 @@ def add_parsers(sub: Any) -> None:
     p = msub.add_parser("cor", parents=[parent], help="COR of one collision")
     p.add_argument("--speed", type=float, required=True, help="inbound ball speed, m/s (1-100)")
     g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--hoop", type=float, help="hoop frequency of the barrel, Hz (200-10000)")
+    g.add_argument("--hoop", type=float, help="hoop frequency of the barrel, Hz (20-10000)")
     g.add_argument("--rigid", action="store_true", help="a rigid barrel (f_hoop -> infinity)")
     p.set_defaults(handler=cmd_cor)
 
     p = msub.add_parser("curve", parents=[parent], help="efficiency eta(f) = COR(f)/COR_rigid")
     p.add_argument("--speed", type=float, required=True, help="inbound ball speed, m/s (1-100)")
-    p.add_argument("--hoop-min", type=float, required=True, help="lowest hoop frequency, Hz (200-10000)")
-    p.add_argument("--hoop-max", type=float, required=True, help="highest hoop frequency, Hz (200-10000)")
+    p.add_argument("--hoop-min", type=float, required=True, help="lowest hoop frequency, Hz (20-10000)")
+    p.add_argument("--hoop-max", type=float, required=True, help="highest hoop frequency, Hz (20-10000)")
     p.add_argument("--points", type=positive_int, default=200, help="grid points, evenly spaced (2-2000)")
     p.add_argument("--plot", metavar="FILE", help="write a plot (PNG and SVG beside it)")
     p.set_defaults(handler=cmd_curve)
@@ -232,12 +317,23 @@ def add_parsers(sub: Any) -> None:
     p = msub.add_parser("bat", parents=[parent], help="e_A and BBCOR of a bat on the pivot")
     p.add_argument("--speed", type=float, required=True, help="inbound ball speed, m/s (1-100)")
     g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--hoop", type=float, help="hoop frequency of the barrel, Hz (200-10000)")
+    g.add_argument("--hoop", type=float, help="hoop frequency of the barrel, Hz (20-10000)")
     g.add_argument("--rigid", action="store_true", help="a rigid barrel (a wood bat)")
     p.add_argument("--moi", type=float, required=True, help="MOI about the pivot, kg m^2 (0.01-1)")
     p.add_argument(
         "--impact-from-pivot", type=float, required=True, help="pivot-to-impact distance Q, m (0.05-0.9144)"
     )
+    p.add_argument(
+        "--calibration",
+        metavar="CAL.json",
+        help="also the calibrated prediction and its interval (rig model calibrate)",
+    )
+    p.add_argument(
+        "--coverage", type=float, default=0.95, help="the interval's coverage (with --calibration)"
+    )
+    p.add_argument("--measured", type=float, help="a measured value to cross-check (with --calibration)")
+    p.add_argument("--u-measured", type=float, help="its standard uncertainty, k = 1 (with --calibration)")
+    p.add_argument("--length", type=float, help="bat length, in (with a BBS calibration)")
     p.set_defaults(handler=cmd_bat)
 
     p = msub.add_parser("accuracy", help="work-precision study: error against cost of each solver")
@@ -248,3 +344,4 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(handler=cmd_accuracy)
 
     calibrate.add_parser(msub)
+    crosscheck.add_parser(msub)

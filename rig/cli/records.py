@@ -92,6 +92,16 @@ def cmd_certify(args: argparse.Namespace) -> int:
             bat = with_measured_hoop(store, bat)
             run_id = None
         config = rig_config(args, bat=bat)
+        if args.calibration:
+            if args.resume:
+                raise ConfigError(
+                    "--calibration starts a run; a resumed run keeps the calibration it recorded",
+                    source="command line",
+                )
+            from rig.core.config import Model
+
+            named = str(Path(args.calibration).expanduser().resolve())
+            config = config.model_copy(update={"model": Model(calibration=named)})  # wins over [model]
         problems = dry_run(procedure, bat, config)
         if problems or args.dry_run:
             for line in problems or ["dry run: the procedure fits this rig and this bat"]:
@@ -223,6 +233,11 @@ def add_parsers(sub: Any) -> None:
     add_rig_options(p)
     p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
     p.add_argument("--resume", metavar="RUN", help="resume an interrupted run")
+    p.add_argument(
+        "--calibration",
+        metavar="CAL.json",
+        help="model calibration for the cross-check (rig model calibrate); wins over the config [model]",
+    )
     p.add_argument(
         "--rig-checked",
         action="store_true",

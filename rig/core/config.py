@@ -130,6 +130,12 @@ class Pendulum(_Model):
     amplitude_u_deg: Annotated[float, Field(ge=0.0, le=10.0)] = 0.5  # [assumed] release angle
 
 
+class Model(_Model):
+    """The collision model's calibration for this rig's cross-check (rig model calibrate)."""
+
+    calibration: Annotated[str, Field(min_length=1, max_length=4096)] | None = None  # relative to the file
+
+
 class RigConfig(_Model):
     """Everything the controller must know about one rig."""
 
@@ -143,11 +149,20 @@ class RigConfig(_Model):
     # [assumed]; 1 s to an hour
     air: Air = Air()
     pendulum: Pendulum = Pendulum()
+    model: Model = Model()
 
     @classmethod
     def load(cls, path: str | Path) -> RigConfig:
-        """Read and validate a TOML file; errors name the file and the field."""
-        return cls.from_dict(read_toml(path), source=str(path))
+        """Read and validate a TOML file; errors name the file and the field.
+
+        [model] calibration, when relative, is taken relative to the file.
+        """
+        config = cls.from_dict(read_toml(path), source=str(path))
+        named = config.model.calibration
+        if named is not None:
+            where = str(Path(path).parent / Path(named).expanduser())
+            config = config.model_copy(update={"model": Model(calibration=where)})
+        return config
 
     @classmethod
     def from_dict(cls, data: dict, source: str = "config") -> RigConfig:

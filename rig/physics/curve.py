@@ -32,12 +32,18 @@ class EfficiencyCurve:
     optimum_efficiency: float
     optimum_interior: bool  # False when the best point is an end of the grid
     rtol: float
+    contacts: np.ndarray | None = None  # separate contacts at each grid point
 
 
 def cor_grid(
-    params: CollisionParams, speed: float, hoops: np.ndarray, rtol: float = fast.DEFAULT_RTOL
+    params: CollisionParams,
+    speed: float,
+    hoops: np.ndarray,
+    rtol: float = fast.DEFAULT_RTOL,
+    contacts: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """COR and contact time of a clamped barrel at each hoop frequency, in parallel lanes."""
+    """COR and contact time (to the last separation) of a clamped barrel at each hoop frequency,
+    in parallel lanes; `contacts`, if given, receives the number of contacts at each."""
     speed = check_speed(speed)
     rtol = check_tolerance(rtol)
     hoops = np.asarray(hoops, dtype=float)
@@ -53,7 +59,7 @@ def cor_grid(
     n_active = np.full(n, 4, dtype=np.int64)
     t_max = contact_time_limit(params, speed, hoops)
     impacts = _LazyImpacts(params, speed, hoops)
-    return fast._run_batch(P, v0, length, rtol, n_active, t_max, impacts)
+    return fast._run_batch(P, v0, length, rtol, n_active, t_max, impacts, contacts)
 
 
 class _LazyImpacts:
@@ -125,7 +131,8 @@ def efficiency_curve(
     if points < 2:
         raise ParameterError("points", points, "must be a whole number >= 2")
     hoops = np.linspace(hoop_min, hoop_max, points)
-    cor, tc = cor_grid(params, speed, hoops, rtol)
+    contacts = np.ones(hoops.size, dtype=np.int64)
+    cor, tc = cor_grid(params, speed, hoops, rtol, contacts)
     e_rigid = rigid_cor(params, speed)
     eta = cor / e_rigid
     i = int(np.argmax(eta))
@@ -146,6 +153,7 @@ def efficiency_curve(
         optimum_efficiency=eta_opt,
         optimum_interior=interior,
         rtol=rtol,
+        contacts=contacts,
     )
 
 

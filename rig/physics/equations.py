@@ -85,14 +85,19 @@ def separation_function(d: float, dd: float, p: CollisionParams) -> float:
     return spring + p.c1 * dd
 
 
-def make_rhs(imp: Impact, energy: bool = False) -> Callable[[float, np.ndarray], list[float]]:
+def make_rhs(
+    imp: Impact, energy: bool = False, free: bool = False
+) -> Callable[[float, np.ndarray], list[float]]:
     """Right-hand side for solve_ivp over the reduced states of `imp`.
 
     States: ball (x1, v1), then barrel (x2, v2) unless rigid, then body (x3, v3) if free. With
-    `energy`, two quadratures follow: work dissipated in the ball and in the barrel damper.
+    `energy`, two quadratures follow: work dissipated in the ball and in the barrel damper. With
+    `free`, the ball is out of contact: no contact force (ball in free flight, barrel ringing).
     """
     p = imp.params
     m1, k1, c1, a, b, m2, c2 = p.m1, p.k1, p.c1, p.a, p.b, p.m2, p.c2
+    if free:
+        k1 = c1 = 0.0
     k2 = imp.k2
     body = imp.body_mass
     if imp.rigid:
@@ -172,3 +177,127 @@ def mechanical_energy(imp: Impact, y: np.ndarray) -> dict[str, float]:
     if imp.body_mass is not None:
         out["body_kinetic"] = 0.5 * imp.body_mass * v3**2
     return out
+
+
+def contact_scale(imp: Impact) -> float:
+    """Magnitude of the separation function g in contact: k1 L^(1+a-b) + c1 v0, L the compression scale."""
+    p = imp.params
+    length = p.compression_scale(imp.speed)
+    return p.k1 * length ** (1.0 + p.a - p.b) + p.c1 * imp.speed
+
+
+def contact_indicator(imp: Impact, y: np.ndarray) -> float:
+    """> 0 exactly when the ball presses on the barrel (d > 0 and F > 0): min(d G/L, g).
+
+    Continuous where g is; it rises through zero where a new contact begins, whether the ball
+    meets the barrel's surface again (d through 0) or F turns positive while d > 0.
+    """
+    d, dd = relative_motion(imp, y)
+    length = imp.params.compression_scale(imp.speed)
+    return min(d * contact_scale(imp) / length, separation_function(d, dd, imp.params))
+
+
+def escape_time(imp: Impact, y: np.ndarray) -> float:
+    """After a separation: time after which the ball can never touch the barrel again (0: never
+    again from now on; inf: a new contact is certain or cannot be excluded this way).
+
+    Out of contact the barrel (with the body, if free) is a damped linear system whose centre of
+    mass moves at a constant speed V and whose energy of vibration E never grows; so the barrel's
+    surface stays within reach = (share of the relative motion) * sqrt(2 E / k2) of that centre.
+    The ball moves at a constant v1. If v1 <= V, the ball's lead over the centre of mass never
+    grows, so once x1 - X <= -reach we have d = x1 - x2 <= 0 for ever: no contact (contact needs
+    d > 0). That happens at the latest after (x1 - X + reach) / (V - v1). A rigid barrel has
+    reach 0 and d' = v1 - V constant, so g = k1 d|d|^(a-b) + c1 d' falls for ever once d' <= 0.
+    """
+    p = imp.params
+    s = [float(v) for v in y[: imp.n_states]]
+    x1, v1 = s[0], s[1]
+    if imp.rigid:
+        v_base = 0.0 if imp.body_mass is None else s[3]
+        return 0.0 if v1 <= v_base else math.inf
+    x2, v2 = s[2], s[3]
+    k2 = imp.k2
+    if imp.body_mass is None:
+        centre, speed_c, share = 0.0, 0.0, 1.0
+        r, vr, mu = x2, v2, p.m2
+    else:
+        x3, v3 = s[4], s[5]
+        mass = p.m2 + imp.body_mass
+        centre = (p.m2 * x2 + imp.body_mass * x3) / mass
+        speed_c = (p.m2 * v2 + imp.body_mass * v3) / mass
+        share = imp.body_mass / mass
+        r, vr, mu = x2 - x3, v2 - v3, p.m2 * imp.body_mass / mass
+    amplitude = math.sqrt(r * r + mu * vr * vr / k2)
+    reach = share * amplitude
+    lead = x1 - centre + reach
+    if lead <= 0.0 and v1 <= speed_c:
+        return 0.0
+    if v1 >= speed_c:
+        return math.inf
+    if g_cannot_rise(imp, x1 - x2, speed_c - v1, amplitude, share, mu):
+        return 0.0
+    wait = lead / (speed_c - v1)
+    if imp.body_mass is None:
+        wait = min(wait, _force_escape_time(imp, x1, v1, reach))
+    return wait
+
+
+def g_cannot_rise(imp: Impact, d0: float, recede: float, amplitude: float, share: float, mu: float) -> bool:
+    """Out of contact, g = k1 d|d|^(a-b) + c1 d' can never rise above zero while d > 0 (proof below).
+
+    The barrel rings about its centre of mass with an amplitude A that never grows, so its speed
+    and acceleration relative to that centre are at most share w A and share (k2 + c2 w) A / mu
+    (w = sqrt(k2/mu)). If the ball recedes from the centre faster than the barrel's largest speed,
+    by `margin`, then d' <= -margin for ever: contact needs k1 d^(1+a-b) > c1 margin (d > d_crit)
+    and d only falls. Where d > d_crit, g' = k1 (1+a-b) d^(a-b) d' - c1 a2 <= -k1 (1+a-b) q margin
+    + c1 a2max (q the least d^(a-b) there); if that is negative, g only falls wherever it could be
+    positive, and it starts from zero at the separation. Same test as the kernel's g_cannot_rise.
+    """
+    p = imp.params
+    expo = 1.0 + p.a - p.b
+    if p.c1 <= 0.0 or expo <= 0.0:
+        return False
+    k2 = imp.k2
+    w = math.sqrt(k2 / mu)
+    margin = recede - share * w * amplitude
+    if margin <= 0.0:
+        return False
+    if d0 <= 0.0:
+        return True
+    d_crit = (p.c1 * margin / p.k1) ** (1.0 / expo)
+    if d0 <= d_crit:
+        return True
+    q = d_crit ** (expo - 1.0) if expo >= 1.0 else d0 ** (expo - 1.0)
+    a2max = share * (k2 + p.c2 * w) * amplitude / mu
+    return p.k1 * expo * q * margin > p.c1 * a2max
+
+
+def _force_escape_time(imp: Impact, x1: float, v1: float, reach: float) -> float:
+    """Clamped barrel: when g = k1 d|d|^(a-b) + c1 (v1 - v2) must stay < 0 for ever.
+
+    The barrel's speed never exceeds w reach (w = sqrt(k2/m2), energy bound) and d <= x1 + reach.
+    If the ball recedes faster (v1 + w reach < 0), g <= k1 (x1 + reach)^(1+a-b) - c1 (-v1 - w reach),
+    whose first term only falls as the ball leaves: once it is below the second, no contact can
+    begin. inf when this bound says nothing.
+    """
+    p = imp.params
+    margin = -v1 - math.sqrt(imp.k2 / p.m2) * reach
+    if margin <= 0.0 or p.c1 == 0.0 or 1.0 + p.a - p.b <= 0.0:
+        return math.inf
+    x_safe = (p.c1 * margin / p.k1) ** (1.0 / (1.0 + p.a - p.b)) - reach
+    return max(0.0, (x1 - x_safe) / -v1)
+
+
+def damping_rate(imp: Impact, y: np.ndarray) -> float:
+    """Decay rate of the relative motion under the ball's damping, c1 |d|^b / (reduced mass), 1/s,
+    where it exceeds twice the contact's own rate sqrt(k1 (1+a) |d|^a / reduced mass); else 0."""
+    p = imp.params
+    d, _ = relative_motion(imp, y)
+    if imp.rigid:
+        inv = 1.0 / p.m1 + (0.0 if imp.body_mass is None else 1.0 / (p.m2 + imp.body_mass))
+    else:
+        inv = 1.0 / p.m1 + 1.0 / p.m2
+    lam = p.c1 * abs(d) ** p.b * inv
+    if lam * lam <= 4.0 * p.k1 * (1.0 + p.a) * abs(d) ** p.a * inv:
+        return 0.0
+    return lam

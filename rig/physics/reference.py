@@ -13,10 +13,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
 
 from rig.core.errors import ParameterError, SolverError
 from rig.physics.equations import (
     Impact,
+    contact_indicator,
+    damping_rate,
+    escape_time,
     initial_state,
     make_rhs,
     mechanical_energy,
@@ -40,6 +44,7 @@ class CollisionResult:
     method: str
     rtol: float
     energy: dict[str, float] = field(default_factory=dict)
+    contacts: int = 1  # separate contacts before the ball left for good
 
 
 def contact_time_limit(params: CollisionParams, speed: float, hoop_hz: ArrayLike | None) -> Any:
@@ -70,6 +75,10 @@ def _first_step(imp: Impact, first_step: float | str) -> dict[str, float]:
     raise ParameterError("first_step", first_step, "must be 'auto', 'scipy' or a positive number of s")
 
 
+MAX_CONTACTS = 1000
+MAX_FLIGHT_STEPS = 40_000  # free-flight steps allowed in all (~1 s) before refusing
+
+
 def solve_reference(
     imp: Impact,
     method: str = "DOP853",
@@ -77,7 +86,12 @@ def solve_reference(
     energy: bool = False,
     first_step: float | str = "auto",
 ) -> CollisionResult:
-    """Solve one collision with solve_ivp; contact ends where the contact force returns to zero.
+    """Solve one collision with solve_ivp, through every contact until the ball leaves for good.
+
+    A contact ends where the contact force returns to zero (the ball cannot pull on the barrel).
+    The ball then flies freely while the barrel rings; if the barrel catches it again, a new
+    contact begins; this repeats until `equations.escape_time` proves no further contact can
+    come. The COR is the ball's speed after the last contact.
 
     `first_step` "auto" starts at 1e-4 of the contact's time scale, as the kernel does, because
     scipy's own choice ("scipy") is too long for the non-smooth d^b onset of the contact force;
@@ -88,78 +102,245 @@ def solve_reference(
         raise ParameterError("method", method, f"choose one of {', '.join(SCIPY_METHODS)}")
     rtol = check_tolerance(rtol)
     p = imp.params
-    fun = make_rhs(imp, energy=energy)
     y0 = initial_state(imp, energy=energy)
-    atol = rtol * imp.scales()
-    if energy:
-        ke0 = 0.5 * p.m1 * imp.speed**2
-        atol = np.concatenate([atol, [rtol * ke0, rtol * ke0]])
-
-    def ended(t: float, y: np.ndarray) -> float:
-        d, dd = relative_motion(imp, y)
-        return separation_function(d, dd, p)
-
-    ended.terminal = True  # type: ignore[attr-defined]
-    ended.direction = -1  # type: ignore[attr-defined]
-    moving_barrel = not (imp.rigid and imp.body_mass is None)
-
-    def dip(t: float, y: np.ndarray) -> float:
-        d, dd = relative_motion(imp, y)
-        acc = fun(t, y)
-        ddd = acc[1] - acc[3] if moving_barrel else acc[1]
-        spring = p.k1 * (1.0 + p.a - p.b) * abs(d) ** (p.a - p.b) * dd if d != 0.0 else 0.0
-        return spring + p.c1 * ddd
-
-    dip.direction = 1  # type: ignore[attr-defined]  # g' from - to +: a minimum of g
-    t_max = _time_limit(imp)
-    options = _first_step(imp, first_step)
-    where = f"speed {imp.speed:g} m/s, hoop {imp.hoop_hz or 'rigid'} Hz, {method} rtol {rtol:g}"
-
-    def run(t_stop: float) -> object:
-        try:
-            return solve_ivp(
-                fun, (0.0, t_stop), y0, method=method, rtol=rtol, atol=atol, events=[ended, dip], **options
-            )
-        except (RuntimeError, ValueError, ZeroDivisionError) as exc:
-            raise SolverError(f"scipy {method} failed ({exc}) at {where}") from None
-
-    sol = run(t_max)
-    if sol.status == 1 and len(sol.t_events[0]):
-        t_sep = float(sol.t_events[0][0])
-        for t_m, y_m in zip(sol.t_events[1], sol.y_events[1], strict=True):
-            if 0.0 < t_m < t_sep and separation_function(*relative_motion(imp, y_m), p) < 0.0:
-                # F dipped below zero inside one step: contact really ended before t_m
-                sol = run(float(t_m))
-                break
-    if sol.status == -1:
-        raise SolverError(f"solver failed ({sol.message}) at {where}")
-    if sol.status != 1 or len(sol.t_events[0]) == 0:
-        raise SolverError(f"contact did not end within {t_max:.3g} s at {where}")
-    t_end = float(sol.t_events[0][0])
-    if not t_end > 0.0:
-        raise SolverError(f"contact ended at t = {t_end!r} (before it began) at {where}")
-    y_end = np.asarray(sol.y_events[0][0], dtype=float)
-    if not np.all(np.isfinite(y_end)):
-        raise SolverError(f"non-finite state at separation at {where}")
+    solver = _Phases(imp, method, rtol, energy, _first_step(imp, first_step))
+    t_end, y_end = solver.contact(0.0, y0)
+    t_end, y_end, contacts = solver.follow(t_end, y_end)
     v_exit = float(y_end[1])
     terms: dict[str, float] = {}
     if energy:
         terms = mechanical_energy(imp, y_end)
         terms["ball_dissipated"] = float(y_end[imp.n_states])
         terms["barrel_dissipated"] = float(y_end[imp.n_states + 1])
+        terms["ball_released"] = solver.released  # elastic energy dropped between contacts
         terms["inbound_kinetic"] = 0.5 * p.m1 * imp.speed**2
         out = sum(v for k, v in terms.items() if k != "inbound_kinetic")
         terms["residual"] = terms["inbound_kinetic"] - out
     return CollisionResult(
-        cor=-v_exit / imp.speed,
+        cor=bounded_cor(-v_exit / imp.speed),
         contact_time_s=t_end,
         ball_exit_velocity=v_exit,
         final_state=tuple(float(v) for v in y_end[: imp.n_states]),
-        nfev=int(sol.nfev),
+        nfev=solver.nfev,
         method=method,
         rtol=rtol,
         energy=terms,
+        contacts=contacts,
     )
+
+
+def bounded_cor(cor: float) -> float:
+    """|COR| <= 1: a passive barrel cannot return more than the ball's energy; the solvers' last
+    digits (a few rtol) can, so the reported COR is clipped to [-1, 1]."""
+    return min(1.0, max(-1.0, cor))
+
+
+def continue_contacts(
+    imp: Impact, t: float, state: ArrayLike, rtol: float, method: str = "DOP853"
+) -> tuple[float, np.ndarray, int, int]:
+    """From the end of a first contact (time t, mechanical state), follow every later contact.
+
+    Returns (time of the last separation, state there, number of contacts, nfev spent here).
+    """
+    rtol = check_tolerance(rtol)
+    solver = _Phases(imp, method, rtol, False, _first_step(imp, "auto"))
+    y = np.asarray(state, dtype=float)[: imp.n_states].copy()
+    t_end, y_end, contacts = solver.follow(float(t), y)
+    return t_end, y_end, contacts, solver.nfev
+
+
+class _Phases:
+    """Contact phases (full equations, end where g falls through 0) and free flights (no contact
+    force, end where a new contact begins or when the ball is out of reach for good)."""
+
+    def __init__(
+        self, imp: Impact, method: str, rtol: float, energy: bool, options: dict[str, float]
+    ) -> None:
+        p = imp.params
+        self.imp, self.method, self.rtol, self.options = imp, method, rtol, options
+        self.fun = make_rhs(imp, energy=energy)
+        self.free_fun = make_rhs(imp, energy=energy, free=True)
+        atol = rtol * imp.scales()
+        if energy:
+            ke0 = 0.5 * p.m1 * imp.speed**2
+            atol = np.concatenate([atol, [rtol * ke0, rtol * ke0]])
+        self.atol = atol
+        self.nfev = 0
+        self.flight_steps = 0
+        self.released = 0.0  # ball's elastic energy dropped over free flights, J
+        self.t_max = _time_limit(imp)
+        self.where = f"speed {imp.speed:g} m/s, hoop {imp.hoop_hz or 'rigid'} Hz, {method} rtol {rtol:g}"
+
+    def _solve(self, fun: Any, t0: float, t1: float, y0: np.ndarray, events: list, **extra: Any) -> Any:
+        try:
+            sol = solve_ivp(
+                fun, (t0, t1), y0, method=self.method, rtol=self.rtol, atol=self.atol, events=events, **extra
+            )
+        except (RuntimeError, ValueError, ZeroDivisionError) as exc:
+            raise SolverError(f"scipy {self.method} failed ({exc}) at {self.where}") from None
+        self.nfev += int(sol.nfev)
+        if sol.status == -1:
+            raise SolverError(f"solver failed ({sol.message}) at {self.where}")
+        return sol
+
+    def contact(self, t0: float, y0: np.ndarray) -> tuple[float, np.ndarray]:
+        """One contact from (t0, y0) to the first zero of the contact force: (t, state)."""
+        imp, p, fun = self.imp, self.imp.params, self.fun
+
+        def ended(t: float, y: np.ndarray) -> float:
+            d, dd = relative_motion(imp, y)
+            g = separation_function(d, dd, p)
+            # a new contact starts at g = 0 (to within the event's tolerance): counting its start
+            # as g > 0 lets a contact so brief that it ends inside the first step be seen
+            return abs(g) + 1e-300 if t == t0 else g  # not 0: brentq would stop there
+
+        ended.terminal = True  # type: ignore[attr-defined]
+        ended.direction = -1  # type: ignore[attr-defined]
+        moving_barrel = not (imp.rigid and imp.body_mass is None)
+
+        def dip(t: float, y: np.ndarray) -> float:
+            d, dd = relative_motion(imp, y)
+            acc = fun(t, y)
+            ddd = acc[1] - acc[3] if moving_barrel else acc[1]
+            spring = p.k1 * (1.0 + p.a - p.b) * abs(d) ** (p.a - p.b) * dd if d != 0.0 else 0.0
+            return spring + p.c1 * ddd
+
+        dip.direction = 1  # type: ignore[attr-defined]  # g' from - to +: a minimum of g
+        t_stop = t0 + self.t_max
+        options = self.options
+        if t0 > 0.0 and imp.hoop_hz is not None:
+            # a later contact may be a brief touch of a ringing barrel: steps short enough to see it end
+            options = dict(options, max_step=1.0 / (32.0 * imp.hoop_hz))
+        sol = self._solve(fun, t0, t_stop, y0, [ended, dip], **options)
+        t_last = t_stop
+        if sol.status == 1 and len(sol.t_events[0]):
+            t_sep = float(sol.t_events[0][0])
+            for t_m, y_m in zip(sol.t_events[1], sol.y_events[1], strict=True):
+                if t0 < t_m < t_sep and separation_function(*relative_motion(imp, y_m), p) < 0.0:
+                    # F dipped below zero inside one step: contact really ended before t_m
+                    t_last = float(t_m)
+                    sol = self._solve(fun, t0, t_last, y0, [ended, dip], **options)
+                    break
+        if sol.status != 1 or len(sol.t_events[0]) == 0:
+            raise SolverError(f"contact did not end within {self.t_max:.3g} s at {self.where}")
+        if len(sol.t) >= 3:
+            # The end is located on the dense output of the step that holds it; with b ~ 0 the
+            # relative motion decays at ~c1/m fast enough that a stable step is far too long for
+            # its interpolant (the kernel's _damping_rate). Retake that step short enough.
+            t_prev, y_prev = float(sol.t[-2]), sol.y[:, -2]
+            lam = damping_rate(imp, y_prev)
+            kappa = min(1.0, (40320.0 * self.rtol) ** 0.125)
+            h_est = max(float(sol.t[-1]) - t_prev, t_prev - float(sol.t[-3]))
+            if lam * h_est > kappa and self.method in ("DOP853", "RK45"):  # explicit methods only
+                extra = dict(options, max_step=min(0.9 * kappa / lam, options.get("max_step", math.inf)))
+                extra.pop("first_step", None)
+                t_last = min(t_last, float(sol.t[-1]) + 2.0 * h_est)
+                sol = self._solve(fun, t_prev, t_last, y_prev, [ended, dip], **extra)
+                if sol.status != 1 or len(sol.t_events[0]) == 0:
+                    raise SolverError(f"contact did not end within {self.t_max:.3g} s at {self.where}")
+        t_end = float(sol.t_events[0][0])
+        if t_end < t0 or (t_end == 0.0 and t0 == 0.0):
+            raise SolverError(f"contact ended at t = {t_end!r} (before it began) at {self.where}")
+        if t_end == t0:
+            return t0, y0  # a graze: the force touched zero from below and fell back
+        y_end = np.asarray(sol.y_events[0][0], dtype=float)
+        if not np.all(np.isfinite(y_end)):
+            raise SolverError(f"non-finite state at separation at {self.where}")
+        return t_end, y_end
+
+    def free(self, t0: float, y0: np.ndarray, horizon: float) -> tuple[bool, float, np.ndarray]:
+        """Free flight from a separation for at most `horizon` s: (met again?, t, state)."""
+        imp = self.imp
+
+        def met(t: float, y: np.ndarray) -> float:
+            self._spend()
+            # the flight starts at g = 0 (to within the event's tolerance): counting its start as
+            # out of contact lets a gap so brief that it closes inside the first step be seen
+            c = contact_indicator(imp, y)
+            return -abs(c) - 1e-300 if t == t0 else c  # not 0: brentq would stop there
+
+        met.terminal = True  # type: ignore[attr-defined]
+        met.direction = 1  # type: ignore[attr-defined]
+        # short steps so that a brief new contact cannot hide inside one step
+        period = math.inf if imp.hoop_hz is None else 1.0 / imp.hoop_hz
+        # (capped at 20000 steps a flight: a creeping ball on a stiff ringing barrel can take
+        # ~1e5 barrel periods to get out of reach; there a contact shorter than a step may be missed)
+        max_step = max(min(period / 32.0, 50.0 * imp.time_scale()), horizon / 20000.0)
+        def peak(t: float, y: np.ndarray) -> float:
+            return relative_motion(imp, y)[1]  # d' falling through 0: a maximum of the overlap d
+
+        peak.direction = -1  # type: ignore[attr-defined]
+        sol = self._solve(self.free_fun, t0, t0 + horizon, y0, [met, peak], max_step=max_step)
+        t_met = float(sol.t_events[0][0]) if sol.status == 1 and len(sol.t_events[0]) else math.inf
+        for t_p, y_p in zip(sol.t_events[1], sol.y_events[1], strict=True):
+            # A graze (the barrel barely catching the ball) can be far shorter than a step, so the
+            # indicator is negative at both ends of the step that holds it; but d peaks inside
+            # it, and d' changes sign over a long time, so the peak is found. d > 0 there: contact.
+            if t_p >= t_met:
+                break
+            if contact_indicator(imp, y_p) > 0.0:
+                return True, *self._contact_start(sol, t0, y0, float(t_p), max_step)
+        if math.isfinite(t_met):
+            return True, t_met, np.asarray(sol.y_events[0][0], dtype=float)
+        return False, float(sol.t[-1]), np.asarray(sol.y[:, -1], dtype=float)
+
+    def _contact_start(
+        self, sol: Any, t0: float, y0: np.ndarray, t_peak: float, max_step: float
+    ) -> tuple[float, np.ndarray]:
+        """Where the indicator rises through 0 before a peak of d inside the contact: the step that
+        holds the peak is solved again with its dense output (only then: it costs ~20 %)."""
+        imp = self.imp
+        k = int(np.searchsorted(sol.t, t_peak)) - 1
+        t_lo, y_lo = (float(sol.t[k]), sol.y[:, k]) if k >= 0 else (t0, y0)
+        again = self._solve(self.free_fun, t_lo, t_peak, y_lo, [], max_step=max_step, dense_output=True)
+
+        def level(t: float) -> float:
+            return contact_indicator(imp, again.sol(t))
+
+        if t_lo <= t0 or level(t_lo) >= 0.0:
+            t_lo = t_lo + 1e-9 * (t_peak - t_lo)
+        if level(t_lo) >= 0.0:
+            return t_lo, np.asarray(again.sol(t_lo), dtype=float)
+        t_c = brentq(level, t_lo, t_peak, xtol=1e-14 * max(1.0, t_peak), rtol=4.0 * np.finfo(float).eps)
+        return float(t_c), np.asarray(again.sol(t_c), dtype=float)
+
+    def _spend(self) -> None:
+        """Count a step of a free flight; refuse once the budget is spent."""
+        self.flight_steps += 1
+        if self.flight_steps > MAX_FLIGHT_STEPS:
+            raise SolverError(
+                f"the ball creeps off for more than {MAX_FLIGHT_STEPS} steps of free flight (a very slow"
+                f" rebound from a stiff or over-damped barrel) at {self.where}"
+            )
+
+    def _stored(self, y: np.ndarray) -> float:
+        return mechanical_energy(self.imp, y)["ball_stored"]
+
+    def follow(self, t: float, y: np.ndarray) -> tuple[float, np.ndarray, int]:
+        """From the end of the first contact through every later one: (t, state, contacts)."""
+        contacts = rounds = 1
+        while True:
+            wait = escape_time(self.imp, y)
+            if wait == 0.0:
+                return t, y, contacts
+            horizon = wait if math.isfinite(wait) else 100.0 * self.t_max
+            met, t_free, y_free = self.free(t, y, horizon)
+            if not met:
+                if math.isfinite(wait):
+                    return t, y, contacts  # out of reach for good, the ball's speed unchanged
+                raise SolverError(
+                    f"the ball neither left nor met the barrel again within {horizon:.3g} s at {self.where}"
+                )
+            rounds += 1
+            if rounds > MAX_CONTACTS:
+                raise SolverError(f"more than {MAX_CONTACTS} contacts at {self.where}")
+            # the model keeps no account of the ball's shape out of contact: the elastic energy
+            # it held when it left is dropped, and what its overlap d holds when it meets the
+            # barrel again is counted anew
+            self.released += self._stored(y) - self._stored(y_free)
+            t, y = self.contact(t_free, y_free)
+            if t > t_free:
+                contacts += 1
 
 
 def momentum(imp: Impact, state: tuple[float, ...] | np.ndarray) -> float:

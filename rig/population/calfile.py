@@ -75,6 +75,20 @@ class CalibrationFile(BaseModel):
     notes: list[str] = []
     provenance: Provenance
 
+    @model_validator(mode="before")
+    @classmethod
+    def _in_variant_order(cls, data: Any) -> Any:
+        """parameters and uncertainty in the variant's order, the covariance's (a store sorts keys)."""
+        if not isinstance(data, dict) or data.get("variant") not in VARIANTS:
+            return data
+        names = VARIANTS[data["variant"]]
+        out = dict(data)
+        for key in ("parameters", "uncertainty"):
+            value = data.get(key)
+            if isinstance(value, dict) and set(value) == set(names):
+                out[key] = {n: value[n] for n in names}
+        return out
+
     @model_validator(mode="after")
     def _shapes(self) -> CalibrationFile:
         names = VARIANTS.get(self.variant)

@@ -259,6 +259,16 @@ def check_identifiable(bats: Sequence[FitBat]) -> None:
         )
 
 
+def _at_bounds(bats: Sequence[FitBat], fit: Fit) -> str:
+    """Which parameters of a fit sit at a bound ('' if none): the usual cause of a singular Jacobian."""
+    out = []
+    for n, v in fit.values.items():
+        lo, hi = BOUNDS[n][0], _upper(bats, n)
+        if min(v - lo, hi - v) <= 1e-6 * max(abs(hi - lo), 1.0):
+            out.append(f"{n} = {v:.4g} at its bound")
+    return ", ".join(out)
+
+
 def calibrate(
     bats: Sequence[PopulationBat], metric: str = "bbcor", variants: Sequence[str] = tuple(VARIANTS)
 ) -> Calibration:
@@ -268,20 +278,18 @@ def calibrate(
     reports, notes = {}, []
     start: dict[str, float] = {}
     for name in variants:
-        # each further variant starts from the first one's optimum (its extra parameter neutral), so
-        # it fits at least as well in sample and cannot stall in a worse local minimum
+        # each further variant starts from the first identified one's optimum (its extra parameter
+        # neutral), so it fits at least as well in sample and cannot stall in a worse local minimum
         fit = fit_variant(rows, name, start={**START, **start})
-        start = start or fit.values
         identified = bool(np.all(np.isfinite(fit.covariance)))
         if not identified:
-            if name == variants[0]:
-                raise CalibrationRefused(
-                    f"singular Jacobian: the data cannot separate {', '.join(fit.names)}"
-                    f" (condition number {fit.condition:.3g})"
-                )
-            notes.append(f"variant {name}: not identified (condition number {fit.condition:.3g}); left out")
+            notes.append(
+                f"variant {name}: not identified (condition number {fit.condition:.3g}:"
+                f" {_at_bounds(rows, fit) or 'the data cannot separate ' + ', '.join(fit.names)}); left out"
+            )
             reports[name] = VariantReport(fit, np.full(len(rows), np.nan), False)
             continue
+        start = start or fit.values
         for n, v in fit.values.items():
             lo, hi = BOUNDS[n][0], _upper(rows, n)
             if min(v - lo, hi - v) <= 1e-6 * max(abs(hi - lo), 1.0):
@@ -289,4 +297,10 @@ def calibrate(
                     f"variant {name}: {n} = {v:.4g} at its bound ({lo:g}-{hi:.4g}); its sigma is unreliable"
                 )
         reports[name] = VariantReport(fit, leave_one_out(rows, fit), True)
+    if not any(r.identified for r in reports.values()):
+        first = reports[variants[0]].fit
+        raise CalibrationRefused(
+            f"singular Jacobian: the data cannot separate {', '.join(first.names)}"
+            f" (condition number {first.condition:.3g}); no variant is identified"
+        )
     return Calibration(metric, tuple(rows), reports, choose(reports), tuple(notes))

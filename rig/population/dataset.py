@@ -9,6 +9,7 @@ One bat per row (CSV) or per [[bat]] table (TOML), keys as in COLUMNS:
   location_in impact location of the measured metric, in from the barrel end (optional; where the
               certification found its maximum)
   besr, bbs (m/s), bbcor   measured performance, each optional
+  u_besr, u_bbs, u_bbcor   their standard uncertainties (k = 1), each optional
   source      where the row comes from (free text; "synthetic ..." marks made-up data)
 CSV: comment lines start with '#'; the header names the columns (any order, these names only);
 an empty cell is a missing value. TOML: the same keys; a missing key is a missing value.
@@ -40,9 +41,13 @@ COLUMNS = (
     "besr",
     "bbs",
     "bbcor",
+    "u_besr",
+    "u_bbs",
+    "u_bbcor",
     "source",
 )
 METRICS = ("besr", "bbs", "bbcor")
+U_COLUMNS = ("u_besr", "u_bbs", "u_bbcor")
 
 
 class PopulationBat(BaseModel):
@@ -64,11 +69,19 @@ class PopulationBat(BaseModel):
     besr: Annotated[float, Field(gt=0.0, lt=2.0)] | None = None
     bbs: Annotated[float, Field(gt=0.0, lt=100.0)] | None = None
     bbcor: Annotated[float, Field(gt=0.0, lt=1.0)] | None = None
+    # standard uncertainties (k = 1) of the measured metrics
+    u_besr: Annotated[float, Field(ge=0.0, lt=1.0)] | None = None
+    u_bbs: Annotated[float, Field(ge=0.0, lt=50.0)] | None = None
+    u_bbcor: Annotated[float, Field(ge=0.0, lt=1.0)] | None = None
     source: str = ""
 
     def metric(self, name: str) -> float | None:
         """besr, bbs or bbcor."""
         return {"besr": self.besr, "bbs": self.bbs, "bbcor": self.bbcor}[name]
+
+    def u_metric(self, name: str) -> float | None:
+        """The standard uncertainty (k = 1) of besr, bbs or bbcor, when given."""
+        return {"besr": self.u_besr, "bbs": self.u_bbs, "bbcor": self.u_bbcor}[name]
 
     @property
     def synthetic(self) -> bool:
@@ -161,9 +174,11 @@ def write_population_csv(
     for c in comments:
         out.write(f"# {c}\n")
     writer = csv.writer(out, lineterminator="\n")
-    writer.writerow(COLUMNS)
-    for b in bats:
-        d = b.model_dump(mode="json")
-        writer.writerow(["" if d[c] is None else d[c] for c in COLUMNS])
+    rows = [b.model_dump(mode="json") for b in bats]
+    # the uncertainty columns only when some bat has one: files without them stay as they were
+    columns = [c for c in COLUMNS if c not in U_COLUMNS or any(d[c] is not None for d in rows)]
+    writer.writerow(columns)
+    for d in rows:
+        writer.writerow(["" if d[c] is None else d[c] for c in columns])
     path.write_text(out.getvalue(), encoding="utf-8")
     return path

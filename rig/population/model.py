@@ -19,7 +19,7 @@ import numpy as np
 from rig.core.bat import PIVOT_FROM_KNOB_M
 from rig.core.units import INCH
 from rig.measure.metrics import compute_metrics
-from rig.physics import DEFAULT_PARAMS, PivotedBat, predict_bat
+from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat, predict_bat
 from rig.population.dataset import PopulationBat
 
 SPEED_M_S = 60.8  # 136 mph: BESR/BBCOR relative speed
@@ -47,15 +47,19 @@ class ReferenceBat:
         return cls.at(length, moi)
 
     @classmethod
-    def at(cls, length_in: float, moi_kgm2: float) -> ReferenceBat:
-        """A bat of this length and MOI, struck IMPACT_FROM_TIP_IN from the barrel end."""
-        q = length_in * INCH - PIVOT_FROM_KNOB_M - IMPACT_FROM_TIP_IN * INCH
+    def at(cls, length_in: float, moi_kgm2: float, location_in: float = IMPACT_FROM_TIP_IN) -> ReferenceBat:
+        """A bat of this length and MOI, struck `location_in` from the barrel end."""
+        q = length_in * INCH - PIVOT_FROM_KNOB_M - location_in * INCH
         return cls(length_in, moi_kgm2, q)
 
 
-def predict_metrics(hoop_hz: float, bat: ReferenceBat, speed: float = SPEED_M_S) -> dict[str, float]:
-    """e_a, besr, bbs and bbcor the model predicts for `bat` at this hoop frequency."""
-    params = DEFAULT_PARAMS.model_copy(update={"m1": BALL_MASS_KG})
+PAPER_PARAMS = DEFAULT_PARAMS.model_copy(update={"m1": BALL_MASS_KG})
+
+
+def predict_metrics(
+    hoop_hz: float, bat: ReferenceBat, speed: float = SPEED_M_S, params: CollisionParams = PAPER_PARAMS
+) -> dict[str, float]:
+    """e_a, besr, bbs and bbcor the model (the paper's constants unless given) predicts for `bat`."""
     pivoted = PivotedBat(moi_kgm2=bat.moi_kgm2, impact_from_pivot_m=bat.impact_from_pivot_m)
     e_a = predict_bat(params, speed, hoop_hz, pivoted).e_a
     m = compute_metrics(
@@ -65,10 +69,13 @@ def predict_metrics(hoop_hz: float, bat: ReferenceBat, speed: float = SPEED_M_S)
 
 
 def model_curves(
-    hoop_hz: Sequence[float], bat: ReferenceBat, speed: float = SPEED_M_S
+    hoop_hz: Sequence[float],
+    bat: ReferenceBat,
+    speed: float = SPEED_M_S,
+    params: CollisionParams = PAPER_PARAMS,
 ) -> dict[str, list[float]]:
     """predict_metrics over a grid of hoop frequencies."""
-    rows = [predict_metrics(float(f), bat, speed) for f in hoop_hz]
+    rows = [predict_metrics(float(f), bat, speed, params) for f in hoop_hz]
     out: dict[str, list[float]] = {"hoop_hz": [float(f) for f in hoop_hz]}
     for key in ("e_a", "besr", "bbs", "bbcor"):
         out[key] = [r[key] for r in rows]
@@ -76,14 +83,29 @@ def model_curves(
 
 
 def population_curves(
-    bats: Sequence[PopulationBat], hoop_hz: Sequence[float], speed: float = SPEED_M_S
+    bats: Sequence[PopulationBat],
+    hoop_hz: Sequence[float],
+    speed: float = SPEED_M_S,
+    params: CollisionParams = PAPER_PARAMS,
+    location_in: float | None = None,
 ) -> dict[str, list[float]]:
-    """At each hoop frequency, the mean of predict_metrics over the bats' own length and MOI."""
+    """At each hoop frequency, the mean of predict_metrics over the bats' own length and MOI.
+
+    Struck IMPACT_FROM_TIP_IN from the end; with `location_in`, at each bat's own location_in
+    (where its certification found the maximum), else at `location_in`.
+    """
     fallback = ReferenceBat.of(bats)
+
+    def where(b: PopulationBat) -> float:
+        if location_in is None:
+            return IMPACT_FROM_TIP_IN
+        return location_in if b.location_in is None else b.location_in
+
     refs = [
-        ReferenceBat.at(b.length_in or fallback.length_in, b.moi_kgm2 or fallback.moi_kgm2) for b in bats
+        ReferenceBat.at(b.length_in or fallback.length_in, b.moi_kgm2 or fallback.moi_kgm2, where(b))
+        for b in bats
     ] or [fallback]
-    curves = [model_curves(hoop_hz, ref, speed) for ref in refs]
+    curves = [model_curves(hoop_hz, ref, speed, params) for ref in refs]
     out: dict[str, list[float]] = {"hoop_hz": [float(f) for f in hoop_hz]}
     for key in ("e_a", "besr", "bbs", "bbcor"):
         out[key] = [float(v) for v in np.mean([c[key] for c in curves], axis=0)]

@@ -4,8 +4,10 @@ For each registered bat: hoop_hz from its registered spec, else from its latest 
 entry; first bending frequency from that ModalResult; BESR, BBS and BBCOR the means over the
 valid hits (purpose 'valid', at the run's chosen location) of every finished run of the bat, each
 metric as rig.measure.metrics computed it per shot (ShotMeasured); location_in the mean over those
-runs of the chosen location (RunFinished). Bats with no hoop frequency
-are left out, with a note.
+runs of the chosen location (RunFinished). u_<metric> for the metric a run certified: the
+result's standard uncertainty (its U / k, the `u` RunFinished records); over several runs of a
+bat the mean of their u (the rig's systematic parts, common to the runs, dominate, so the runs'
+u are not averaged down as if independent). Bats with no hoop frequency are left out, with a note.
 """
 
 from __future__ import annotations
@@ -39,6 +41,9 @@ def _run_metrics(store: Store, run_id: str) -> tuple[dict[str, list[float]], flo
                 out[name].append(float(metrics[name]))
     if out and isinstance(location, int | float):
         out["location_in"].append(float(location))  # once per run: the bat's mean chosen location
+    metric, u = finished[-1].get("metric"), finished[-1].get("u")
+    if metric in METRICS and out.get(metric) and isinstance(u, int | float):
+        out[f"u_{metric}"].append(float(u))  # once per run: the certified result's standard uncertainty
     moi = finished[-1].get("moi_kgm2")
     return out, float(moi) if isinstance(moi, int | float) else None
 

@@ -11,13 +11,16 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from rig.population.binning import Bin, bin_by_hoop
 from rig.population.dataset import METRICS, PopulationBat
 from rig.population.model import SPEED_M_S, ReferenceBat, grid_for, population_curves
+
+if TYPE_CHECKING:
+    from rig.population.calfile import CalibrationFile
 
 BIN_WIDTH_HZ = 50.0
 HALF_WIDTH_HZ = 25.0
@@ -34,6 +37,7 @@ class PopulationStudy:
     trend: dict[str, dict[str, float | None]]
     sources: tuple[str, ...] = ()
     notes: tuple[str, ...] = field(default=())
+    calibrated: dict[str, Any] | None = None  # the calibrated model's curve and where it came from
 
     @property
     def synthetic(self) -> bool:
@@ -89,6 +93,7 @@ class PopulationStudy:
                 ),
             },
             "trend": self.trend,
+            "calibrated_model": self.calibrated,
         }
 
 
@@ -113,10 +118,47 @@ def _trend(
     return out
 
 
+def calibrated_curves(
+    bats: Sequence[PopulationBat], hoop_hz: Sequence[float], cal: CalibrationFile, source: str = ""
+) -> dict[str, Any]:
+    """The calibrated model over the grid: the calibration's parameters (calibrate.model_params).
+
+    Like the paper's curve, the mean over the bats' own length and MOI, but struck where the
+    calibration puts each bat: its own location_in, else the calibration's default location. The
+    offset of an offset variant is in the calibration's metric and is added to that metric only.
+    """
+    from rig.population.calibrate import model_params
+
+    params = model_params(cal.parameters)
+    curves: dict[str, Any] = population_curves(
+        bats, hoop_hz, cal.speed_m_s, params, location_in=cal.default_location_in
+    )
+    offset = cal.parameters.get("offset", 0.0)
+    curves[cal.metric] = [v + offset for v in curves[cal.metric]]
+    return {
+        **curves,
+        "file": source,
+        "metric": cal.metric,
+        "variant": cal.variant,
+        "parameters": dict(cal.parameters),
+        "loo_rmse": cal.loo_rmse,
+        "provenance": cal.provenance.model_dump(),
+        "definition": (
+            "mean over the bats (own length, MOI and location_in, else the calibration's default"
+            f" {cal.default_location_in:g} in) of e_A from predict_bat with the calibrated parameters;"
+            + (f" offset {offset:+.4g} added to {cal.metric} only" if offset else "")
+        ),
+    }
+
+
 def run_study(
-    bats: Sequence[PopulationBat], sources: Sequence[str] = (), notes: Sequence[str] = ()
+    bats: Sequence[PopulationBat],
+    sources: Sequence[str] = (),
+    notes: Sequence[str] = (),
+    calibration: CalibrationFile | None = None,
+    calibration_source: str = "",
 ) -> PopulationStudy:
-    """Bin the metrics, compute the model curve and the trends."""
+    """Bin the metrics, compute the model curve (and the calibrated one, if given) and the trends."""
     bats = tuple(sorted(bats, key=lambda b: b.hoop_hz))
     hoops = [b.hoop_hz for b in bats]
     bins = {
@@ -126,4 +168,11 @@ def run_study(
     reference = ReferenceBat.of(bats)
     model = population_curves(bats, grid_for(hoops)) if bats else {"hoop_hz": [], **{m: [] for m in METRICS}}
     trend = {name: _trend(bats, name, model) for name in METRICS} if bats else {}
-    return PopulationStudy(bats, bins, model, reference, trend, tuple(sources), tuple(notes))
+    calibrated = None
+    if calibration is not None and bats:
+        calibrated = calibrated_curves(bats, grid_for(hoops), calibration, calibration_source)
+        for name in METRICS:
+            cal_trend = _trend(bats, name, calibrated)
+            if "model_slope_per_khz" in cal_trend:
+                trend[name]["calibrated_slope_per_khz"] = cal_trend["model_slope_per_khz"]
+    return PopulationStudy(bats, bins, model, reference, trend, tuple(sources), tuple(notes), calibrated)

@@ -154,11 +154,24 @@ def model_curve(record: dict[str, Any], hoops: np.ndarray) -> tuple[np.ndarray, 
     q, moi, m_ball = v["impact_from_pivot_m"], v["moi_kgm2"], (proc.get("ball") or {}).get("mass_kg", 0.145)
     length = bat["length_in"] * INCH
     params = DEFAULT_PARAMS.model_copy(update={"m1": m_ball})
+    offset = 0.0
+    cc = record.get("cross_check") or {}
+    if cc.get("calibrated") is True:  # the calibrated model, at the calibration's speed and ball
+        from rig.population.calibrate import model_params
+        from rig.population.model import BALL_MASS_KG, SPEED_M_S
+
+        fitted = (cc.get("calibration") or {}).get("parameters") or {}
+        params, v_in, m_ball, offset = (
+            model_params(fitted),
+            SPEED_M_S,
+            BALL_MASS_KG,
+            fitted.get("offset", 0.0),
+        )
     pivoted = PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q)
 
     def metric(e_a: float) -> float:
         value = compute_metrics(v_in, e_a * v_in, q, moi, m_ball, length).as_dict()[name]
-        return float("nan") if value is None else value
+        return float("nan") if value is None else value + offset
 
     try:
         impacts = [impact_for(params, v_in, float(f), pivoted) for f in hoops]
@@ -182,7 +195,9 @@ def plot_model(record: dict[str, Any], path: Path) -> Path | None:
         return None
     values, rigid = curve
     fig, ax = plt.subplots(figsize=(6.4, 3.8))
-    ax.plot(hoops, values, "-", color="C0", lw=1.6, label="model: pivoted bat with hoop mode")
+    calibrated = (record.get("cross_check") or {}).get("calibrated") is True
+    what = "calibrated model" if calibrated else "model (uncalibrated)"
+    ax.plot(hoops, values, "-", color="C0", lw=1.6, label=f"{what}: pivoted bat with hoop mode")
     ax.axhline(rigid, color="0.5", lw=0.9, ls=":", label="model: rigid barrel")
     mean, big_u = v["mean"], v.get("U") or 0.0
     if hoop is not None:
@@ -197,8 +212,22 @@ def plot_model(record: dict[str, Any], path: Path) -> Path | None:
             zorder=4,
             label=f"this bat: measured +- U at {hoop:g} Hz",
         )
-        predicted = (record.get("cross_check") or {}).get("predicted")
-        if predicted is not None:
+        cc = record.get("cross_check") or {}
+        predicted, interval = cc.get("predicted"), cc.get("interval")
+        if predicted is not None and interval:
+            spread = [[predicted - interval[0]], [interval[1] - predicted]]
+            cover = f"{100 * cc.get('coverage', 0.95):g} %"
+            ax.errorbar(
+                [hoop],
+                [predicted],
+                yerr=spread,
+                fmt="x",
+                color="C0",
+                ms=9,
+                capsize=6,
+                label=f"calibrated model at this bat, {cover} prediction interval",
+            )
+        elif predicted is not None:
             ax.plot([hoop], [predicted], "x", color="C0", ms=9, label="model at this bat")
     else:
         wood = (record.get("bat") or {}).get("barrel") == "wood"

@@ -44,7 +44,10 @@ def plot_hoop_vs_bending(study: PopulationStudy, path: str | Path) -> list[Path]
     ax.set_ylabel("first hoop frequency (Hz)")
     ax.set_title("First hoop vs first bending frequency" + _tag(study), fontsize=10)
     ax.grid(alpha=0.3)
-    ax.legend()
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend()
+    else:  # e.g. a store's simulated bats: no modal test, so no bending frequency
+        ax.text(0.5, 0.5, "no bat has a first bending frequency", transform=ax.transAxes, ha="center")
     return _save(fig, Path(path))
 
 
@@ -72,7 +75,18 @@ def plot_metrics_vs_hoop(study: PopulationStudy, path: str | Path) -> list[Path]
                 study.model[name],
                 color="C3",
                 lw=1.5,
-                label="model: mean over the bats' own MOI and length",
+                label="model, paper's constants: mean over the bats' own MOI and length",
+            )
+        cal = study.calibrated
+        if cal is not None and cal.get(name):
+            offset = "" if name == cal["metric"] else " (no offset)" if "offset" in cal["parameters"] else ""
+            ax.plot(
+                cal["hoop_hz"],
+                cal[name],
+                color="C2",
+                lw=1.8,
+                ls="--",
+                label=f"calibrated model ({cal['variant']}, {cal['provenance']['n_bats']} bats){offset}",
             )
         ax.set_ylabel(METRIC_LABEL[name])
         ax.grid(alpha=0.3)

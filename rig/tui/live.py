@@ -199,7 +199,12 @@ def _finished(r: LiveRun, d: dict[str, Any]) -> None:
     cc = d.get("cross_check") or {}
     if cc.get("predicted") is not None:
         r.prediction = float(cc["predicted"])
-        r.prediction_note = "FLAGGED: out of line" if cc.get("flagged") else "consistent (run's check)"
+        flagged = cc.get("flagged")
+        r.prediction_note = (
+            "uncalibrated: not judged"
+            if flagged is None
+            else ("FLAGGED: out of line" if flagged else "consistent (run's check)")
+        )
     r.note(f"verdict: {d['verdict']}" + (f" ({d['zone']})" if d.get("zone") else ""))
 
 

@@ -6,7 +6,7 @@ of the simulated rig "default"; ports opened with the same `rig` share one SimWo
 
 from __future__ import annotations
 
-from simulators.urlhandler.registry import get_world, install_world, reset_worlds
+from simulators.urlhandler.registry import drop_world, get_world, install_world, reset_worlds
 
 PACKAGE = __name__
 
@@ -19,4 +19,4 @@ def register() -> None:
         serial.protocol_handler_packages.append(PACKAGE)
 
 
-__all__ = ["get_world", "install_world", "register", "reset_worlds"]
+__all__ = ["drop_world", "get_world", "install_world", "register", "reset_worlds"]

@@ -68,6 +68,14 @@ def release(rig: str, device: str) -> None:
         _open.discard((rig, device))
 
 
+def drop_world(rig: str) -> None:
+    """Forget rig `rig`'s world once its ports are closed (a population run builds one per bat)."""
+    with _lock:
+        if any(r == rig for r, _ in _open):
+            raise RigConflict(f"sim rig {rig!r} still has open ports")
+        _worlds.pop(rig, None)
+
+
 def reset_worlds() -> None:
     """Forget every world (for tests): the next open builds a fresh one."""
     with _lock:

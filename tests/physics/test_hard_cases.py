@@ -15,7 +15,7 @@ from collections.abc import Callable
 
 import numpy as np
 import pytest
-from hypothesis import currently_in_test_context, event, given, note
+from hypothesis import currently_in_test_context, event, example, given, note
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
@@ -107,7 +107,7 @@ def check_physical(imp: Impact, res: CollisionResult) -> None:
     if imp.rigid:
         # The barrel is fixed, so receding from it means rebounding: COR >= 0. A flexible barrel can
         # still be moving forward at separation and the ball with it (v1 < v2 but v1 > 0), so there
-        # COR < 0 is physical, e.g. about -0.4 at 100 Hz with the paper's constants.
+        # COR < 0 is physical (the ball leaves for good only if the barrel cannot catch it up).
         if p.c1 > 0.0:
             assert res.cor >= 0.0
         else:
@@ -180,6 +180,10 @@ NOISE = 1e-9  # COR noise of the solvers at rtol 1e-12
 
 
 @given(speed=SPEED, a=EXPONENT, b=EXPONENT, c1=st.sampled_from([0.0, 5000.0]) | log_uniform(100.0, 2e4))
+# b = 0, a = 1, an over-damped ball: it creeps off at 1.4e-6 m/s while a 1 MHz barrel rings under it
+# (27 attometres): ~85 touches, each ~1 us, change the COR by 1.6e-10 in all (a clipped-force solve
+# agrees). Following them once stepped over a touch and ran to the time limit ("contact did not end").
+@example(speed=1.0, a=1.0, b=0.0, c1=9652.93130545939)
 def test_rigid_barrel_is_the_limit_of_the_flexible_one(speed: float, a: float, b: float, c1: float) -> None:
     """Over all exponents: |COR(1 MHz) - COR_rigid| < 2e-5 and smaller than at 20 kHz and 96 kHz.
 
@@ -190,7 +194,14 @@ def test_rigid_barrel_is_the_limit_of_the_flexible_one(speed: float, a: float, b
     """
     params = CollisionParams.build(a=a, b=b, c1=c1)
     rigid = fast.solve(Impact(params, speed), 1e-12).cor
-    cor, _ = curve.cor_grid(params, speed, RIGID_LIMIT_HOOPS, 1e-12)
+    try:
+        cor, _ = curve.cor_grid(params, speed, RIGID_LIMIT_HOOPS, 1e-12)
+    except SolverError as exc:
+        # b ~ 0 only (the issue allows a refusal at b = 0): an over-damped ball creeping off at
+        # ~1e-9 m/s (0.01 m/s in, COR ~ 1e-7) is touched again and again by the ringing barrel for
+        # seconds (seen at a = 1, b = 1e-12, c1 = 10810, 95.6 kHz)
+        assert b < 1e-6 and "creeps off" in str(exc)
+        return
     gap = np.abs(cor - rigid)
     note(f"gaps {gap}")
     assert gap[-1] < 2e-5
@@ -268,7 +279,16 @@ def test_extreme_barrel_masses_solve(
 ) -> None:
     """Very light (0.1 g) and very heavy (10 t, 1e5 t) barrels solve with sane results."""
     imp = Impact(CollisionParams.build(m2=m2, b=b), speed, hoop)
-    res = fast.solve(imp)
+    if rigid_gap is None:
+        # over-damped 0.1 g barrel: the ball may creep off it (COR ~ 1e-3) for seconds of free
+        # flight at a stiff rate c2/m2 = 1e6 /s; following that is refused with a message
+        try:
+            res = fast.solve(imp)
+        except SolverError as exc:
+            assert "creeps off" in str(exc)
+            return
+    else:
+        res = fast.solve(imp)
     check_physical(imp, res)
     if rigid_gap is not None:
         rigid = fast.solve(Impact(imp.params, speed)).cor
@@ -301,7 +321,11 @@ def test_light_undamped_barrel_is_knocked_away() -> None:
     params = CollisionParams.build(m2=1e-4, c1=0.0, c2=0.0)
     res = fast.solve(Impact(params, 1.0, 100.0))
     check_physical(Impact(params, 1.0, 100.0), res)
-    assert res.cor == pytest.approx(-(params.m1 - params.m2) / (params.m1 + params.m2), abs=1e-5)
+    # the first contact knocks the barrel away as a free light mass would (ball forward at
+    # (m1 - m2)/(m1 + m2) v0); the undamped spring brings it back, so the ball is hit again and
+    # leaves backwards in the end, energy conserved (check_physical)
+    assert res.contacts >= 2
+    assert 0.0 < res.cor <= 1.0
 
 
 @pytest.mark.parametrize("body_mass", [1e3, 1e6])
@@ -395,19 +419,22 @@ GRAZING_HOOPS = np.arange(150.0, 156.8, 0.25)  # paper's constants at 60.8 m/s
 
 @pytest.mark.parametrize("name", ["fast", "reference"])
 def test_grazing_separation_is_not_skipped(paper_params: CollisionParams, name: str) -> None:
-    """Near 155 Hz F dips below zero for ~40 us at 0.56 ms; contact must end there (COR ~ -0.40).
+    """Near 155 Hz F dips below zero for ~40 us at 0.56 ms: a brief separation, then contact again.
 
-    The model's COR jumps from -0.40 to +0.27 at ~156.9 Hz, where that first dip vanishes; below
-    it the solvers return either answer depending on rtol (fast: 0.265 at 1e-10, -0.401 at 1e-12).
+    The first zero of F must still be found (the independent oracle locates it; the solvers must
+    report more than one contact there), and the COR is the ball's speed after the last contact:
+    ~+0.26, continuous in the hoop frequency (it used to be the -0.40 of the first zero, jumping to
+    +0.27 at ~156.9 Hz). tests/physics/test_recontact.py checks the COR against a clipped-force solve.
     """
     solver = CONVERGENCE_SOLVERS["fast" if name == "fast" else "DOP853"]
     missed = []
     for hoop in GRAZING_HOOPS:
-        cor, t_end = first_separation(paper_params, 60.8, float(hoop), max_step=1e-6)
+        cor_first, _ = first_separation(paper_params, 60.8, float(hoop), max_step=1e-6)
+        assert cor_first < 0.0  # the ball is still moving into the barrel at the first zero of F
         res = solver(Impact(paper_params, 60.8, float(hoop)), 1e-10)
-        if abs(res.cor - cor) > 1e-6 or abs(res.contact_time_s / t_end - 1.0) > 1e-6:
-            missed.append((float(hoop), res.cor, cor))
-    assert not missed, f"first separation missed at (hoop, COR, true COR): {missed}"
+        if res.contacts < 2 or not 0.2 < res.cor < 0.3:
+            missed.append((float(hoop), res.cor, res.contacts))
+    assert not missed, f"brief separation missed at (hoop, COR, contacts): {missed}"
 
 
 def test_light_barrel_contact_outlasting_time_limit() -> None:

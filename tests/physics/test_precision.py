@@ -210,8 +210,11 @@ def test_accuracy_doc_markdown_from_a_quick_run(
         Impact(DEFAULT_PARAMS, 60.8, 1250.0), rtols=(1e-6,), cor_ref=study.references[0].cor
     )
     # scipy with the kernel's first step is the kernel's own method and error control: same steps
-    # (the kernel may add the 3 dense-output stages of its in-step check for a brief separation)
-    assert 0 <= first[0].kernel_nfev - first[0].nfev_kernel_step <= 3
+    # (the kernel may add the 3 dense-output stages of its in-step check for a brief separation, and
+    # retake the step that holds the end of contact, 12 stages a try, when it is too long for its
+    # dense output: h * c1 |d|^b / mu > (8! rtol)^(1/8), docs/contacts.md)
+    extra = first[0].kernel_nfev - first[0].nfev_kernel_step
+    assert 0 <= extra % 12 <= 3 and extra <= 3 + 4 * 12
     assert first[0].cor_error_kernel_step == pytest.approx(first[0].kernel_cor_error, rel=1e-3, abs=1e-13)
     figures = {"main": "figures/a.png", "near": "figures/b.png", "curve": "figures/c.png"}
     md = build_markdown(study, study, curve_rows, first, None, 1.0, figures, 1e-6, (), "today")

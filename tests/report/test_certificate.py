@@ -32,9 +32,12 @@ PNG = b"\x89PNG\r\n\x1a\n"
 def records(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, Any]]:
     """Records of runs on the simulated rig: pass, fail, interrupted, ring failure, BESR, BBS."""
     soft = SAMPLE_BAT.model_copy(update={"id": "SOFT-1800", "hoop_hz": 1800.0})
+    # the lab's own barrel keeps 1800 Hz bats legal; the paper's generic barrel makes one hot (~0.60)
+    hot = tmp_path_factory.mktemp("scene") / "hot.toml"
+    hot.write_text('[[effects]]\nkind = "trampoline"\n', encoding="utf-8")
     runs = {
         "pass": ("bbcor", SAMPLE_BAT, "lab", None),
-        "fail": ("bbcor", soft, "lab", None),
+        "fail": ("bbcor", soft, str(hot), None),
         "interrupted": ("bbcor", SAMPLE_BAT, "faulty", None),
         "ring": ("bbcor", SAMPLE_BAT, "ideal", ScriptedOperator(answer=False, who="test")),
         "besr": ("besr", SAMPLE_BAT, "lab", None),

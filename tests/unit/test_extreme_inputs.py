@@ -189,10 +189,14 @@ def test_study_refuses_a_hoop_frequency_no_bat_has(tmp_path: Path) -> None:
 
 
 # The bounds must not refuse a real bat or a real model question: their edges are accepted.
-@pytest.mark.parametrize("hoop", ["200", "10000"])
+@pytest.mark.parametrize("hoop", ["20", "10000"])
 def test_the_hoop_range_edges_run_the_model(hoop: str) -> None:
     for speed in ("1", "100"):
         assert run_cli(["model", "cor", "--speed", speed, "--hoop", hoop, "--json"]).code == 0
+
+
+def test_the_model_refuses_below_its_hoop_range() -> None:
+    refused(run_cli(["model", "cor", "--speed", "60", "--hoop", "19", "--json"]), "hoop")
 
 
 @pytest.mark.parametrize("hoop", [200.0, 10000.0])

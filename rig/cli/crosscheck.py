@@ -1,0 +1,112 @@
+"""`rig model crosscheck`: each bat's measured metric against the calibrated model's prediction interval."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from typing import Any
+
+from rig.core.errors import ConfigError
+
+
+def interval_rule(t: float, dof: int, coverage: float) -> str:
+    """How the interval is made, in one sentence."""
+    return (
+        f"interval: predicted +- t sqrt(u_model^2 + u_scatter^2 + u_measured^2), t = {t:.3f}"
+        f" (Student-t, {dof} degrees of freedom), coverage {100 * coverage:g} %"
+    )
+
+
+def cmd_crosscheck(args: argparse.Namespace) -> int:
+    """rig model crosscheck: prediction, interval, measured, z and flagged for each bat."""
+    from rig.population import load_population
+    from rig.population.calfile import load_calibration
+    from rig.population.crosscheck import crosscheck_bats, dof, t_factor
+
+    cal = load_calibration(args.calibration)
+    t = t_factor(cal, args.coverage)
+    bats = load_population(args.data)
+    if not bats:
+        raise ConfigError("no bats in the file", source=args.data)
+    if all(b.metric(cal.metric) is None for b in bats):
+        raise ConfigError(
+            f"no {cal.metric} values: the calibration is for {cal.metric} and the column is absent or empty",
+            source=args.data,
+        )
+    checks = crosscheck_bats(cal, bats, coverage=args.coverage)
+    if args.json:
+        json.dump([c.as_dict() for c in checks], sys.stdout, indent=2, allow_nan=False)
+        sys.stdout.write("\n")
+        return 0
+    _print(checks, cal, interval_rule(t, dof(cal), args.coverage))
+    return 0
+
+
+def _print(checks: list[Any], cal: Any, rule: str) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    prov = cal.provenance
+    table = Table(
+        title=f"Cross-check of {cal.metric} against the calibration of {prov.n_bats} bats"
+        f" ({prov.hoop_min_hz:.0f}-{prov.hoop_max_hz:.0f} Hz, data sha256 {prov.data_sha256[:12]}...)"
+    )
+    for col in ("bat", "hoop Hz", "predicted", "interval", "measured", "z", "flagged"):
+        table.add_column(col, justify="left" if col == "bat" else "right")
+    for c in checks:
+        flag = "-" if c.flagged is None else ("FLAGGED" if c.flagged else "consistent")
+        if c.extrapolated:
+            flag += " (extrapolated)"
+        table.add_row(
+            c.bat_id,
+            f"{c.hoop_hz:.0f}",
+            f"{c.predicted:.4f}",
+            f"{c.interval[0]:.4f} - {c.interval[1]:.4f}",
+            "-" if c.measured is None else f"{c.measured:.4f}",
+            "-" if c.z is None else f"{c.z:+.2f}",
+            flag,
+        )
+    console = Console()
+    console.print(table)
+    console.print(rule)
+    unknown = sum(not c.u_measured_known for c in checks)
+    if unknown:
+        console.print(
+            f"note: {unknown} of {len(checks)} bats give no u_{cal.metric}: their own measurement"
+            " uncertainty is taken as 0 (the interval is then narrower than it should be)"
+        )
+    outside = [c.bat_id for c in checks if c.extrapolated]
+    if outside:
+        console.print(
+            f"note: {len(outside)} bats lie outside the calibration's hoop range (first {outside[0]}):"
+            " predicted by extrapolation"
+        )
+    flagged = sum(bool(c.flagged) for c in checks)
+    console.print(f"{flagged} of {len(checks)} bats flagged")
+
+
+def _coverage(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+
+
+def add_parser(msub: Any) -> None:
+    """`rig model crosscheck` under the `rig model` subcommands."""
+    p = msub.add_parser(
+        "crosscheck",
+        help="each bat's measured metric against the calibrated model's prediction interval",
+        description=(
+            "For each bat: the calibrated model's prediction at its hoop frequency, MOI, length and"
+            " impact location; the prediction interval (parameter covariance, bat-to-bat scatter and the"
+            " bat's own u_<metric> column, Student-t with the calibration's n - p degrees of freedom); the"
+            " measured value, z and whether it is flagged (outside the interval)."
+        ),
+    )
+    p.add_argument("--data", required=True, metavar="BATS", help="population file (.csv or .toml)")
+    p.add_argument("--calibration", required=True, metavar="CAL.json", help="from `rig model calibrate`")
+    p.add_argument("--coverage", type=_coverage, default=0.95, help="the interval's coverage (default 0.95)")
+    p.add_argument("--json", action="store_true", help="print a JSON list, one object per bat")
+    p.set_defaults(handler=cmd_crosscheck)

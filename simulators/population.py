@@ -1,0 +1,98 @@
+"""A simulated lab's bat population as the cross-check sees it: true and measured metrics.
+
+Studies of the cross-check's power need hundreds of bats (benchmarks/bench_crosscheck.py).
+Certifying each on the simulated rig takes about half a second of solves per shot series, so the
+study takes a bat's certified value as what the simulated rig would centre on: the scene's own
+collision (the `collision` slot effect, i.e. the trampoline with the scene's true barrel, the bat's
+own offset and any alteration) at the impact location, plus Gaussian measurement noise of a stated
+size (benchmarks/bench_simpop.py measures that size on real simulated certifications). Only the
+effects the cross-check is about enter: the barrel, the bat's offset, the noise of a certified mean.
+"""
+
+from __future__ import annotations
+
+import random
+from collections.abc import Callable, Sequence
+
+import numpy as np
+
+from rig.core.bat import Barrel
+from rig.core.units import INCH
+from rig.measure.metrics import compute_metrics
+from rig.population.dataset import PopulationBat
+from rig.population.simulate import SimulatedBat
+from simulators.scene import Scene
+
+SPEED_M_S = 60.8  # the BBCOR inbound speed the calibration predicts at
+# The BBCOR procedure's scan (protocols/bbcor.toml): 5.0-7.5 in by 0.5 in, extended by up to 1 in
+# when the maximum sits at an end of it.
+SCAN_IN = (5.0, 5.5, 6.0, 6.5, 7.0, 7.5, 8.0, 8.5)
+
+
+def bat_scene(scene: Scene, bat: SimulatedBat) -> Scene:
+    """The scene with this bat's true properties (true MOI) and its alteration, as a certification has it."""
+    s = bat.spec
+    out = scene.with_bat(
+        id=s.id,
+        length_m=s.length_m,
+        mass_kg=s.mass_kg,
+        moi_kgm2=bat.moi_kgm2,
+        hoop_hz=s.hoop_hz,
+        balance_point_m=s.balance_point_in * INCH if s.balance_point_in is not None else None,
+    )
+    return out.with_alteration(bat.alteration_bbcor) if bat.altered else out
+
+
+def true_metric(scene: Scene, bat: SimulatedBat, location_in: float, metric: str = "bbcor") -> float:
+    """The metric the simulated rig's collision gives this bat at `location_in` from the barrel end."""
+    sc = bat_scene(scene, bat)
+    slot = [e for e in sc.active_effects() if getattr(e, "slot", None) == "collision"]
+    if not slot:
+        raise ValueError(f"scene {scene.name!r} has no collision effect: its barrel is rigid")
+    effect = slot[0].build(sc, random.Random(0))  # the collision draws nothing at random
+    q = (bat.spec.length_in - location_in) * INCH - sc.rig.pivot_from_knob_m
+    e_a, _ = effect.collide(sc.ball, SPEED_M_S, q)  # type: ignore[attr-defined]
+    m = compute_metrics(SPEED_M_S, e_a * SPEED_M_S, q, bat.moi_kgm2, sc.ball.m1, bat.spec.length_m)
+    return float(getattr(m, metric))
+
+
+def scan_maximum(scene: Scene, bat: SimulatedBat, metric: str = "bbcor") -> float:
+    """The scan location (SCAN_IN) where the bat's true metric is largest: where a scan ends up."""
+    return max(SCAN_IN, key=lambda loc: true_metric(scene, bat, loc, metric))
+
+
+def measured_population(
+    scene: Scene,
+    bats: Sequence[SimulatedBat],
+    location_in: float | Callable[[Scene, SimulatedBat], float],
+    noise_sd: float,
+    rng: np.random.Generator,
+    metric: str = "bbcor",
+    u: float | None = None,
+) -> list[PopulationBat]:
+    """Population rows: each bat's true metric plus N(0, noise_sd); u_<metric> = u (else noise_sd).
+
+    `location_in` is a location from the barrel end, or a function choosing one per bat
+    (scan_maximum: where the procedure's scan would settle).
+    """
+    rows = []
+    for bat in bats:
+        loc = location_in(scene, bat) if callable(location_in) else location_in
+        value = true_metric(scene, bat, loc, metric) + float(rng.normal(0.0, noise_sd))
+        rows.append(
+            PopulationBat.model_validate(
+                {
+                    "bat_id": bat.spec.id,
+                    "barrel": Barrel.ALUMINIUM,
+                    "hoop_hz": bat.spec.hoop_hz,
+                    "length_in": bat.spec.length_in,
+                    "weight_oz": bat.spec.weight_oz,
+                    "moi_kgm2": bat.moi_kgm2,
+                    "location_in": loc,
+                    metric: value,
+                    f"u_{metric}": noise_sd if u is None else u,
+                    "source": f"simulated ({scene.name} scene, measured value = true + noise)",
+                }
+            )
+        )
+    return rows
