@@ -103,6 +103,10 @@ def cmd_certify(args: argparse.Namespace) -> int:
             named = str(Path(args.calibration).expanduser().resolve())
             config = config.model_copy(update={"model": Model(calibration=named)})  # wins over [model]
         problems = dry_run(procedure, bat, config)
+        if args.dry_run and not args.resume:
+            from protocols.evaluate import run_calibration
+
+            run_calibration(procedure, config)  # a named calibration that will not load is named here
         if problems or args.dry_run:
             for line in problems or ["dry run: the procedure fits this rig and this bat"]:
                 print(line, file=sys.stderr)

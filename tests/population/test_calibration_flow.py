@@ -53,3 +53,17 @@ def test_calibration_cannot_change_on_resume(calibrated: Path, capsys: pytest.Ca
     )  # fmt: skip
     assert code == 2
     assert "keeps the calibration it recorded" in capsys.readouterr().err
+
+
+def test_dry_run_checks_the_calibration(calibrated: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--dry-run loads the named calibration as a run would (it said 'fits' for a damaged file)."""
+    bat = calibrated / "pop-bats" / "SIM-S4-003.toml"
+    args = ["certify", "--sim", "lab", "--procedure", "bbcor", "--bat", str(bat), "--dry-run"]
+    args += ["--db", str(calibrated / "dry.db")]
+    assert main([*args, "--calibration", str(calibrated / "cal.json")]) == 0
+    broken = calibrated / "broken.json"
+    broken.write_text('{"kind": "rig-model-calibration"}')
+    capsys.readouterr()
+    assert main([*args, "--calibration", str(broken)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "broken.json" in err[0]
