@@ -3,12 +3,13 @@
 `import rig` gives the public Python API (docs/api.md): `open_store`, `Bat`, `simulated`,
 `from_config`, `certify`, `Result`, `Verdict`, `RigSpec`, `RunControl` and `RigError`. They load on
 first use, so that `import rig` (the CLI's start-up) stays light: no pydantic, numpy or drivers.
+Type checkers read their types from __init__.pyi; import-linter sees no import of rig.api here.
 """
 
 from __future__ import annotations
 
 import importlib
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 __version__ = "0.1.0"
 
@@ -36,10 +37,6 @@ __all__ = [
     "open_store",
     "simulated",
 ]
-
-if TYPE_CHECKING:
-    from rig.api import Bat, Result, RigSpec, RunControl, Verdict, certify, from_config, open_store, simulated
-    from rig.core.errors import RigError
 
 
 def __getattr__(name: str) -> Any:
