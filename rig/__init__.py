@@ -9,7 +9,6 @@ Type checkers read their types from __init__.pyi; import-linter sees no import o
 from __future__ import annotations
 
 import importlib
-from typing import Any
 
 __version__ = "0.1.0"
 
@@ -39,7 +38,7 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     """Load a public name on first use (PEP 562)."""
     if name == "RigError":
         return importlib.import_module("rig.core.errors").RigError

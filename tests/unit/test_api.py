@@ -223,3 +223,24 @@ def test_from_config_runs_the_rig_file(tmp_path: Path) -> None:
 def _write(path: Path, text: str) -> Path:
     path.write_text(text)
     return path
+
+
+def test_an_error_in_on_event_interrupts_the_run_and_keeps_the_event(tmp_path: Path) -> None:
+    """A script's own bug in on_event: the run is interrupted (not torn), the event already recorded."""
+
+    def broken(event: Any) -> None:
+        if kind_and_data(event)[0] == "ShotFired":
+            raise ValueError("the script's own bug")
+
+    with rig.open_store(tmp_path / "r.db") as store:
+        result = rig.certify(
+            bat=rig.Bat.load(SAMPLE_BAT),
+            procedure="bbcor",
+            rig=rig.simulated("ideal"),
+            store=store,
+            on_event=broken,
+        )
+        kinds = [k for k, _ in logged(store, result.run_id)]
+    assert result.status == "interrupted" and result.reason == "unexpected ValueError: the script's own bug"
+    assert kinds[-1] == "RunInterrupted" and kinds.count("ShotFired") == 1  # recorded, then stopped
+    assert "ShotMeasured" not in kinds and "ShotRejected" not in kinds  # nothing shot after it
