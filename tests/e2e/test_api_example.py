@@ -20,6 +20,7 @@ ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "examples" / "certify_simulated.py"
 
 
+@pytest.mark.slow
 def test_the_example_certifies_and_prints_the_recorded_verdict(tmp_path: Path, cpu_load: None) -> None:
     db = tmp_path / "records.db"
     out = subprocess.run(
@@ -42,6 +43,7 @@ def test_the_example_certifies_and_prints_the_recorded_verdict(tmp_path: Path, c
     assert record["procedure"] == Procedure.load("bbcor").model_dump(mode="json")
 
 
+@pytest.mark.slow
 def test_the_example_writes_to_a_temporary_store_when_given_none(tmp_path: Path, cpu_load: None) -> None:
     out = subprocess.run(
         [sys.executable, str(EXAMPLE)], cwd=tmp_path, capture_output=True, text=True, timeout=240
