@@ -40,8 +40,8 @@ def true_bbcor(scene: Scene, hoop: float, moi: float, length_in: float, location
     e_h = predict_bat(params, SPEED, hoop, bat).e_a
     q_s = length_in * INCH - t.sweet_spot_from_tip_m - scene.rig.pivot_from_knob_m
     w = math.exp(-0.5 * ((q - q_s) / t.width_m) ** 2)
-    e = e_r + w * (e_h - e_r)
     k = params.m1 * q * q / moi
+    e = e_r + w * (e_h - e_r) - t.off_node_loss_bbcor * (1 - w) / (1 + k)  # bending loss off the sweet spot
     return e * (1 + k) + k
 
 

@@ -17,6 +17,11 @@ does. d(q) is the bat's own performance beyond the model: a bat-to-bat offset dr
 `alteration_bbcor` of an altered bat, both in BBCOR units and turned into e_A at the impact point
 (BBCOR = e_A (1 + k) + k, rig.measure.metrics), so that at the sweet spot they raise the BBCOR
 by exactly that much.
+
+Off the sweet spot a real bat also loses energy to its bending vibration (the sweet spot sits near
+the first bending mode's node). `off_node_loss_bbcor` = L takes L (1 - w(q)) BBCOR off the
+result (0 at the sweet spot, L far from it), so that a location scan peaks near the sweet spot
+rather than riding the rigid barrel's slow rise towards the handle. The shape is an assumption.
 """
 
 from __future__ import annotations
@@ -52,6 +57,9 @@ class TrampolineConfig(EffectConfig):
     k1_scale: float = Field(1.0, ge=0.1, le=10.0, description="true factor on the ball's contact stiffness")
     spread_bbcor: float = Field(
         0.0, ge=0.0, le=0.05, description="bat-to-bat standard deviation of the performance, BBCOR"
+    )
+    off_node_loss_bbcor: float = Field(
+        0.0, ge=0.0, le=0.3, description="BBCOR lost to bending vibration far from the sweet spot"
     )
     alteration_bbcor: float = Field(
         0.0, ge=-0.2, le=0.2, description="extra performance of an altered bat, BBCOR (0: legal)"
@@ -117,6 +125,7 @@ class Trampoline(Effect):
             e_h, tc_h = solve_pivoted(true, speed, self.hoop_hz, self.moi, q)
             e_h += self.extra_e_a(params, q)
             w = self.weight(q)
-            hit = (e_r + w * (e_h - e_r), tc_r + w * (tc_h - tc_r))
+            loss = self.config.off_node_loss_bbcor * (1.0 - w) / (1.0 + recoil_factor(q, self.moi, params.m1))
+            hit = (e_r + w * (e_h - e_r) - loss, tc_r + w * (tc_h - tc_r))
             self._cache.put(key, hit)
         return hit
