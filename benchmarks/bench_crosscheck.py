@@ -36,7 +36,7 @@ import numpy as np
 
 from rig.cli import main as rig_main
 from rig.population.calfile import CalibrationFile, calibration_record
-from rig.population.calibrate import calibrate
+from rig.population.calibrate import CalibrationRefused, calibrate
 from rig.population.crosscheck import crosscheck_bats
 from rig.population.simulate import SimulatedBat, simulated_population
 from rig.population.store_source import bats_from_store
@@ -60,6 +60,7 @@ class Tally:
     loo_rmse: list[float] = field(default_factory=list)
     variants: list[str] = field(default_factory=list)
     fit_s: list[float] = field(default_factory=list)
+    refused: list[str] = field(default_factory=list)  # populations the calibration refused, and why
 
     @property
     def rmse(self) -> float:
@@ -136,7 +137,11 @@ def one_population(scene: Scene, seed: int, n: int, noise: float, u: float, tall
     rng = np.random.default_rng([seed, 7])
     train = measured_population(scene, simulated_population(n, seed), scan_maximum, noise, rng, u=u)
     t0 = time.perf_counter()
-    cal = calibrate(train, "bbcor")
+    try:
+        cal = calibrate(train, "bbcor")
+    except CalibrationRefused as exc:  # counted and shown: a lab would be told the same
+        tally.refused.append(f"population {seed}: {exc}")
+        return
     tally.fit_s.append(time.perf_counter() - t0)
     record = CalibrationFile.model_validate(calibration_record(cal, b"simulated", f"population {seed}"))
     tally.variants.append(record.variant)
@@ -160,12 +165,15 @@ def report(tally: Tally, populations: int, n: int, noise: float, u: float, sprea
         f"tier 2: {populations} simulated populations (lab scene, bat-to-bat spread {spread:g} BBCOR,"
         f" measurement noise {noise:.5f}, recorded u {u:.5f}): calibrated on {n} legal bats each,"
         f" cross-checked on {n} fresh bats each, 95 % prediction intervals"
+        + (f"; {len(tally.refused)} refused by the calibration" if tally.refused else "")
     )
     print(
         f"calibration: {np.mean(tally.fit_s):.1f} s each (median {np.median(tally.fit_s):.1f} s);"
         f" variants chosen: {', '.join(sorted(set(tally.variants)))}"
         f" ({', '.join(f'{v} x{tally.variants.count(v)}' for v in sorted(set(tally.variants)))})"
     )
+    for why in tally.refused:
+        print(f"calibration refused, population left out: {why}")
     print(f"leave-one-out RMSE (in the calibration set): mean {np.mean(tally.loo_rmse):.4f}")
     print(f"prediction RMSE on fresh legal bats:         {tally.rmse:.4f}   (goal <= {GOAL['rmse']})")
     lo, hi = wilson(tally.false_flags, tally.n_legal)
@@ -260,11 +268,11 @@ def main() -> None:
         noise, u = certified_tier(Scene.load("lab"), a.certified, a.seed + 900)
     tally = Tally()
     for r in range(a.populations):
+        before = len(tally.refused)
         one_population(scene, a.seed + r, a.bats, noise, u, tally)
-        print(
-            f"  population {r + 1}/{a.populations}: {tally.variants[-1]}, LOO RMSE {tally.loo_rmse[-1]:.4f}",
-            flush=True,
-        )
+        ok = len(tally.refused) == before
+        done = f"{tally.variants[-1]}, LOO RMSE {tally.loo_rmse[-1]:.4f}" if ok else "calibration refused"
+        print(f"  population {r + 1}/{a.populations}: {done}", flush=True)
     report(tally, a.populations, a.bats, noise, u, spread)
     if a.figure:
         for path in figure(tally, a.figure, noise):
