@@ -7,6 +7,8 @@ A DETEST-style fit of error = C * rtol^p per method says how well each one honou
 The same trade-off is measured for the efficiency curve (grid density and tolerance).
 The harness that describes the machine, pauses the collector while timing and writes
 docs/accuracy.md lives in benchmarks/ (timing.py, accuracy_writer.py), not in the package.
+Longer than 400 lines because the study's record types, sweeps and fits share their constants and
+are read together.
 """
 
 from __future__ import annotations
