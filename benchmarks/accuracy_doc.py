@@ -14,10 +14,11 @@ from pathlib import Path
 # Before numba starts OpenMP: with the default (spin) wait policy, parallel calls have been seen to
 # cost ~8 ms each while another process is busy, which would swamp the efficiency-curve timings.
 os.environ.setdefault("OMP_WAIT_POLICY", "passive")
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks.accuracy_writer
 
 
 def main() -> int:
-    from rig.report.accuracy_doc import rebuild_accuracy_doc, write_accuracy_doc
+    from benchmarks.accuracy_writer import rebuild_accuracy_doc, write_accuracy_doc
 
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--out", default="docs/accuracy.md", help="the Markdown file to write")

@@ -60,6 +60,15 @@ class CommandSpec:
     args: tuple[ArgCheck, ...] = ()
     doc: str = ""
 
+    def check(self, *args: object) -> tuple[str, ...]:
+        """The arguments as sent; ValueError if the device would refuse them."""
+        texts = tuple(_fmt(a) for a in args)
+        if len(texts) != len(self.args):
+            raise ValueError(f"{self.verb} takes {len(self.args)} argument(s), got {len(texts)}")
+        for check, text in zip(self.args, texts, strict=True):
+            check(text)
+        return texts
+
 
 @dataclass(frozen=True)
 class BadCommand:
@@ -109,11 +118,7 @@ class HostCodec:
         spec = self.specs.get(verb)
         if spec is None:
             raise ValueError(f"unknown command {verb!r}")
-        texts = tuple(_fmt(a) for a in args)
-        if len(texts) != len(spec.args):
-            raise ValueError(f"{verb} takes {len(spec.args)} argument(s), got {len(texts)}")
-        for check, text in zip(spec.args, texts, strict=True):
-            check(text)
+        texts = spec.check(*args)
         seq = self._next_seq
         self._next_seq = seq % MAX_SEQ + 1
         return seq, encode(Command(seq, verb, texts))

@@ -21,13 +21,13 @@ from protocols.shot import ShotFailed, ShotRecord, fire_shot, prepare
 from protocols.state import RunState, fold
 from rig import __version__
 from rig.core import events as ev
-from rig.core.bat import PIVOT_FROM_KNOB_IN, PIVOT_FROM_KNOB_M, BatSpec
+from rig.core.bat import PIVOT_FROM_KNOB_IN, BatSpec
 from rig.core.config import RigConfig
 from rig.core.devices import Cannon, CannonState, Clamp, GateConfig, GateCrossing, Gates
 from rig.core.errors import ConfigError, DeviceError, DeviceGone, RigError, SafetyRefusal
 from rig.core.events import RunEvent
 from rig.core.units import INCH
-from rig.measure.moi import PendulumReading, entered_budget, pendulum_budget, pendulum_uncertainty
+from rig.measure.moi import entered_budget, pendulum_moi
 from rig.measure.realtime import InboundKnown, ReboundKnown, ShotTracker
 
 
@@ -296,16 +296,8 @@ class Runner:
         if self.bat.balance_point_in is None:
             raise ConfigError("the pendulum MOI needs the bat's balance_point_in in the bat file")
         timings = [self.clamp.measure_period(self.p.moi.cycles) for _ in range(self.p.moi.repeats)]
-        pend = self.config.pendulum
-        reading = PendulumReading(
-            periods_s=tuple(t.period_s for t in timings),
-            cycles=timings[0].cycles,
-            amplitude_deg=sum(t.amplitude_deg for t in timings) / len(timings),
-            mass_kg=self.bat.mass_kg,
-            lever_m=self.bat.balance_point_in * INCH - PIVOT_FROM_KNOB_M,
-            gravity_m_s2=pend.gravity_m_s2,
-        )
-        found = pendulum_budget(reading, pendulum_uncertainty(pend))
+        balance_m = self.bat.balance_point_in * INCH
+        reading, found = pendulum_moi(timings, self.bat.mass_kg, balance_m, self.config.pendulum)
         self.emit(
             ev.MOI_MEASURED,
             **found.as_dict(),

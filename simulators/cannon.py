@@ -1,7 +1,9 @@
 """SimCannon: the air cannon's device side, with the state table of drivers/cannon/codec.py.
 
-ARM and FIRE are decided by the codec's `refuse_arm` / `refuse_fire`, fed the same CannonStatus a
-STATUS reply would carry; only the choice of error code is local. After a shot the valve closes
+Which command each state accepts, and the state it leads to, come from the codec's STATE_TABLE
+(a command it refuses there gets `ERR STATE`). ARM and FIRE are further decided by the codec's
+`refuse_arm` / `refuse_fire`, fed the same CannonStatus a STATUS reply would carry; only the
+choice of error code is local. After a shot the valve closes
 (FIRED -> SAFE) and the compressor refills the tank to the setpoint on its own, announcing READY.
 Every state change is announced with `! STATE S=`.
 """
@@ -10,7 +12,14 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, ClassVar
 
-from drivers.cannon.codec import SPECS, interlock_fields, refuse_arm, refuse_fire
+from drivers.cannon.codec import (
+    SPECS,
+    interlock_fields,
+    next_state,
+    refuse_arm,
+    refuse_fire,
+    refuse_in_state,
+)
 from drivers.codec import CheckedCommand
 from rig.core.devices import CannonState, CannonStatus, Interlocks
 from simulators.device import SimDevice
@@ -84,13 +93,13 @@ class SimCannon(SimDevice):
     def handle(self, cmd: CheckedCommand) -> None:
         """Act on one command."""
         verb = cmd.verb
+        if (reason := refuse_in_state(verb, self.state)) is not None:
+            return self.refuse(cmd, "STATE", reason)
         if verb == "STATUS":
             s = self.status()
             fields = {"STATE": s.state.value, "P": s.pressure_kpa, "SET": s.setpoint_kpa}
             self.ok(cmd, {**fields, **interlock_fields(s.interlocks), "SHOTS": s.shots})
         elif verb == "PSET":
-            if self.state is not CannonState.SAFE:
-                return self.refuse(cmd, "STATE", f"cannon is {self.state}, not SAFE")
             p_now = self.pressure()
             self.setpoint = float(cmd.values[0])  # type: ignore[arg-type]
             self.ok(cmd)
@@ -102,13 +111,11 @@ class SimCannon(SimDevice):
         elif verb == "VENT":
             self._vent()
             self.ok(cmd)
-            if self.state in (CannonState.ARMED, CannonState.FIRED):
-                self._set_state(CannonState.SAFE)
+            if (after := next_state(verb, self.state)) is not self.state:
+                self._set_state(after)
         elif verb == "RESET":
-            if self.state is not CannonState.FAULT:
-                return self.refuse(cmd, "STATE", f"cannon is {self.state}, not FAULT")
             self.ok(cmd)
-            self._set_state(CannonState.SAFE)
+            self._set_state(next_state(verb, self.state))
         elif verb == "ENV":
             temp, rh = self.world.lab.environment(self.world.clock)
             self.ok(cmd, {"TEMP_C": round(temp, 2), "RH": round(rh, 1)})
@@ -122,7 +129,7 @@ class SimCannon(SimDevice):
         if reason is not None:
             return self.refuse(cmd, _code(status, CannonState.SAFE, "PRESSURE"), reason)
         self.ok(cmd)
-        self._set_state(CannonState.ARMED)
+        self._set_state(next_state(cmd.verb, status.state))
         self.world.after_arm(self.world.attempts + 1)
         return None
 
@@ -142,7 +149,7 @@ class SimCannon(SimDevice):
             return None
         pressure = self.pressure()
         self.fired += 1
-        self._set_state(CannonState.FIRED, shot=shot)
+        self._set_state(next_state(cmd.verb, status.state), shot=shot)
         self.emit("FIRED", {"SHOT": self.fired}, shot=shot)
         world.fire(pressure, shot)
         # The tank is empty once the ball is away; the valve closes, then the compressor refills.

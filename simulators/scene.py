@@ -15,7 +15,7 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
-from rig.core.bat import HOOP_HZ, LENGTH_IN, MOI_KGM2, WEIGHT_OZ
+from rig.core.bat import HOOP_HZ, LENGTH_IN, MOI_KGM2, PIVOT_FROM_KNOB_M, WEIGHT_OZ
 from rig.core.errors import ConfigError, ParameterError
 from rig.core.units import INCH, OUNCE
 from rig.physics import CollisionParams
@@ -53,7 +53,7 @@ class RigGeometry(BaseModel):
     counter_bits: int = Field(32, ge=8, le=64)
     counter_start: int = Field(0, ge=0, description="counter value when the world starts")
     pivot_from_knob_m: float = Field(
-        6 * INCH, gt=0.0, le=12 * INCH, description="pivot axis from the knob end, m (<= 12 in)"
+        PIVOT_FROM_KNOB_M, gt=0.0, le=12 * INCH, description="pivot axis from the knob end, m (<= 12 in)"
     )
     stage_start_mm: float = Field(500.0, ge=100.0, le=900.0, description="stage position at power-up")
     stage_speed_mm_s: float = Field(100.0, ge=1.0, le=2000.0, description="stage travel speed (1-2000)")

@@ -13,6 +13,36 @@ from rig.core.devices import CannonState, CannonStatus, Environment, Interlocks
 MAX_PRESSURE_KPA = 1000.0
 READY_BAND = 0.01  # pressure within 1 % of the setpoint counts as ready to arm
 
+_S, _A, _F, _X = CannonState.SAFE, CannonState.ARMED, CannonState.FIRED, CannonState.FAULT
+# The state table: command -> {state it is accepted in: the state it leads to}. Commands not listed
+# (ID, STATUS, ENV) are accepted in every state and change nothing. The device also moves on its
+# own: FIRED -> SAFE when the valve closes, ARMED -> SAFE when an interlock opens, -> FAULT on a fault.
+STATE_TABLE: dict[str, dict[CannonState, CannonState]] = {
+    "PSET": {_S: _S},
+    "ARM": {_S: _A},
+    "FIRE": {_A: _F},
+    "VENT": {_S: _S, _A: _S, _F: _S, _X: _X},
+    "RESET": {_X: _S},
+}
+
+
+def refuse_in_state(verb: str, state: CannonState) -> str | None:
+    """Why the state table refuses `verb` in `state`, or None if it accepts it."""
+    accepted = STATE_TABLE.get(verb)
+    if accepted is None or state in accepted:
+        return None
+    return f"cannon is {state}, not {' or '.join(accepted)}"
+
+
+def next_state(verb: str, state: CannonState) -> CannonState:
+    """The state right after `verb` is accepted in `state`."""
+    return STATE_TABLE.get(verb, {}).get(state, state)
+
+
+def state_limited(verb: str) -> bool:
+    """True if some state refuses `verb` (a host must then check the state before sending it)."""
+    return verb in STATE_TABLE and len(STATE_TABLE[verb]) < len(CannonState)
+
 
 def status_ready(status: CannonStatus) -> bool:
     """Pressure has reached the setpoint."""
@@ -39,8 +69,8 @@ def pressure_ready(pressure_kpa: float, setpoint_kpa: float) -> bool:
 
 def refuse_arm(status: CannonStatus) -> str | None:
     """Why ARM must be refused in this status, or None if it may proceed."""
-    if status.state is not CannonState.SAFE:
-        return f"cannon is {status.state}, not SAFE"
+    if (reason := refuse_in_state("ARM", status.state)) is not None:
+        return reason
     if not status.interlocks.all_closed:
         return "interlock open: " + ", ".join(status.interlocks.open_names())
     if not status_ready(status):
@@ -50,8 +80,8 @@ def refuse_arm(status: CannonStatus) -> str | None:
 
 def refuse_fire(status: CannonStatus) -> str | None:
     """Why FIRE must be refused in this status, or None if it may proceed."""
-    if status.state is not CannonState.ARMED:
-        return f"cannon is {status.state}, not ARMED"
+    if (reason := refuse_in_state("FIRE", status.state)) is not None:
+        return reason
     if not status.interlocks.all_closed:
         return "interlock open: " + ", ".join(status.interlocks.open_names())
     return None

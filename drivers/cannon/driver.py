@@ -1,8 +1,8 @@
 """Air-cannon driver: the host side of drivers/cannon/codec.py over a LineTransport.
 
-Arming and firing are checked against the codec's state table on a fresh STATUS first: the
-driver refuses (SafetyRefusal) without sending ARM or FIRE, and the device refuses again if the
-driver is wrong.
+Every command the codec's state table limits is checked against it on a fresh STATUS first: the
+driver refuses ARM and FIRE (SafetyRefusal), PSET and RESET (NotSent, code STATE, as the device
+would answer) without sending them, and the device refuses again if the driver is wrong.
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from drivers.cannon import codec
 from drivers.transport import SerialLike, TrafficRecord
 from drivers.wire import Event
 from rig.core.devices import CannonStatus, Environment
-from rig.core.errors import DeviceError, SafetyRefusal
+from rig.core.errors import DeviceError, NotSent, ParameterError, SafetyRefusal
 
 
 class CannonDriver(LineDriver):
@@ -46,6 +46,11 @@ class CannonDriver(LineDriver):
 
     def set_pressure(self, kpa: float, wait_ready: bool = True) -> None:
         """Set the tank setpoint (SAFE only); with `wait_ready`, wait for `! READY` at it."""
+        try:
+            codec.SPECS["PSET"].check(kpa)  # a bad setpoint is refused before anything is sent
+        except ValueError as exc:
+            raise ParameterError(f"{self.name} PSET", (kpa,), str(exc)) from None
+        self._check_state("PSET")
         self.transport.clear_events(("READY", "FAULT"))
         self.transport.request("PSET", kpa)
         if not wait_ready:
@@ -77,12 +82,20 @@ class CannonDriver(LineDriver):
         self.transport.request("VENT")
 
     def reset(self) -> None:
-        """FAULT -> SAFE."""
+        """FAULT -> SAFE; refused without sending RESET unless in FAULT."""
+        self._check_state("RESET")
         self.transport.request("RESET")
 
     def environment(self) -> Environment:
         """Lab temperature and relative humidity."""
         return self._parse(codec.parse_environment, self.transport.request("ENV"), "ENV reply")
+
+    def _check_state(self, verb: str) -> None:
+        """Refuse `verb` unsent (NotSent) if the state table forbids it in the state STATUS reports."""
+        if codec.state_limited(verb):
+            reason = codec.refuse_in_state(verb, self.status().state)
+            if reason is not None:
+                raise NotSent(self.name, verb, reason)
 
     def _ready_at(self, setpoint_kpa: float) -> Callable[[Event], bool]:
         """Accept a FAULT, or a READY at this setpoint (skipping a late one for an older setpoint)."""

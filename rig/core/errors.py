@@ -51,6 +51,14 @@ class DeviceRefused(DeviceError):
         super().__init__(device, f"refused {command}: {code} {text}".rstrip())
 
 
+class NotSent(DeviceRefused):
+    """The driver refused a command the device's state table forbids now, without sending it."""
+
+    def __init__(self, device: str, command: str, reason: str) -> None:
+        self.command, self.code, self.text = command, "STATE", reason
+        DeviceError.__init__(self, device, f"{command} not sent: {reason}")
+
+
 class GarbledReply(DeviceError):
     """A line that failed its CRC, framing or grammar, or a reply missing a field."""
 

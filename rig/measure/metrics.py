@@ -12,6 +12,7 @@ from types import MappingProxyType
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from rig.core.bat import PIVOT_FROM_KNOB_M
 from rig.core.errors import ParameterError
 from rig.core.units import INCH, MPH
 
@@ -55,7 +56,7 @@ class SwingModel(BaseModel):
     reference_speed_m_s: float = Field(66.0 * MPH, gt=0.0, description="bat speed at the reference point")
     reference_from_tip_m: float = Field(6.0 * INCH, ge=0.0, description="reference point from barrel end")
     swing_pivot_from_knob_m: float = Field(6.0 * INCH, ge=0.0, description="swing rotation centre")
-    rig_pivot_from_knob_m: float = Field(6.0 * INCH, ge=0.0, description="the rig's clamp pivot (F2398)")
+    rig_pivot_from_knob_m: float = Field(PIVOT_FROM_KNOB_M, ge=0.0, description="the clamp pivot (F2398)")
 
     def bat_speed(self, q_m: float, bat_length_m: float) -> float:
         """Speed of the bat at the impact point, m/s (rigid rotation: proportional to radius)."""

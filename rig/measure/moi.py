@@ -17,7 +17,9 @@ import statistics
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+from rig.core.bat import PIVOT_FROM_KNOB_M
 from rig.core.config import Pendulum
+from rig.core.devices import PendulumPeriod
 from rig.core.errors import ParameterError
 
 
@@ -176,6 +178,28 @@ def pendulum_budget(reading: PendulumReading, unc: PendulumUncertainty) -> MoiBu
         MoiInput("g", "local gravity", r.gravity_m_s2, "m/s²", unc.gravity_m_s2, moi / r.gravity_m_s2),
     ]
     return _finish(moi, "pendulum", rows)
+
+
+def pendulum_moi(
+    timings: Sequence[PendulumPeriod], mass_kg: float, balance_point_m: float, pendulum: Pendulum
+) -> tuple[PendulumReading, MoiBudget]:
+    """The MOI about the pivot from repeated swing timings, and its budget (the inverse of the
+    simulator's pendulum period). `balance_point_m` is measured from the knob; the lever is the
+    distance from the pivot to it; the amplitude is the timings' mean."""
+    if not timings:
+        raise ParameterError("timings", timings, "need at least one pendulum timing")
+    lever = balance_point_m - PIVOT_FROM_KNOB_M
+    if not lever > 0.0:
+        raise ParameterError("balance_point_m", balance_point_m, "the balance point must lie past the pivot")
+    reading = PendulumReading(
+        periods_s=tuple(t.period_s for t in timings),
+        cycles=timings[0].cycles,
+        amplitude_deg=sum(t.amplitude_deg for t in timings) / len(timings),
+        mass_kg=mass_kg,
+        lever_m=lever,
+        gravity_m_s2=pendulum.gravity_m_s2,
+    )
+    return reading, pendulum_budget(reading, pendulum_uncertainty(pendulum))
 
 
 def entered_budget(moi_kgm2: float, u_kgm2: float) -> MoiBudget:

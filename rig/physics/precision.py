@@ -5,11 +5,14 @@ unrelated methods agree on (scipy DOP853 and Radau at rtol 1e-13), the number of
 evaluations (machine-independent) and the best-of-N wall time per solve after a warm-up solve.
 A DETEST-style fit of error = C * rtol^p per method says how well each one honours its tolerance.
 The same trade-off is measured for the efficiency curve (grid density and tolerance).
+The harness that describes the machine, pauses the collector while timing and writes
+docs/accuracy.md lives in benchmarks/ (timing.py, accuracy_writer.py), not in the package.
+Longer than 400 lines because the study's record types, sweeps and fits share their constants and
+are read together.
 """
 
 from __future__ import annotations
 
-import gc
 import math
 import os
 import platform
@@ -148,79 +151,55 @@ class CurveTradeoffRow:
         return asdict(self)
 
 
-def environment() -> dict[str, Any]:
-    """Interpreter, library versions and machine: timings mean nothing without them."""
+Timer = Callable[[Callable[[], object], int, float, "float | None"], float]
+"""(solve, repeats, min_time_s, once_s) -> seconds per call; benchmarks/timing.py has the careful one."""
+
+
+def versions() -> dict[str, Any]:
+    """Interpreter and library versions: timings mean nothing without them (the machine itself is
+    described by the benchmark harness)."""
     import numba
     import scipy
 
-    env: dict[str, Any] = {
+    return {
         "python": platform.python_version(),
         "numpy": np.__version__,
         "scipy": scipy.__version__,
         "numba": numba.__version__,
         "platform": platform.platform(),
         "machine": platform.machine(),
-        "cpu": _cpu_model(),
         "cpu_count": os.cpu_count(),
     }
-    if hasattr(os, "sched_getaffinity"):
-        env["cpus_usable"] = len(os.sched_getaffinity(0))
-    # Parallel batches (cor_grid) depend on numba's threading layer and OpenMP's wait policy.
-    try:
-        env["numba_threading_layer"] = numba.threading_layer()
-    except ValueError:  # no parallel region has run yet in this process
-        env["numba_threading_layer"] = "not started"
-    env["numba_threads"] = numba.get_num_threads()
-    env["omp_wait_policy"] = os.environ.get("OMP_WAIT_POLICY", "unset")
-    return env
 
 
-def load_average() -> list[float] | None:
-    """1, 5 and 15 minute load averages (None where unsupported): other work skews the timings."""
-    try:
-        return [round(x, 2) for x in os.getloadavg()]
-    except (AttributeError, OSError):
-        return None
-
-
-def _cpu_model() -> str:
-    # platform.processor() is empty on most Linux systems; /proc/cpuinfo names the CPU there.
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as fh:
-            for line in fh:
-                if line.lower().startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
-
-
-def best_time(
+def time_per_call(
     solve: Callable[[], object], repeats: int, min_time_s: float = MIN_TIMED_S, once_s: float | None = None
 ) -> float:
-    """Best-of-`repeats` seconds per call of `solve` (already warmed up); fast calls are looped.
+    """Best-of-`repeats` seconds per call of `solve` (already warmed up); fast calls are looped."""
+    return best_batch(solve, repeats, calls_per_batch(solve, min_time_s, once_s))
+
+
+def calls_per_batch(solve: Callable[[], object], min_time_s: float, once_s: float | None = None) -> int:
+    """How many calls make a timed batch last `min_time_s` (well above the timer's resolution).
 
     once_s: the duration of one earlier call, if known; it sizes the loop instead of a calibrating call.
     """
     once = once_s
     if once is None or once < min_time_s:
-        # A fast solve: a calibrating call sizes the loop so that a batch is well above timer resolution.
         t0 = time.perf_counter()
         solve()
         once = time.perf_counter() - t0
-    number = max(1, min(MAX_LOOP, math.ceil(min_time_s / max(once, 1e-9))))
+    return max(1, min(MAX_LOOP, math.ceil(min_time_s / max(once, 1e-9))))
+
+
+def best_batch(solve: Callable[[], object], repeats: int, number: int) -> float:
+    """Seconds per call of the fastest of `repeats` batches of `number` calls."""
     best = math.inf
-    enabled = gc.isenabled()
-    gc.disable()  # as timeit does: a collection inside one batch is noise, not solver cost
-    try:
-        for _ in range(repeats):
-            t0 = time.perf_counter()
-            for _ in range(number):
-                solve()
-            best = min(best, (time.perf_counter() - t0) / number)
-    finally:
-        if enabled:
-            gc.enable()
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for _ in range(number):
+            solve()
+        best = min(best, (time.perf_counter() - t0) / number)
     return best
 
 
@@ -285,14 +264,15 @@ def work_precision(
     rtols: tuple[float, ...] | None = None,
     implicit_rtols: tuple[float, ...] | None = None,
     params: CollisionParams = DEFAULT_PARAMS,
+    timer: Timer = time_per_call,
 ) -> PrecisionStudy:
     """Error in COR and contact time against cost, per method and tolerance, for each hoop case.
 
     quick: one hoop case, three tolerances, five methods and one timed repeat (a smoke run for tests).
     rtols / implicit_rtols override the sweeps of the explicit (and LSODA) and the implicit methods.
+    timer: how a solve is timed (benchmarks/timing.py's `best_time` also pauses the collector).
     """
     started = time.perf_counter()
-    load_before = load_average()
     speed = check_speed(speed)
     if not isinstance(repeats, int) or repeats < 1:
         raise ParameterError("repeats", repeats, "must be a whole number >= 1")
@@ -335,7 +315,7 @@ def work_precision(
                     cor_error=abs(res.cor - ref.cor),
                     contact_time_error=abs(res.contact_time_s - ref.contact_time_s) / ref.contact_time_s,
                     nfev=res.nfev,
-                    time_s=best_time(solve, repeats, min_time, once),
+                    time_s=timer(solve, repeats, min_time, once),
                 )
                 case_rows.append(row)
             rows.extend(case_rows)
@@ -343,14 +323,11 @@ def work_precision(
             fit = tolerance_fit(tuple(case_rows), floor=ref.cor_disagreement)
             if fit is not None:
                 fits.append(fit)
-    env = environment()
-    env["load_average_before"] = load_before
-    env["load_average_after"] = load_average()
     return PrecisionStudy(
         rows=tuple(rows),
         references=tuple(refs),
         tolerance_fits=tuple(fits),
-        environment=env,
+        environment=versions(),
         repeats=repeats,
         elapsed_s=time.perf_counter() - started,
     )
@@ -469,6 +446,7 @@ def curve_tradeoff(
     repeats: int = 5,
     reference_points: int = 2001,
     params: CollisionParams = DEFAULT_PARAMS,
+    timer: Timer = time_per_call,
 ) -> tuple[CurveTradeoffRow, ...]:
     """Cost and accuracy of the efficiency curve for each grid density and tolerance.
 
@@ -505,8 +483,8 @@ def curve_tradeoff(
                 CurveTradeoffRow(
                     points=n,
                     rtol=rtol,
-                    time_s=best_time(whole, repeats, min_time),
-                    grid_time_s=best_time(grid, repeats, min_time),
+                    time_s=timer(whole, repeats, min_time, None),
+                    grid_time_s=timer(grid, repeats, min_time, None),
                     max_eta_error=float(np.max(np.abs(curve.efficiency - eta_ref))),
                     grid_optimum_error_hz=abs(best_grid - ref_curve.optimum_hz),
                     optimum_hz=curve.optimum_hz,
@@ -525,14 +503,15 @@ __all__ = [
     "PrecisionStudy",
     "ReferenceValue",
     "ToleranceFit",
-    "best_time",
+    "best_batch",
+    "calls_per_batch",
     "cost_to_reach",
     "curve_tradeoff",
-    "environment",
     "first_step_effect",
-    "load_average",
     "reference_value",
     "reliable_rtol",
+    "time_per_call",
     "tolerance_fit",
+    "versions",
     "work_precision",
 ]

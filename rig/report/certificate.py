@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
+from rig.core.bat import PIVOT_FROM_KNOB_IN
 from rig.core.errors import ConfigError
 from rig.core.units import INCH, OUNCE
 from rig.report.cert_doc import Banner, Block, Code, Figure, Heading, Para, Table, kv, to_html, to_markdown
@@ -251,7 +252,7 @@ def bat_table(record: dict[str, Any]) -> Table:
                 "balance point",
                 "—" if bat.get("balance_point_in") is None else f"{bat['balance_point_in']:g} in",
             ),
-            ("MOI about the pivot (6 in from the knob)", moi_text),
+            (f"MOI about the pivot ({PIVOT_FROM_KNOB_IN:g} in from the knob)", moi_text),
             ("MOI obtained", how),
         ]
     )

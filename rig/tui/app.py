@@ -7,6 +7,8 @@ from typing import ClassVar
 from textual.app import App
 from textual.binding import Binding, BindingType
 
+from rig.tui.history import HistoryScreen
+from rig.tui.messages import OpenHistory, StartRun
 from rig.tui.modals import ConfirmScreen, HelpScreen
 from rig.tui.rigs import ConsoleSettings
 from rig.tui.run import RunScreen
@@ -14,7 +16,10 @@ from rig.tui.setup import SetupScreen
 
 
 class RigConsole(App[None]):
-    """Set-up, run and history screens; `?` help and `q` quit everywhere."""
+    """Set-up, run and history screens; `?` help and `q` quit everywhere.
+
+    The screens do not open one another: they post rig.tui.messages, handled here.
+    """
 
     TITLE = "Rig console"
     ENABLE_COMMAND_PALETTE = False  # every command has its key; keep the footer for them
@@ -29,6 +34,19 @@ class RigConsole(App[None]):
 
     def on_mount(self) -> None:
         self.push_screen(SetupScreen(self.settings))
+
+    def on_open_history(self, message: OpenHistory) -> None:
+        """A screen asks for the past runs."""
+        self.push_screen(HistoryScreen(self.settings, message.rig))
+
+    def on_start_run(self, message: StartRun) -> None:
+        """A screen asks for a run (a new one from set-up, or a resumed one from the history)."""
+        screen = RunScreen(self.settings, message.job, message.past)
+        if message.replace:
+            self.switch_screen(screen)
+            return
+        then = message.then
+        self.push_screen(screen, None if then is None else lambda _: then())
 
     @property
     def run_screen(self) -> RunScreen | None:

@@ -18,6 +18,7 @@ from rig.core.bat import BatSpec
 from rig.core.errors import RigError
 from rig.report.record import run_record
 from rig.store import RunSummary, Store
+from rig.tui.messages import StartRun
 from rig.tui.report import record_summary
 from rig.tui.rigs import ConsoleSettings, RigChoice, RunJob
 
@@ -134,6 +135,4 @@ class HistoryScreen(Screen[None]):
         except (RigError, ValueError) as exc:
             self.notify(str(exc), title="Cannot resume", severity="error")
             return
-        from rig.tui.run import RunScreen
-
-        self.app.switch_screen(RunScreen(self.settings, job, past))
+        self.post_message(StartRun(job, past, replace=True))

@@ -8,12 +8,14 @@ from typing import TYPE_CHECKING, Any
 from textual.worker import Worker, WorkerCancelled, WorkerFailed
 
 from protocols.runner import RunControl
+from rig.tui.messages import OpenHistory
 from rig.tui.modals import ConfirmScreen
 from rig.tui.operator import ConsoleOperator
 from rig.tui.rigs import ConsoleSettings
 
 if TYPE_CHECKING:
     from textual.app import App
+    from textual.message import Message
 
 
 class RunKeys:
@@ -32,6 +34,7 @@ class RunKeys:
         def start(self) -> None: ...
         def notify(self, message: str, **kw: Any) -> None: ...
         def dismiss(self, result: None = None) -> Any: ...
+        def post_message(self, message: Message) -> bool: ...
 
     def action_fire(self) -> None:
         """Confirm, then answer the pending fire prompt."""
@@ -107,9 +110,7 @@ class RunKeys:
 
     def action_history(self) -> None:
         """Past runs (the run goes on underneath)."""
-        from rig.tui.history import HistoryScreen
-
-        self.app.push_screen(HistoryScreen(self.settings))
+        self.post_message(OpenHistory())
 
     async def finish(self, reason: str) -> None:
         """Stop the run and wait for its worker (the app is quitting)."""

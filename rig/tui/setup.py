@@ -18,6 +18,7 @@ from protocols.runner import dry_run
 from rig.core.bat import Barrel, BatSpec
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RigError
+from rig.tui.messages import OpenHistory, StartRun
 from rig.tui.render import STATE_STYLE, interlock_text
 from rig.tui.rigs import PROCEDURES, ConsoleSettings, DeviceReport, RigChoice, RunJob, read_devices
 
@@ -222,9 +223,7 @@ class SetupScreen(Screen[None]):
 
     def action_history(self) -> None:
         """Past runs and their reports."""
-        from rig.tui.history import HistoryScreen
-
-        self.app.push_screen(HistoryScreen(self.settings, self.rig))
+        self.post_message(OpenHistory(self.rig))
 
     def build_job(self) -> RunJob:
         """The run the form describes; raises RigError (with the field) when something is wrong."""
@@ -245,7 +244,5 @@ class SetupScreen(Screen[None]):
             self.show_status(str(exc), error=True)
             self.notify(str(exc), title="Cannot start", severity="error")
             return
-        from rig.tui.run import RunScreen
-
         self.show_status("")
-        self.app.push_screen(RunScreen(self.settings, job), lambda _: self.action_read_devices())
+        self.post_message(StartRun(job, then=self.action_read_devices))

@@ -92,13 +92,16 @@ CASES = [
         "cannon.set_pressure",
         CannonDriver,
         lambda d: d.set_pressure(420.0),
-        [(cmd(1, "PSET", "420.0"), ok(1) + event("READY", {"P": 419.0}))],
+        [
+            (cmd(1, "STATUS"), ok(1, cannon_status())),
+            (cmd(2, "PSET", "420.0"), ok(2) + event("READY", {"P": 419.0})),
+        ],
     ),
     Case(
         "cannon.set_pressure_no_wait",
         CannonDriver,
         lambda d: d.set_pressure(300, wait_ready=False),
-        [(cmd(1, "PSET", "300"), ok(1))],
+        [(cmd(1, "STATUS"), ok(1, cannon_status())), (cmd(2, "PSET", "300"), ok(2))],
     ),
     Case(
         "cannon.arm",
@@ -117,7 +120,12 @@ CASES = [
         7,
     ),
     Case("cannon.vent", CannonDriver, lambda d: d.vent(), [(cmd(1, "VENT"), ok(1))]),
-    Case("cannon.reset", CannonDriver, lambda d: d.reset(), [(cmd(1, "RESET"), ok(1))]),
+    Case(
+        "cannon.reset",
+        CannonDriver,
+        lambda d: d.reset(),
+        [(cmd(1, "STATUS"), ok(1, cannon_status("FAULT"))), (cmd(2, "RESET"), ok(2))],
+    ),
     Case(
         "cannon.environment",
         CannonDriver,

@@ -14,34 +14,47 @@ from tests.drivers.fakeport import cmd, err, event, ok, scripted
 KW = FAST[CannonDriver]
 
 
+def safe_status(seq: int = 1) -> tuple[bytes, bytes]:
+    """The fresh STATUS the driver asks before PSET, answered SAFE."""
+    return (cmd(seq, "STATUS"), ok(seq, cannon_status()))
+
+
 def test_ready_before_the_ok_is_not_missed() -> None:
-    script = [(cmd(1, "PSET", "420.0"), event("READY", {"P": 420.0}) + ok(1))]
+    script = [safe_status(), (cmd(2, "PSET", "420.0"), event("READY", {"P": 420.0}) + ok(2))]
     with scripted(CannonDriver, script, **KW) as (cannon, _):
         cannon.set_pressure(420.0)
 
 
 def test_ready_arriving_later_is_waited_for() -> None:
-    with scripted(CannonDriver, [(cmd(1, "PSET", "420.0"), ok(1))], ready_timeout_s=1.0) as (cannon, port):
+    with scripted(CannonDriver, [safe_status(), (cmd(2, "PSET", "420.0"), ok(2))], ready_timeout_s=1.0) as (
+        cannon,
+        port,
+    ):
         port.inject(event("READY", {"P": 421.0}), delay_s=0.05)
         cannon.set_pressure(420.0)
 
 
 def test_ready_for_an_older_setpoint_is_skipped() -> None:
-    script = [(cmd(1, "PSET", "420.0"), ok(1) + event("READY", {"P": 300.0}) + event("READY", {"P": 418.0}))]
+    script = [
+        safe_status(),
+        (cmd(2, "PSET", "420.0"), ok(2) + event("READY", {"P": 300.0}) + event("READY", {"P": 418.0})),
+    ]
     with scripted(CannonDriver, script, **KW) as (cannon, _):
         cannon.set_pressure(420.0)
-    script = [(cmd(1, "PSET", "420.0"), ok(1) + event("READY", {"P": 300.0}))]
+    script = [safe_status(), (cmd(2, "PSET", "420.0"), ok(2) + event("READY", {"P": 300.0}))]
     with scripted(CannonDriver, script, **KW) as (cannon, _), pytest.raises(DeviceTimeout, match="READY"):
         cannon.set_pressure(420.0)
 
 
 def test_zero_setpoint_takes_any_ready() -> None:
-    with scripted(CannonDriver, [(cmd(1, "PSET", "0"), ok(1) + event("READY", {"P": 0.4}))], **KW) as (c, _):
+    with scripted(
+        CannonDriver, [safe_status(), (cmd(2, "PSET", "0"), ok(2) + event("READY", {"P": 0.4}))], **KW
+    ) as (c, _):
         c.set_pressure(0)
 
 
 def test_fault_while_filling_is_a_device_error() -> None:
-    script = [(cmd(1, "PSET", "420.0"), ok(1) + event("FAULT", {"CODE": "SENSOR"}))]
+    script = [safe_status(), (cmd(2, "PSET", "420.0"), ok(2) + event("FAULT", {"CODE": "SENSOR"}))]
     with (
         scripted(CannonDriver, script, **KW) as (c, _),
         pytest.raises(DeviceError, match="SENSOR after PSET"),
@@ -50,7 +63,7 @@ def test_fault_while_filling_is_a_device_error() -> None:
 
 
 def test_ready_without_pressure_is_garbled() -> None:
-    script = [(cmd(1, "PSET", "420.0"), ok(1) + event("READY"))]
+    script = [safe_status(), (cmd(2, "PSET", "420.0"), ok(2) + event("READY"))]
     with scripted(CannonDriver, script, **KW) as (c, _), pytest.raises(GarbledReply, match="READY event"):
         c.set_pressure(420.0)
 
@@ -63,8 +76,8 @@ def test_pressure_out_of_range_is_refused_before_sending(kpa: float) -> None:
         assert port.written == b""
 
 
-def test_device_refusing_pset_when_not_safe() -> None:
-    script = [(cmd(1, "PSET", "420.0"), err(1, "STATE", "not SAFE"))]
+def test_device_refusing_pset_though_status_said_safe() -> None:
+    script = [safe_status(), (cmd(2, "PSET", "420.0"), err(2, "STATE", "not SAFE"))]
     with scripted(CannonDriver, script, **KW) as (c, _), pytest.raises(DeviceRefused) as info:
         c.set_pressure(420.0)
     assert info.value.code == "STATE"

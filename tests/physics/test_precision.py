@@ -8,6 +8,7 @@ import re
 
 import pytest
 
+from benchmarks.timing import best_time
 from rig.core.errors import ParameterError, SolverError
 from rig.physics import precision
 from rig.physics.equations import Impact
@@ -16,7 +17,6 @@ from rig.physics.precision import (
     REFERENCE_AGREEMENT,
     PrecisionRow,
     PrecisionStudy,
-    best_time,
     curve_tradeoff,
     reliable_rtol,
     tolerance_fit,
@@ -204,7 +204,7 @@ def test_cli_accuracy_json(capsys: pytest.CaptureFixture[str]) -> None:
 def test_accuracy_doc_markdown_from_a_quick_run(
     study: PrecisionStudy, curve_rows: tuple[precision.CurveTradeoffRow, ...]
 ) -> None:
-    from rig.report.accuracy_doc import build_markdown
+    from benchmarks.accuracy_writer import build_markdown
 
     first = precision.first_step_effect(
         Impact(DEFAULT_PARAMS, 60.8, 1250.0), rtols=(1e-6,), cor_ref=study.references[0].cor

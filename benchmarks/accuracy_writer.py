@@ -1,21 +1,40 @@
 """docs/accuracy.md: run the work-precision study once and write its figures, tables and reading.
 
+The document writer of the study (run by benchmarks/accuracy_doc.py, `make accuracy`): it times
+with benchmarks/timing.py and records the machine and its load beside the results.
+
 Every number in the written reading is computed from this run; the claims that could change with
 the machine or library versions are phrased from the numbers, not hard-coded.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import json
-import os
-import subprocess
-import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
+from benchmarks.accuracy_text import (
+    DECADES,
+    TARGETS,
+    _contact_time_note,
+    _curve_sentences,
+    _env_lines,
+    _first_step_table,
+    _fit_sentence,
+    _kernel_headline,
+    _nfev_span,
+    _reading_lines,
+    _row,
+    _scipy_sentence,
+    _stiff_reading,
+    _stiff_sentence,
+    _target_sentences,
+)
+from benchmarks.timing import best_time, load_average, machine, parallel_call_probe
 from rig.physics import fast
 from rig.physics.equations import Impact
 from rig.physics.params import DEFAULT_PARAMS
@@ -34,25 +53,7 @@ from rig.physics.precision import (
     ToleranceFit,
     curve_tradeoff,
     first_step_effect,
-    load_average,
     work_precision,
-)
-from rig.report.accuracy_text import (
-    DECADES,
-    TARGETS,
-    _contact_time_note,
-    _curve_sentences,
-    _env_lines,
-    _first_step_table,
-    _fit_sentence,
-    _kernel_headline,
-    _nfev_span,
-    _reading_lines,
-    _row,
-    _scipy_sentence,
-    _stiff_reading,
-    _stiff_sentence,
-    _target_sentences,
 )
 from rig.report.precision_plots import (
     case_label,
@@ -70,44 +71,6 @@ NEAR_RIGID_HZ = 1e6
 NEAR_RIGID_RTOLS = tuple(10.0**-k for k in range(4, 11))
 NEAR_RIGID_IMPLICIT_RTOLS = tuple(10.0**-k for k in range(4, 9))
 NEAR_RIGID_REPEATS = 2  # its slowest solves take seconds
-
-_PROBE = """
-import json, statistics, sys, time
-import numpy as np
-from rig.physics import fast
-from rig.physics.curve import cor_grid
-from rig.physics.params import DEFAULT_PARAMS
-fast.warm_up()
-hoops = np.linspace(300.0, 20000.0, int(sys.argv[1]))
-cor_grid(DEFAULT_PARAMS, 60.8, hoops, 1e-8)
-ts = []
-for _ in range(40):
-    t0 = time.perf_counter(); cor_grid(DEFAULT_PARAMS, 60.8, hoops, 1e-8); ts.append(time.perf_counter() - t0)
-print(json.dumps([min(ts), statistics.median(ts)]))
-"""
-
-
-def parallel_call_probe(points: int = 25) -> dict[str, list[float] | None]:
-    """Min and median seconds of one cor_grid call in fresh processes, per OpenMP wait policy."""
-    # numba's OpenMP layer (libgomp) lets idle workers spin and then sleep; how long waking them
-    # takes depends on the policy and on other load. A fresh process per setting, since the policy
-    # is read once when the runtime starts.
-    out: dict[str, list[float] | None] = {}
-    for name, extra in (("default", {}), ("OMP_WAIT_POLICY=passive", {"OMP_WAIT_POLICY": "passive"})):
-        env = {k: v for k, v in os.environ.items() if k != "OMP_WAIT_POLICY"} | extra
-        try:
-            done = subprocess.run(
-                [sys.executable, "-c", _PROBE, str(points)],
-                env=env,
-                capture_output=True,
-                text=True,
-                timeout=120,
-                check=True,
-            )
-            out[name] = json.loads(done.stdout.strip().splitlines()[-1])
-        except (subprocess.SubprocessError, OSError, ValueError, IndexError):
-            out[name] = None
-    return out
 
 
 def build_markdown(
@@ -320,18 +283,21 @@ def write_accuracy_doc(
     doc = Path(path)
     fig_dir = doc.parent / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
-    study = work_precision(repeats=repeats, speed=SPEED)
+    study = _on_this_machine(lambda: work_precision(repeats=repeats, speed=SPEED, timer=best_time))
     near = None
     if near_rigid:
-        near = work_precision(
-            repeats=NEAR_RIGID_REPEATS,
-            speed=SPEED,
-            hoops=(NEAR_RIGID_HZ,),
-            rtols=NEAR_RIGID_RTOLS,
-            implicit_rtols=NEAR_RIGID_IMPLICIT_RTOLS,
+        near = _on_this_machine(
+            lambda: work_precision(
+                repeats=NEAR_RIGID_REPEATS,
+                speed=SPEED,
+                hoops=(NEAR_RIGID_HZ,),
+                rtols=NEAR_RIGID_RTOLS,
+                implicit_rtols=NEAR_RIGID_IMPLICIT_RTOLS,
+                timer=best_time,
+            )
         )
     curve_load = [load_average()]
-    curve = curve_tradeoff(speed=SPEED, repeats=repeats)
+    curve = curve_tradeoff(speed=SPEED, repeats=repeats, timer=best_time)
     curve_load.append(load_average())
     h0 = study.cases()[0]
     first = first_step_effect(Impact(DEFAULT_PARAMS, SPEED, h0), cor_ref=study.references[0].cor)
@@ -360,6 +326,14 @@ def write_accuracy_doc(
         encoding="utf-8",
     )
     return {"doc": doc, "data": data_path, "figures": written, "elapsed_s": elapsed}
+
+
+def _on_this_machine(run: Callable[[], PrecisionStudy]) -> PrecisionStudy:
+    """Run a study and record the machine and its load average before and after it."""
+    before = load_average()
+    study = run()
+    env = {**machine(), "load_average_before": before, "load_average_after": load_average()}
+    return dataclasses.replace(study, environment=env)
 
 
 def _study_from_dict(d: dict[str, Any]) -> PrecisionStudy:

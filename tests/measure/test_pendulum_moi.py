@@ -1,0 +1,66 @@
+"""The pendulum MOI from the swing timings (rig.measure.moi.pendulum_moi), not assembled in the runner.
+
+Checked against the simulator's forward formula (a round trip through simulators.physics) and
+against a closed form: a point mass on the pivot at d = g / pi^2 swings with T0 = 2 s exactly,
+and its MOI is m d^2.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from rig.core.bat import PIVOT_FROM_KNOB_M
+from rig.core.config import Pendulum
+from rig.core.devices import PendulumPeriod
+from rig.core.errors import ParameterError
+from rig.core.units import G_STANDARD
+from rig.measure.moi import pendulum_moi
+from simulators.physics import pendulum_period
+
+PEND = Pendulum(gravity_m_s2=G_STANDARD)
+
+
+@pytest.mark.parametrize(
+    ("moi", "mass", "balance_from_knob_m", "amp_deg"),
+    [(0.19, 0.85, 0.56, 5.0), (0.25, 0.88, 0.60, 12.0), (0.05, 0.57, 0.40, 1.0), (0.6, 1.4, 0.7, 0.0)],
+)
+def test_round_trip_through_the_simulators_forward_formula(
+    moi: float, mass: float, balance_from_knob_m: float, amp_deg: float
+) -> None:
+    lever = balance_from_knob_m - PIVOT_FROM_KNOB_M
+    t = pendulum_period(moi, mass, lever, math.radians(amp_deg))
+    timings = [PendulumPeriod(t, amp_deg, 10), PendulumPeriod(t, amp_deg, 10)]
+    reading, budget = pendulum_moi(timings, mass, balance_from_knob_m, PEND)
+    assert budget.moi_kgm2 == pytest.approx(moi, rel=1e-12)
+    assert reading.lever_m == pytest.approx(lever, rel=1e-15)
+    assert reading.periods_s == (t, t)
+    assert budget.source == "pendulum"
+
+
+def test_point_mass_closed_form() -> None:
+    g, m = 9.81, 0.9
+    d = g / math.pi**2  # T0 = 2 pi sqrt(d / g) = 2 s
+    pend = Pendulum(gravity_m_s2=g)
+    for amp in (0.0, 10.0):
+        t = 2.0 * (1.0 + math.radians(amp) ** 2 / 16.0)
+        _, budget = pendulum_moi([PendulumPeriod(t, amp, 20)], m, PIVOT_FROM_KNOB_M + d, pend)
+        assert budget.moi_kgm2 == pytest.approx(m * d * d, rel=1e-12)
+
+
+def test_mean_of_periods_and_amplitudes() -> None:
+    g, m = 9.81, 0.9
+    d = g / math.pi**2
+    # periods 1.9 and 2.1 s average to 2 s; amplitudes 0 and 0 deg
+    timings = [PendulumPeriod(1.9, 0.0, 10), PendulumPeriod(2.1, 0.0, 10)]
+    reading, budget = pendulum_moi(timings, m, PIVOT_FROM_KNOB_M + d, Pendulum(gravity_m_s2=g))
+    assert budget.moi_kgm2 == pytest.approx(m * d * d, rel=1e-12)
+    assert reading.cycles == 10 and reading.amplitude_deg == 0.0
+
+
+def test_a_balance_point_at_or_behind_the_pivot_is_refused() -> None:
+    with pytest.raises(ParameterError, match="balance"):
+        pendulum_moi([PendulumPeriod(1.5, 5.0, 10)], 0.85, PIVOT_FROM_KNOB_M, PEND)
+    with pytest.raises(ParameterError, match="timing"):
+        pendulum_moi([], 0.85, 0.5, PEND)

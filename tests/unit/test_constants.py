@@ -1,0 +1,45 @@
+"""Constants with one home: the rig's pivot is 6 in from the knob (ASTM F2398), written once.
+
+The value is the standard's; every model that places the pivot must take it from
+rig.core.bat rather than restate it, so the source is scanned for a restated pivot.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+from rig.core.bat import PIVOT_FROM_KNOB_IN, PIVOT_FROM_KNOB_M
+from rig.measure.metrics import SwingModel
+from simulators.scene import RigGeometry
+
+ROOT = Path(__file__).resolve().parents[2]
+PRODUCT = ("rig", "protocols", "simulators", "drivers")
+HOME = ROOT / "rig" / "core" / "bat.py"
+# a pivot named on the line together with 6 in, written as a number: 6.0, 6 * INCH, 0.1524 m
+RESTATED = re.compile(r"\b(6(\.0*)?\s*\*\s*INCH|0\.1524\d*|152\.4)\b|=\s*6(\.0*)?\b")
+
+
+def test_the_pivot_is_the_standards_six_inches() -> None:
+    assert PIVOT_FROM_KNOB_IN == 6.0
+    assert abs(PIVOT_FROM_KNOB_M - 0.1524) < 1e-12  # 6 x 25.4 mm
+
+
+def test_every_model_of_the_rig_places_the_pivot_at_the_one_constant() -> None:
+    assert SwingModel().rig_pivot_from_knob_m == PIVOT_FROM_KNOB_M
+    assert RigGeometry().pivot_from_knob_m == PIVOT_FROM_KNOB_M
+
+
+def test_no_module_restates_the_pivot() -> None:
+    """A line naming the rig's pivot (the BESR swing's own centre is another quantity), or the line
+    after it, must not carry 6 in as a number."""
+    restated = []
+    for package in PRODUCT:
+        for path in sorted((ROOT / package).rglob("*.py")):
+            lines = path.read_text().splitlines()
+            for n, line in enumerate(lines):
+                if path == HOME or "pivot" not in line.lower() or "swing" in line.lower():
+                    continue
+                if RESTATED.search(" ".join(lines[n : n + 2])):
+                    restated.append(f"{path.relative_to(ROOT)}:{n + 1}: {line.strip()}")
+    assert restated == []
