@@ -17,6 +17,7 @@ from rig.cli.common import (
     resolve_run,
     rig_config,
 )
+from rig.core.events import Verdict
 
 
 def _signoff(args: argparse.Namespace, flag: str) -> Any:
@@ -132,7 +133,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
             live.summary(outcome)
     if outcome.status != "finished":
         return _interrupted(outcome, args)
-    return 0 if outcome.verdict and outcome.verdict.get("verdict") == "PASS" else 1
+    return 0 if outcome.verdict and outcome.verdict.get("verdict") == Verdict.PASS else 1
 
 
 def cmd_runs(args: argparse.Namespace) -> int:

@@ -17,6 +17,7 @@ from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
 from rig.core.errors import ConfigError
+from rig.core.events import Verdict
 from rig.core.units import INCH, OUNCE
 from rig.report.cert_doc import Banner, Block, Code, Figure, Heading, Para, Table, kv, to_html, to_markdown
 from rig.report.cert_plots import certification_hits, metric_label, write_figures
@@ -181,7 +182,7 @@ def verdict_blocks(record: dict[str, Any]) -> list[Block]:
             Code(resume_command(record)),
             *_budget_way_out(record, stops[-1] if stops else {}),
         ]
-    tone = "pass" if v.get("verdict") == "PASS" else "fail"
+    tone = "pass" if v.get("verdict") == Verdict.PASS else "fail"
     name, limit = metric_label(v.get("metric")), v.get("limit")
     if v.get("mean") is None:
         return [
