@@ -17,6 +17,7 @@ from rig.cli.common import (
     resolve_run,
     rig_config,
 )
+from rig.core import events as ev
 from rig.core.events import Verdict
 
 
@@ -77,7 +78,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
     with stop_on_signals(control), open_db(args) as store:
         if args.resume:
             run_id = resolve_run(store, args.resume)
-            started = store.entries(run_id, kinds=["RunStarted"])
+            started = store.entries(run_id, kinds=[ev.RUN_STARTED])
             if not started:
                 raise ConfigError(f"run {run_id} never started; start a new one", source="--resume")
             payload = started[0].payload
@@ -164,7 +165,7 @@ def _stopped(store: Any, run: Any) -> bool:
     if run.status != "running":
         return False
     last = store.entry(run.last_seq)
-    return last is not None and last.kind == "RunInterrupted"
+    return last is not None and last.kind == ev.RUN_INTERRUPTED
 
 
 def cmd_report(args: argparse.Namespace) -> int:

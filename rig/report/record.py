@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from typing import Any
 
+from rig.core import events as ev
 from rig.store import Anchor, LogEntry, RecordRefused, Store
 
-SHOT_KINDS = ("ShotRequested", "ShotFired", "ShotMeasured", "ShotRejected", "ShotLost", "ShotOverruled")
+SHOT_KINDS = ev.SHOT_KINDS
 
 
 _CLOSED = ("finished", "aborted")
@@ -47,30 +48,30 @@ def run_record(store: Store, run_id: str, anchor: Anchor | None = None) -> dict[
     shots: dict[int, dict[str, Any]] = {}
     for e in entries:
         d = e.payload
-        if e.kind == "RunStarted":
+        if e.kind == ev.RUN_STARTED:
             for key in ("procedure", "bat", "rig", "software"):
                 record[key] = d.get(key)
-        elif e.kind == "EnvironmentChecked":
+        elif e.kind == ev.ENVIRONMENT_CHECKED:
             record["environment"].append({**d, "t_utc": e.t_utc})
-        elif e.kind == "MoiMeasured":
+        elif e.kind == ev.MOI_MEASURED:
             record["moi"] = d
-        elif e.kind in ("OperatorPrompted", "OperatorAnswered"):
+        elif e.kind in (ev.OPERATOR_PROMPTED, ev.OPERATOR_ANSWERED):
             record["operator"].append({"kind": e.kind, **d, "t_utc": e.t_utc})
-        elif e.kind == "LocationChosen":
+        elif e.kind == ev.LOCATION_CHOSEN:
             record["location"] = d
-        elif e.kind in ("RunInterrupted", "RunResumed", "RigChecked", "RunEnded"):
+        elif e.kind in (ev.RUN_INTERRUPTED, ev.RUN_RESUMED, ev.RIG_CHECKED, ev.RUN_ENDED):
             record["interruptions"].append({"kind": e.kind, **d, "t_utc": e.t_utc})
-            if e.kind == "RigChecked":
+            if e.kind == ev.RIG_CHECKED:
                 record["rig_checks"].append({**d, "t_utc": e.t_utc})
-            elif e.kind == "RunEnded":
+            elif e.kind == ev.RUN_ENDED:
                 record["ended"] = {**d, "t_utc": e.t_utc}
         elif e.kind == "RunLockBroken":  # a killed runner's lock, broken by the next one
             holder = d.get("holder") or {}
             why = f"lock of host {holder.get('host')} pid {holder.get('pid')} broken: {d.get('reason')}"
             record["interruptions"].append({"kind": e.kind, "reason": why, "t_utc": e.t_utc})
-        elif e.kind == "ScanExtended":
+        elif e.kind == ev.SCAN_EXTENDED:
             record["scan_extensions"].append({**d, "t_utc": e.t_utc})
-        elif e.kind == "RunFinished":
+        elif e.kind == ev.RUN_FINISHED:
             record["verdict"] = {k: v for k, v in d.items() if k != "cross_check"}
             record["cross_check"] = d.get("cross_check")
         elif e.kind in SHOT_KINDS:
@@ -131,14 +132,14 @@ def _coverage_text(by: str, kept: list[LogEntry], left: list[dict[str, Any]]) ->
 
 
 def _merge_shot(shot: dict[str, Any], kind: str, d: dict[str, Any], t_utc: str) -> None:
-    if kind == "ShotRequested":
+    if kind == ev.SHOT_REQUESTED:
         shot.update(
             purpose=d["purpose"],
             location_in=d["location_in"],
             requested_utc=t_utc,
             target_speed_m_s=d.get("target_speed_m_s"),
         )
-    elif kind == "ShotFired":
+    elif kind == ev.SHOT_FIRED:
         shot.update(
             status="fired",
             raw={
@@ -156,10 +157,10 @@ def _merge_shot(shot: dict[str, Any], kind: str, d: dict[str, Any], t_utc: str) 
                 )
             },
         )
-    elif kind in ("ShotMeasured", "ShotRejected"):
+    elif kind in (ev.SHOT_MEASURED, ev.SHOT_REJECTED):
         shot.update(
-            status="valid" if kind == "ShotMeasured" else "invalid",
-            valid=kind == "ShotMeasured",
+            status="valid" if kind == ev.SHOT_MEASURED else "invalid",
+            valid=kind == ev.SHOT_MEASURED,
             inbound_speed_m_s=d.get("inbound_speed_m_s"),
             rebound_speed_m_s=d.get("rebound_speed_m_s"),
             inbound_at_impact_m_s=d.get("inbound_at_impact_m_s"),  # drag-corrected (none in old runs)
@@ -170,7 +171,7 @@ def _merge_shot(shot: dict[str, Any], kind: str, d: dict[str, Any], t_utc: str) 
             reasons=d.get("reasons", []),
             budget=d.get("budget"),
         )
-    elif kind == "ShotOverruled":
+    elif kind == ev.SHOT_OVERRULED:
         shot.update(status="invalid", valid=False)
         shot.setdefault("reasons", []).append(
             {
@@ -179,5 +180,5 @@ def _merge_shot(shot: dict[str, Any], kind: str, d: dict[str, Any], t_utc: str) 
                 "invalidates": True,
             }
         )
-    elif kind == "ShotLost":
+    elif kind == ev.SHOT_LOST:
         shot.update(status="lost", valid=False, reasons=[{"code": "LOST", "message": d.get("reason", "")}])
