@@ -363,9 +363,11 @@ def from_payload(kind: str, payload: Mapping[str, Any]) -> RunEvent:
         raise EventFormatError(f"{kind} payload lacks {', '.join(missing)}")
     extra = {k: v for k, v in payload.items() if k not in names}
     try:
-        return cls(**{n: payload[n] for n in names}, extra=extra)
+        typed = cls(**{n: payload[n] for n in names}, extra=extra)
     except ValueError as exc:
         raise EventFormatError(f"{kind} payload: {exc}") from None
+    typed.__dict__["data"] = payload if isinstance(payload, dict) else dict(payload)  # as read, key order too
+    return typed
 
 
 def event(kind: str, **data: Any) -> RunEvent:
