@@ -88,3 +88,23 @@ def test_the_old_runs_report_as_they_did(db: Path, name: str, fmt: str) -> None:
             "ended": "Run ended without a verdict",
         }
         assert headline[name] in text
+
+
+def test_the_console_and_the_report_show_what_the_one_fold_says(db: Path) -> None:
+    from rig.report.record import run_record
+    from rig.tui.live import LiveRun
+
+    with Store.open(db) as store:
+        for run_id in RUNS.values():
+            events = history(store, run_id)
+            st, record, live = fold(events), run_record(store, run_id), LiveRun()
+            for e in events:
+                live.apply(e)
+            statuses = {s.index: s.status for s in st.shots}
+            assert statuses == {s["index"]: s["status"] for s in record["shots"]}
+            assert statuses == {i: s.status for i, s in live.shots.items()}
+            assert live.run == st and live.verdict == st.verdict
+            verdict = st.verdict and {k: v for k, v in st.verdict.items() if k != "cross_check"}
+            assert record["verdict"] == verdict
+            assert live.best_location_in == st.best_location_in
+            assert [i["kind"] for i in record["interruptions"]] == [n.kind for n in st.stops]
