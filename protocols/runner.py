@@ -178,7 +178,7 @@ class Runner:
         self._emit(event)
         if event.persisted:
             self.history.append(event)
-            self.state = fold(self.history)
+            self.state.apply(event)  # the same fold, one event on
 
     # -- the procedure ----------------------------------------------------------------------
     def run(self) -> dict[str, Any]:
