@@ -8,6 +8,7 @@ recorded events, so the scan, the hits and the average are whole again before th
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -20,18 +21,49 @@ from rig.core.run_state import RunState, ShotEntry
 
 @dataclass
 class LiveShot:
-    """The shot in progress or the last one: speeds as soon as known, then its outcome."""
+    """The shot in progress or the last one: the fold's record of it (the one shot type, shared with
+    the runner and the report) and what only a live run sees, speeds as soon as known and the ticks."""
 
-    index: int
-    purpose: str = ""
-    location_in: float | None = None
-    status: str = "requested"  # requested | fired | valid | invalid | lost
+    entry: ShotEntry
     inbound: float | None = None
     rebound: float | None = None
-    metric: float | None = None
-    u: float | None = None
-    reasons: list[str] = field(default_factory=list)
     crossings: list[tuple[int, int]] = field(default_factory=list)  # (gate, tick) as they came
+
+    @property
+    def index(self) -> int:
+        return self.entry.index
+
+    @property
+    def purpose(self) -> str:
+        return self.entry.purpose
+
+    @property
+    def location_in(self) -> float | None:
+        return float(self.entry.location_in) if self.entry.requested else None
+
+    @property
+    def status(self) -> str:
+        """requested | fired | valid | invalid | lost."""
+        return self.entry.status
+
+    @property
+    def metric(self) -> float | None:
+        return self.entry.metric
+
+    @property
+    def u(self) -> float | None:
+        return (self.entry.outcome or {}).get("u")
+
+    @property
+    def reasons(self) -> list[str]:
+        """Why the shot does not count, as lines."""
+        e = self.entry
+        if e.lost:
+            return [str(e.lost_reason)]
+        if e.overruled:
+            return [f"OPERATOR_REJECTED: {e.overruled[-1].get('reason', '')}"]
+        found = (e.outcome or {}).get("reasons", [])
+        return [f"{x['code']}: {x.get('message', '')}" for x in found if x.get("invalidates", True)]
 
 
 @dataclass
@@ -97,15 +129,15 @@ class LiveRun:
             handler(self, d)
 
     def _shot(self, index: int) -> LiveShot:
-        shot = self.shots.setdefault(index, LiveShot(index))
+        """The shot on screen, backed by the fold's entry once the shot is requested."""
+        entry = self.run.by_index.get(index)
+        shot = self.shots.get(index)
+        if shot is None:
+            shot = self.shots[index] = LiveShot(entry or ShotEntry(index, "", math.nan))
+        elif entry is not None:
+            shot.entry = entry
         self.shot = shot
         return shot
-
-    def _recorded(self, index: int) -> tuple[LiveShot, ShotEntry]:
-        """The shot on screen, its status taken from the fold."""
-        shot, entry = self._shot(index), self.run.by_index[index]
-        shot.status = entry.status
-        return shot, entry
 
     def note(self, line: str) -> None:
         """Add a line to the run's log."""
@@ -136,8 +168,7 @@ def _moi(r: LiveRun, d: dict[str, Any]) -> None:
 
 
 def _requested(r: LiveRun, d: dict[str, Any]) -> None:
-    shot, entry = r._recorded(int(d["index"]))
-    shot.purpose, shot.location_in = entry.purpose, float(entry.location_in)
+    r._shot(int(d["index"]))
 
 
 def _crossed(r: LiveRun, d: dict[str, Any]) -> None:
@@ -153,7 +184,7 @@ def _rebound(r: LiveRun, d: dict[str, Any]) -> None:
 
 
 def _fired(r: LiveRun, d: dict[str, Any]) -> None:
-    shot, _ = r._recorded(int(d["index"]))
+    shot = r._shot(int(d["index"]))
     if not shot.crossings:  # a recorded shot (resume): the raw ticks stand in for the live ones
         shot.crossings = [(int(c["gate"]), int(c["tick"])) for c in d.get("crossings", [])]
     if d.get("pressure_kpa") is not None:
@@ -163,14 +194,10 @@ def _fired(r: LiveRun, d: dict[str, Any]) -> None:
 
 
 def _measured(r: LiveRun, d: dict[str, Any]) -> None:
-    shot, entry = r._recorded(int(d["index"]))
+    shot = r._shot(int(d["index"]))
     shot.inbound = d.get("inbound_speed_m_s", shot.inbound)
     shot.rebound = d.get("rebound_speed_m_s", shot.rebound)
-    shot.metric, shot.u = entry.metric, (entry.outcome or {}).get("u")
-    shot.reasons = [
-        f"{x['code']}: {x.get('message', '')}" for x in d.get("reasons", []) if x.get("invalidates", True)
-    ]
-    if entry.valid:
+    if shot.entry.valid:
         r.note(f"shot {shot.index} valid: {r.metric_name} {shot.metric:.4f} +- {shot.u:.4f}")
     else:
         codes = ", ".join(x.split(":")[0] for x in shot.reasons) or "invalid"
@@ -178,14 +205,12 @@ def _measured(r: LiveRun, d: dict[str, Any]) -> None:
 
 
 def _lost(r: LiveRun, d: dict[str, Any]) -> None:
-    shot, entry = r._recorded(int(d["index"]))
-    shot.reasons = [str(entry.lost_reason)]
+    shot = r._shot(int(d["index"]))
     r.note(f"shot {shot.index} lost: {d.get('reason', '')}")
 
 
 def _overruled(r: LiveRun, d: dict[str, Any]) -> None:
-    shot, _ = r._recorded(int(d["index"]))
-    shot.reasons = [f"OPERATOR_REJECTED: {d.get('reason', '')}"]
+    shot = r._shot(int(d["index"]))
     r.note(f"shot {shot.index} rejected on review: re-shoot")
 
 

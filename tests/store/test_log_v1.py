@@ -103,6 +103,8 @@ def test_the_console_and_the_report_show_what_the_one_fold_says(db: Path) -> Non
             statuses = {s.index: s.status for s in st.shots}
             assert statuses == {s["index"]: s["status"] for s in record["shots"]}
             assert statuses == {i: s.status for i, s in live.shots.items()}
+            # one shot record: the console's shots are the fold's entries, which the report renders
+            assert all(s.entry is live.run.by_index[i] for i, s in live.shots.items())
             assert live.run == st and live.verdict == st.verdict
             verdict = st.verdict and {k: v for k, v in st.verdict.items() if k != "cross_check"}
             assert record["verdict"] == verdict
