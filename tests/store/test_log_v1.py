@@ -31,10 +31,11 @@ def db(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def _report(db: Path, run_id: str, fmt: str) -> str:
     out, err = io.StringIO(), io.StringIO()
+    figures = db.parent / "figures"
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = main(["report", run_id, "--format", fmt, "--db", str(db)])
+        code = main(["report", run_id, "--format", fmt, "--db", str(db), "--figures", str(figures)])
     assert code == 0, err.getvalue()
-    return out.getvalue()
+    return out.getvalue().replace(str(figures), "FIGURES")
 
 
 def test_the_old_database_verifies(db: Path) -> None:
