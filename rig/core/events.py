@@ -21,6 +21,8 @@ from enum import StrEnum
 from functools import cached_property
 from typing import Any, ClassVar
 
+from rig.core.errors import RigError
+
 LOG_FORMAT = 1  # version of the payloads below in the record store's log
 
 
@@ -31,8 +33,8 @@ class Verdict(StrEnum):
     FAIL = "FAIL"
 
 
-class EventFormatError(ValueError):
-    """A log payload that is not the event its kind says."""
+class EventFormatError(RigError, ValueError):
+    """A log payload that is not the event its kind says (a damaged record: one line, no traceback)."""
 
 
 @dataclass(frozen=True)
@@ -87,7 +89,7 @@ class MoiMeasured(RunEvent):
 
     kind: ClassVar[str] = "MoiMeasured"
     moi_kgm2: float
-    u_kgm2: float
+    u_kgm2: float | None = None
 
 
 @dataclass(frozen=True)
@@ -102,14 +104,14 @@ class OperatorAnswered(RunEvent):
     kind: ClassVar[str] = "OperatorAnswered"
     prompt_id: str
     answer: bool
-    who: str
+    who: str | None = None
 
 
 @dataclass(frozen=True)
 class LocationSet(RunEvent):
     kind: ClassVar[str] = "LocationSet"
     from_barrel_end_in: float
-    impact_from_pivot_m: float
+    impact_from_pivot_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -128,7 +130,7 @@ class ShotFired(RunEvent):
 
     kind: ClassVar[str] = "ShotFired"
     index: int
-    crossings: list[Any]
+    crossings: list[Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -137,7 +139,8 @@ class ShotMeasured(RunEvent):
 
     kind: ClassVar[str] = "ShotMeasured"
     index: int
-    valid: bool
+    metric: float | None = None
+    valid: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -146,14 +149,15 @@ class ShotRejected(RunEvent):
 
     kind: ClassVar[str] = "ShotRejected"
     index: int
-    valid: bool
+    metric: float | None = None
+    valid: bool | None = None
 
 
 @dataclass(frozen=True)
 class ShotLost(RunEvent):
     kind: ClassVar[str] = "ShotLost"
     index: int
-    reason: str
+    reason: str | None = None
 
 
 @dataclass(frozen=True)
@@ -162,8 +166,8 @@ class ShotOverruled(RunEvent):
 
     kind: ClassVar[str] = "ShotOverruled"
     index: int
-    reason: str
-    who: str
+    reason: str | None = None
+    who: str | None = None
 
 
 @dataclass(frozen=True)
@@ -176,8 +180,8 @@ class BallReplaced(RunEvent):
 class LocationChosen(RunEvent):
     kind: ClassVar[str] = "LocationChosen"
     from_barrel_end_in: float
-    mean_metric: float
-    scan: dict[str, float]
+    mean_metric: float | None = None
+    scan: dict[str, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -186,8 +190,8 @@ class RunFinished(RunEvent):
 
     kind: ClassVar[str] = "RunFinished"
     verdict: Verdict
-    metric: str
-    limit: float
+    metric: str | None = None
+    limit: float | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "verdict", Verdict(self.verdict))
@@ -196,7 +200,7 @@ class RunFinished(RunEvent):
 @dataclass(frozen=True)
 class RunInterrupted(RunEvent):
     kind: ClassVar[str] = "RunInterrupted"
-    reason: str
+    reason: str | None = None
 
 
 @dataclass(frozen=True)
@@ -204,9 +208,9 @@ class RigChecked(RunEvent):
     """The operator confirms the rig was checked: the re-shoot budget starts again."""
 
     kind: ClassVar[str] = "RigChecked"
-    who: str
-    why: str
-    invalid_shots_before: int
+    who: str | None = None
+    why: str | None = None
+    invalid_shots_before: int | None = None
 
 
 @dataclass(frozen=True)
@@ -214,9 +218,9 @@ class RunEnded(RunEvent):
     """The run ended on the operator's word, with no verdict."""
 
     kind: ClassVar[str] = "RunEnded"
-    who: str
-    why: str
-    shots_so_far: int
+    who: str | None = None
+    why: str | None = None
+    shots_so_far: int | None = None
 
 
 @dataclass(frozen=True)
@@ -225,8 +229,8 @@ class ScanExtended(RunEvent):
 
     kind: ClassVar[str] = "ScanExtended"
     from_barrel_end_in: float
-    impact_from_pivot_m: float
-    reason: str
+    impact_from_pivot_m: float | None = None
+    reason: str | None = None
 
 
 @dataclass(frozen=True)
@@ -310,6 +314,10 @@ BY_KIND: dict[str, type[RunEvent]] = {t.kind: t for t in EVENT_TYPES}
 _FIELDS: dict[type[RunEvent], tuple[str, ...]] = {
     t: tuple(f.name for f in fields(t) if f.name != "extra") for t in EVENT_TYPES
 }
+# typed fields a payload may lack (old runs, or a producer with nothing to say): None when absent
+_OPTIONAL: dict[type[RunEvent], frozenset[str]] = {
+    t: frozenset(f.name for f in fields(t) if f.name != "extra" and f.default is None) for t in EVENT_TYPES
+}
 
 # The kinds by name (the store and its queries speak kinds)
 RUN_STARTED = RunStarted.kind
@@ -346,8 +354,16 @@ STOP_KINDS = (RUN_INTERRUPTED, RUN_RESUMED, RIG_CHECKED, RUN_ENDED)  # breaks in
 
 
 def to_payload(event: RunEvent) -> dict[str, Any]:
-    """The event's log payload: its typed fields, then the untyped rest."""
-    payload = {name: getattr(event, name) for name in _FIELDS[type(event)]}
+    """The event's log payload: its typed fields (optional ones only when set), then the untyped rest.
+
+    An event read from the log keeps the payload as read (`data`); this builds it for one made in code.
+    """
+    optional = _OPTIONAL[type(event)]
+    payload = {
+        name: value
+        for name in _FIELDS[type(event)]
+        if (value := getattr(event, name)) is not None or name not in optional
+    }
     payload.update(event.extra)
     return payload
 
@@ -358,12 +374,12 @@ def from_payload(kind: str, payload: Mapping[str, Any]) -> RunEvent:
     if cls is None:
         raise EventFormatError(f"no event kind {kind!r}")
     names = _FIELDS[cls]
-    missing = [n for n in names if n not in payload]
+    missing = [n for n in names if n not in payload and n not in _OPTIONAL[cls]]
     if missing:
         raise EventFormatError(f"{kind} payload lacks {', '.join(missing)}")
     extra = {k: v for k, v in payload.items() if k not in names}
     try:
-        typed = cls(**{n: payload[n] for n in names}, extra=extra)
+        typed = cls(**{n: payload[n] for n in names if n in payload}, extra=extra)
     except ValueError as exc:
         raise EventFormatError(f"{kind} payload: {exc}") from None
     typed.__dict__["data"] = payload if isinstance(payload, dict) else dict(payload)  # as read, key order too
@@ -377,7 +393,15 @@ def event(kind: str, **data: Any) -> RunEvent:
 
 def parse_log(entries: Iterable[Any]) -> list[RunEvent]:
     """The run events among log entries (kind, payload); store-level records are left out."""
-    return [from_payload(e.kind, e.payload) for e in entries if e.kind in BY_KIND]
+    return [parse_entry(e) for e in entries if e.kind in BY_KIND]
+
+
+def parse_entry(entry: Any) -> RunEvent:
+    """The typed event of one log entry; EventFormatError names the entry if it is not one."""
+    try:
+        return from_payload(entry.kind, entry.payload)
+    except EventFormatError as exc:
+        raise EventFormatError(f"log entry {getattr(entry, 'seq', '?')}: {exc}") from None
 
 
 Subscriber = Callable[[RunEvent], None]

@@ -50,7 +50,7 @@ def run_record(store: Store, run_id: str, anchor: Anchor | None = None) -> dict[
     st = RunState()
     for e in entries:
         if e.kind in ev.BY_KIND:
-            st.apply(ev.from_payload(e.kind, e.payload), e.t_utc, e.seq)
+            st.apply(ev.parse_entry(e), e.t_utc, e.seq)
     _fill(record, st, [e for e in entries if e.kind == RUN_LOCK_BROKEN])
     return record
 
