@@ -24,6 +24,7 @@ from rig.core.bat import Barrel, BatSpec
 from rig.core.config import RigConfig
 from rig.core.devices import Environment, Recoil
 from rig.core.errors import ConfigError, RigError
+from rig.core.events import Verdict
 from rig.measure.drag import AirDensity, lab_air
 from rig.measure.metrics import DEFAULT_SWING, DEFINITIONS, compute_metrics
 from rig.measure.model import (
@@ -230,7 +231,7 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> d
     q = bat.impact_from_pivot_m(loc) if loc is not None else config.impact_from_pivot_m
     moi = float(state.moi["moi_kgm2"]) if state.moi else float(bat.moi_kgm2 or 0.0)
     return {
-        "verdict": "PASS" if passed else "FAIL",
+        "verdict": Verdict.PASS if passed else Verdict.FAIL,
         "zone": zone,
         "metric": p.standard.value,
         "definition": DEFINITIONS.get(p.standard.value, ""),

@@ -172,13 +172,13 @@ class Runner:
             self.emit(ev.TRAFFIC, index=None, chunks=chunks)
 
     # -- events -----------------------------------------------------------------------------
-    def emit(self, kind: str, **data: Any) -> None:
-        """Record a fact and update the run state from it."""
-        event = RunEvent(kind, data)
+    def emit(self, kind: str | RunEvent, **data: Any) -> None:
+        """Record a fact (a typed event, or its kind and payload) and update the run state from it."""
+        event = kind if isinstance(kind, RunEvent) else ev.event(kind, **data)
         self._emit(event)
         if event.persisted:
             self.history.append(event)
-            self.state = fold(self.history)
+            self.state.apply(event)  # the same fold, one event on
 
     # -- the procedure ----------------------------------------------------------------------
     def run(self) -> dict[str, Any]:
@@ -558,7 +558,7 @@ class Runner:
 
     def _fail_ring(self, index: int) -> None:
         verdict = {
-            "verdict": "FAIL",
+            "verdict": ev.Verdict.FAIL,
             "reason": f"ring check failed at shot {index}: barrel deformed",
             "metric": self.p.standard.value,
             "limit": self.p.limit,

@@ -63,7 +63,7 @@ class Signoff:
 
 def history(store: Store, run_id: str) -> list[RunEvent]:
     """A run's recorded events, in order (the runner folds them to resume)."""
-    return [RunEvent(e.kind, e.payload) for e in store.entries(run_id) if e.kind not in ("RunCreated",)]
+    return ev.parse_log(store.entries(run_id))
 
 
 def _traffic_drain(session: RigSession) -> Callable[[], list[dict[str, Any]]]:
@@ -96,7 +96,8 @@ def end_run(store: Store, run_id: str, signoff: Signoff) -> Outcome:
     _running(store, run_id, "--end")
     with store.run_lock(run_id):  # never while a runner is still working on the run
         shots = len(store.entries(run_id, kinds=[ev.SHOT_REQUESTED]))
-        store.append(run_id, ev.RUN_ENDED, {**signoff.as_dict(), "shots_so_far": shots})
+        ended = ev.RunEnded(**signoff.as_dict(), shots_so_far=shots)
+        store.append(run_id, ended.kind, ended.data)
         store.set_run_status(run_id, "aborted", None)
     return Outcome(run_id, "ended", None, f"ended without a verdict by {signoff.who}: {signoff.why}")
 
@@ -163,7 +164,7 @@ def certify(
             session = RigSession.open(config)
         except (RigError, OSError) as exc:  # an unplugged or busy port: nothing moved, resumable
             reason = f"the devices could not be opened: {_reason(exc)}"
-            emit(RunEvent(ev.RUN_INTERRUPTED, {"reason": reason, "budget_exceeded": False}))
+            emit(ev.RunInterrupted(reason=reason, extra={"budget_exceeded": False}))
             return Outcome(run_id, "interrupted", None, reason)
         with session:
             past = history(store, run_id) if resuming else []  # read under the lock
@@ -204,7 +205,7 @@ def certify(
                 try:
                     with contextlib.suppress(Exception):
                         runner.flush_traffic()
-                    emit(RunEvent(ev.RUN_INTERRUPTED, detail))
+                    emit(ev.event(ev.RUN_INTERRUPTED, **detail))
                 except KeyboardInterrupt:  # forced while recording: the record stays whole, resumable
                     pass
                 return Outcome(run_id, "interrupted", None, reason, budget)

@@ -17,6 +17,8 @@ from rig.cli.common import (
     resolve_run,
     rig_config,
 )
+from rig.core import events as ev
+from rig.core.events import Verdict
 
 
 def _signoff(args: argparse.Namespace, flag: str) -> Any:
@@ -76,7 +78,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
     with stop_on_signals(control), open_db(args) as store:
         if args.resume:
             run_id = resolve_run(store, args.resume)
-            started = store.entries(run_id, kinds=["RunStarted"])
+            started = store.entries(run_id, kinds=[ev.RUN_STARTED])
             if not started:
                 raise ConfigError(f"run {run_id} never started; start a new one", source="--resume")
             payload = started[0].payload
@@ -136,7 +138,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
             live.summary(outcome)
     if outcome.status != "finished":
         return _interrupted(outcome, args)
-    return 0 if outcome.verdict and outcome.verdict.get("verdict") == "PASS" else 1
+    return 0 if outcome.verdict and outcome.verdict.get("verdict") == Verdict.PASS else 1
 
 
 def cmd_runs(args: argparse.Namespace) -> int:
@@ -167,7 +169,7 @@ def _stopped(store: Any, run: Any) -> bool:
     if run.status != "running":
         return False
     last = store.entry(run.last_seq)
-    return last is not None and last.kind == "RunInterrupted"
+    return last is not None and last.kind == ev.RUN_INTERRUPTED
 
 
 def cmd_report(args: argparse.Namespace) -> int:

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from rig.cli.common import ConfigError, open_db
+from rig.core.events import Verdict
 from rig.population.simulate import SimulatedBat, simulated_population
 
 MAX_BATS = 500
@@ -244,7 +245,7 @@ def print_summary(tally: Tally, args: argparse.Namespace) -> None:
     for label, rows in groups:
         values = [r["value"] for r in rows if r["value"] is not None]
         if values:
-            fails = sum(1 for r in rows if r["verdict"] != "PASS")
+            fails = sum(1 for r in rows if r["verdict"] != Verdict.PASS)
             metric = str(rows[0]["metric"] or "metric").upper()
             console.print(
                 f"  {label}: {len(values)} bats, {metric} {min(values):.4f}-{max(values):.4f}"

@@ -16,21 +16,22 @@ import statistics
 from collections import defaultdict
 from typing import Any
 
+from rig.core import events as ev
 from rig.modal.link import latest_modal_result
 from rig.population.dataset import METRICS, PopulationBat
 from rig.store import Store
 
 
 def _run_metrics(store: Store, run_id: str) -> tuple[dict[str, list[float]], float | None]:
-    entries = store.entries(run_id, kinds=["ShotRequested", "ShotMeasured", "RunFinished"])
-    finished = [e.payload for e in entries if e.kind == "RunFinished"]
+    entries = store.entries(run_id, kinds=[ev.SHOT_REQUESTED, ev.SHOT_MEASURED, ev.RUN_FINISHED])
+    finished = [e.payload for e in entries if e.kind == ev.RUN_FINISHED]
     out: dict[str, list[float]] = defaultdict(list)
     if not finished:
         return out, None
     location = finished[-1].get("location_in")
-    requested = {e.payload.get("index"): e.payload for e in entries if e.kind == "ShotRequested"}
+    requested = {e.payload.get("index"): e.payload for e in entries if e.kind == ev.SHOT_REQUESTED}
     for e in entries:
-        if e.kind != "ShotMeasured" or not e.payload.get("valid"):
+        if e.kind != ev.SHOT_MEASURED or not e.payload.get("valid"):
             continue
         req = requested.get(e.payload.get("index"), {})
         if req.get("purpose") != "valid" or req.get("location_in") != location:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import re
 from typing import Any
 
+from rig.core import events as ev
 from rig.report.cert_doc import Block, Figure, Heading, Para, Table, kv
 from rig.report.cert_plots import bbs_per_e_a, certification_hits, metric_label
 
@@ -174,7 +175,7 @@ def operator_blocks(record: dict[str, Any]) -> list[Block]:
         g = groups.setdefault(
             _PROMPT_SEQ.sub("", pid), {"text": "", "asked": 0, "yes": 0, "no": 0, "who": set()}
         )
-        if e.get("kind") == "OperatorPrompted":
+        if e.get("kind") == ev.OPERATOR_PROMPTED:
             g["asked"] += 1
             g["text"] = g["text"] or str(e.get("text", ""))
             texts[pid] = str(e.get("text", ""))

@@ -16,8 +16,10 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
+from rig.core import events as ev
 from rig.core.bat import PIVOT_FROM_KNOB_IN
 from rig.core.errors import ConfigError
+from rig.core.events import Verdict
 from rig.core.units import INCH, OUNCE
 from rig.report.cert_doc import Banner, Block, Code, Figure, Heading, Para, Table, kv, to_html, to_markdown
 from rig.report.cert_plots import certification_hits, metric_label, write_figures
@@ -170,7 +172,7 @@ def verdict_blocks(record: dict[str, Any]) -> list[Block]:
             )
         ]
     if not v:
-        stops = [i for i in record.get("interruptions", []) if i.get("kind") == "RunInterrupted"]
+        stops = [i for i in record.get("interruptions", []) if i.get("kind") == ev.RUN_INTERRUPTED]
         reason = stops[-1].get("reason", "") if stops else "the run stopped before a verdict was recorded"
         return [
             Banner(
@@ -182,7 +184,7 @@ def verdict_blocks(record: dict[str, Any]) -> list[Block]:
             Code(resume_command(record)),
             *_budget_way_out(record, stops[-1] if stops else {}),
         ]
-    tone = "pass" if v.get("verdict") == "PASS" else "fail"
+    tone = "pass" if v.get("verdict") == Verdict.PASS else "fail"
     name, limit = metric_label(v.get("metric")), v.get("limit")
     if v.get("mean") is None:
         return [
@@ -304,20 +306,20 @@ def environment_blocks(record: dict[str, Any]) -> list[Block]:
 
 
 _STOP_WORDS = {
-    "RunInterrupted": "interrupted",
-    "RunResumed": "resumed",
-    "RigChecked": "rig checked",
-    "RunEnded": "ended, no verdict",
+    ev.RUN_INTERRUPTED: "interrupted",
+    ev.RUN_RESUMED: "resumed",
+    ev.RIG_CHECKED: "rig checked",
+    ev.RUN_ENDED: "ended, no verdict",
 }
 
 
 def _stop_detail(i: dict[str, Any]) -> str:
-    if i.get("kind") == "RigChecked":
+    if i.get("kind") == ev.RIG_CHECKED:
         return (
             f"by {i.get('who', '?')}: {i.get('why', '')} (re-shoot budget starts again after "
             f"{i.get('invalid_shots_before', '?')} invalid shots)"
         )
-    if i.get("kind") == "RunEnded":
+    if i.get("kind") == ev.RUN_ENDED:
         return f"by {i.get('who', '?')}: {i.get('why', '')}"
     if "reason" in i:
         return str(i["reason"])

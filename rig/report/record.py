@@ -4,9 +4,12 @@ from __future__ import annotations
 
 from typing import Any
 
+from rig.core import events as ev
+from rig.core.run_state import RunState, ShotEntry
 from rig.store import Anchor, LogEntry, RecordRefused, Store
 
-SHOT_KINDS = ("ShotRequested", "ShotFired", "ShotMeasured", "ShotRejected", "ShotLost", "ShotOverruled")
+SHOT_KINDS = ev.SHOT_KINDS
+RUN_LOCK_BROKEN = "RunLockBroken"  # the store's entry for a broken run lock (not a run event)
 
 
 _CLOSED = ("finished", "aborted")
@@ -44,40 +47,37 @@ def run_record(store: Store, run_id: str, anchor: Anchor | None = None) -> dict[
         "anchor": {"seq": entries[-1].seq if entries else 0, "hash": entries[-1].hash if entries else ""},
         "coverage": coverage,
     }
-    shots: dict[int, dict[str, Any]] = {}
+    st = RunState()
     for e in entries:
-        d = e.payload
-        if e.kind == "RunStarted":
-            for key in ("procedure", "bat", "rig", "software"):
-                record[key] = d.get(key)
-        elif e.kind == "EnvironmentChecked":
-            record["environment"].append({**d, "t_utc": e.t_utc})
-        elif e.kind == "MoiMeasured":
-            record["moi"] = d
-        elif e.kind in ("OperatorPrompted", "OperatorAnswered"):
-            record["operator"].append({"kind": e.kind, **d, "t_utc": e.t_utc})
-        elif e.kind == "LocationChosen":
-            record["location"] = d
-        elif e.kind in ("RunInterrupted", "RunResumed", "RigChecked", "RunEnded"):
-            record["interruptions"].append({"kind": e.kind, **d, "t_utc": e.t_utc})
-            if e.kind == "RigChecked":
-                record["rig_checks"].append({**d, "t_utc": e.t_utc})
-            elif e.kind == "RunEnded":
-                record["ended"] = {**d, "t_utc": e.t_utc}
-        elif e.kind == "RunLockBroken":  # a killed runner's lock, broken by the next one
-            holder = d.get("holder") or {}
-            why = f"lock of host {holder.get('host')} pid {holder.get('pid')} broken: {d.get('reason')}"
-            record["interruptions"].append({"kind": e.kind, "reason": why, "t_utc": e.t_utc})
-        elif e.kind == "ScanExtended":
-            record["scan_extensions"].append({**d, "t_utc": e.t_utc})
-        elif e.kind == "RunFinished":
-            record["verdict"] = {k: v for k, v in d.items() if k != "cross_check"}
-            record["cross_check"] = d.get("cross_check")
-        elif e.kind in SHOT_KINDS:
-            shot = shots.setdefault(d["index"], {"index": d["index"], "status": "requested"})
-            _merge_shot(shot, e.kind, d, e.t_utc)
-    record["shots"] = [shots[i] for i in sorted(shots)]
+        if e.kind in ev.BY_KIND:
+            st.apply(ev.parse_entry(e), e.t_utc, e.seq)
+    _fill(record, st, [e for e in entries if e.kind == RUN_LOCK_BROKEN])
     return record
+
+
+def _fill(record: dict[str, Any], st: RunState, locks: list[LogEntry]) -> None:
+    """The record's sections from the run's fold (and the broken locks the store recorded)."""
+    if st.setup is not None:
+        for key in ("procedure", "bat", "rig", "software"):
+            record[key] = st.setup.get(key)
+    record["environment"] = [{**n.data, "t_utc": n.t_utc} for n in st.environment_checks]
+    record["moi"] = st.moi
+    record["operator"] = [{"kind": n.kind, **n.data, "t_utc": n.t_utc} for n in st.operator]
+    record["location"] = st.location
+    stops = [(n.seq or 0, {"kind": n.kind, **n.data, "t_utc": n.t_utc}) for n in st.stops]
+    for e in locks:  # a killed runner's lock, broken by the next one
+        holder = e.payload.get("holder") or {}
+        why = f"lock of host {holder.get('host')} pid {holder.get('pid')} broken: {e.payload.get('reason')}"
+        stops.append((e.seq, {"kind": e.kind, "reason": why, "t_utc": e.t_utc}))
+    record["interruptions"] = [stop for _, stop in sorted(stops, key=lambda s: s[0])]
+    record["rig_checks"] = [{**n.data, "t_utc": n.t_utc} for n in st.stops if n.kind == ev.RIG_CHECKED]
+    ended = [n for n in st.stops if n.kind == ev.RUN_ENDED]
+    record["ended"] = {**ended[-1].data, "t_utc": ended[-1].t_utc} if ended else None
+    record["scan_extensions"] = [{**n.data, "t_utc": n.t_utc} for n in st.scan_extensions]
+    if st.verdict is not None:
+        record["verdict"] = {k: v for k, v in st.verdict.items() if k != "cross_check"}
+        record["cross_check"] = st.verdict.get("cross_check")
+    record["shots"] = [_shot(st.by_index[i]) for i in sorted(st.by_index)]
 
 
 def covered(store: Store, run_id: str, anchor: Anchor | None = None) -> tuple[list[LogEntry], dict[str, Any]]:
@@ -130,36 +130,36 @@ def _coverage_text(by: str, kept: list[LogEntry], left: list[dict[str, Any]]) ->
     return text
 
 
-def _merge_shot(shot: dict[str, Any], kind: str, d: dict[str, Any], t_utc: str) -> None:
-    if kind == "ShotRequested":
+_RAW_KEYS = (
+    "shot_number",
+    "pressure_kpa",
+    "impact_from_pivot_m",
+    "gate_positions_m",
+    "gate_config",
+    "crossings",
+    "recoil_rad_s",
+    "notes",
+    "ball_number",
+)
+
+
+def _shot(s: ShotEntry) -> dict[str, Any]:
+    """One shot of the record: its request, raw data (ticks first), outcome and reasons."""
+    shot: dict[str, Any] = {"index": s.index, "status": s.status}
+    if s.requested:
+        d = s.requested
         shot.update(
             purpose=d["purpose"],
             location_in=d["location_in"],
-            requested_utc=t_utc,
+            requested_utc=s.requested_utc,
             target_speed_m_s=d.get("target_speed_m_s"),
         )
-    elif kind == "ShotFired":
+    if s.raw is not None:
+        shot["raw"] = {k: s.raw.get(k) for k in _RAW_KEYS}
+    if s.outcome is not None:
+        d = s.outcome
         shot.update(
-            status="fired",
-            raw={
-                k: d.get(k)
-                for k in (
-                    "shot_number",
-                    "pressure_kpa",
-                    "impact_from_pivot_m",
-                    "gate_positions_m",
-                    "gate_config",
-                    "crossings",
-                    "recoil_rad_s",
-                    "notes",
-                    "ball_number",
-                )
-            },
-        )
-    elif kind in ("ShotMeasured", "ShotRejected"):
-        shot.update(
-            status="valid" if kind == "ShotMeasured" else "invalid",
-            valid=kind == "ShotMeasured",
+            valid=s.outcome is s.measured,
             inbound_speed_m_s=d.get("inbound_speed_m_s"),
             rebound_speed_m_s=d.get("rebound_speed_m_s"),
             inbound_at_impact_m_s=d.get("inbound_at_impact_m_s"),  # drag-corrected (none in old runs)
@@ -167,17 +167,18 @@ def _merge_shot(shot: dict[str, Any], kind: str, d: dict[str, Any], t_utc: str) 
             metrics=d.get("metrics"),
             metric=d.get("metric"),
             u=d.get("u"),
-            reasons=d.get("reasons", []),
+            reasons=list(d.get("reasons", [])),
             budget=d.get("budget"),
         )
-    elif kind == "ShotOverruled":
-        shot.update(status="invalid", valid=False)
+    for o in s.overruled:
+        shot["valid"] = False
         shot.setdefault("reasons", []).append(
             {
                 "code": "OPERATOR_REJECTED",
-                "message": f"{d.get('reason', '')} ({d.get('who', '')})",
+                "message": f"{o.get('reason', '')} ({o.get('who', '')})",
                 "invalidates": True,
             }
         )
-    elif kind == "ShotLost":
-        shot.update(status="lost", valid=False, reasons=[{"code": "LOST", "message": d.get("reason", "")}])
+    if s.lost:
+        shot.update(valid=False, reasons=[{"code": "LOST", "message": s.lost_reason or ""}])
+    return shot

@@ -6,6 +6,7 @@ import json
 import sqlite3
 from collections.abc import Iterable
 
+from rig.core import events as ev
 from rig.store._codec import GENESIS_HASH, entry_hash
 from rig.store._derive import Deriver, compare_tables
 from rig.store._records import Anchor, VerifyReport
@@ -66,7 +67,11 @@ class _Chain:
 
 
 # Entries a run may hold once only, keyed by a payload field (None: once per run at all).
-_ONCE_PER_RUN: dict[str, str | None] = {"ShotRequested": "index", "ShotFired": "index", "RunFinished": None}
+_ONCE_PER_RUN: dict[str, str | None] = {
+    ev.SHOT_REQUESTED: "index",
+    ev.SHOT_FIRED: "index",
+    ev.RUN_FINISHED: None,
+}
 
 
 class _RunAudit:
@@ -91,8 +96,8 @@ class _RunAudit:
         first = self.first.setdefault((run_id, kind, key), seq)
         if first != seq:
             what = {
-                "ShotFired": f"shot {key} fired twice",
-                "ShotRequested": f"shot {key} requested twice",
+                ev.SHOT_FIRED: f"shot {key} fired twice",
+                ev.SHOT_REQUESTED: f"shot {key} requested twice",
             }.get(kind, f"a second {kind}")
             self.problems.append(
                 f"seq {seq}: run {run_id}: {what} (the first at seq {first}; two runners at once?)"

@@ -14,6 +14,7 @@ from textual.widgets import DataTable, Footer, Header, Markdown
 
 from protocols.procedure import Procedure
 from rig.certification import history
+from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.errors import RigError
 from rig.report.record import run_record
@@ -123,7 +124,7 @@ class HistoryScreen(Screen[None]):
             return
         try:
             with Store.open(self.settings.db) as store:
-                started = store.entries(run.run_id, kinds=["RunStarted"])
+                started = store.entries(run.run_id, kinds=[ev.RUN_STARTED])
                 past = history(store, run.run_id)
                 if started:
                     procedure = Procedure.model_validate(started[0].payload["procedure"])

@@ -1,11 +1,14 @@
-"""What the run screen shows, folded from the run's events (pure: no Textual, no devices).
+"""What the run screen shows, from the run's events (pure: no Textual, no devices).
 
-A resumed run starts from its recorded events, so the scan, the hits and the average are whole
-again before the first new shot.
+The facts (shots' outcomes, MOI, location, verdict) come from the one fold of the log
+(rig.core.run_state), which LiveRun keeps; on top of it go what only a live run has: speeds as
+soon as known, gate ticks as they come, pauses and the log lines. A resumed run starts from its
+recorded events, so the scan, the hits and the average are whole again before the first new shot.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -13,22 +16,54 @@ from protocols.procedure import Procedure
 from rig.core import events as ev
 from rig.core.devices import CannonStatus, GateConfig
 from rig.core.events import RunEvent
+from rig.core.run_state import RunState, ShotEntry
 
 
 @dataclass
 class LiveShot:
-    """The shot in progress or the last one: speeds as soon as known, then its outcome."""
+    """The shot in progress or the last one: the fold's record of it (the one shot type, shared with
+    the runner and the report) and what only a live run sees, speeds as soon as known and the ticks."""
 
-    index: int
-    purpose: str = ""
-    location_in: float | None = None
-    status: str = "requested"  # requested | fired | valid | invalid | lost
+    entry: ShotEntry
     inbound: float | None = None
     rebound: float | None = None
-    metric: float | None = None
-    u: float | None = None
-    reasons: list[str] = field(default_factory=list)
     crossings: list[tuple[int, int]] = field(default_factory=list)  # (gate, tick) as they came
+
+    @property
+    def index(self) -> int:
+        return self.entry.index
+
+    @property
+    def purpose(self) -> str:
+        return self.entry.purpose
+
+    @property
+    def location_in(self) -> float | None:
+        return float(self.entry.location_in) if self.entry.requested else None
+
+    @property
+    def status(self) -> str:
+        """requested | fired | valid | invalid | lost."""
+        return self.entry.status
+
+    @property
+    def metric(self) -> float | None:
+        return self.entry.metric
+
+    @property
+    def u(self) -> float | None:
+        return (self.entry.outcome or {}).get("u")
+
+    @property
+    def reasons(self) -> list[str]:
+        """Why the shot does not count, as lines."""
+        e = self.entry
+        if e.lost:
+            return [str(e.lost_reason)]
+        if e.overruled:
+            return [f"OPERATOR_REJECTED: {e.overruled[-1].get('reason', '')}"]
+        found = (e.outcome or {}).get("reasons", [])
+        return [f"{x['code']}: {x.get('message', '')}" for x in found if x.get("invalidates", True)]
 
 
 @dataclass
@@ -54,6 +89,7 @@ class LiveRun:
     interrupted: str = ""
     paused: bool = False
     log: list[str] = field(default_factory=list)
+    run: RunState = field(default_factory=RunState)  # the fold of the persisted events
 
     # -- derived views ------------------------------------------------------------------------
     def scan_means(self) -> dict[float, float]:
@@ -86,12 +122,20 @@ class LiveRun:
     def apply(self, event: RunEvent) -> None:
         """Update from one event (live or recorded)."""
         d, kind = event.data, event.kind
+        if kind in ev.PERSISTED:
+            self.run.apply(event)
         handler = _HANDLERS.get(kind)
         if handler is not None:
             handler(self, d)
 
     def _shot(self, index: int) -> LiveShot:
-        shot = self.shots.setdefault(index, LiveShot(index))
+        """The shot on screen, backed by the fold's entry once the shot is requested."""
+        entry = self.run.by_index.get(index)
+        shot = self.shots.get(index)
+        if shot is None:
+            shot = self.shots[index] = LiveShot(entry or ShotEntry(index, "", math.nan))
+        elif entry is not None:
+            shot.entry = entry
         self.shot = shot
         return shot
 
@@ -119,13 +163,12 @@ def _environment(r: LiveRun, d: dict[str, Any]) -> None:
 
 
 def _moi(r: LiveRun, d: dict[str, Any]) -> None:
-    r.moi = float(d["moi_kgm2"])
+    r.moi = float((r.run.moi or d)["moi_kgm2"])
     r.note(f"MOI {r.moi:.5f} kg m^2 ({d['source']})")
 
 
 def _requested(r: LiveRun, d: dict[str, Any]) -> None:
-    shot = r._shot(int(d["index"]))
-    shot.purpose, shot.location_in, shot.status = d["purpose"], float(d["location_in"]), "requested"
+    r._shot(int(d["index"]))
 
 
 def _crossed(r: LiveRun, d: dict[str, Any]) -> None:
@@ -142,7 +185,6 @@ def _rebound(r: LiveRun, d: dict[str, Any]) -> None:
 
 def _fired(r: LiveRun, d: dict[str, Any]) -> None:
     shot = r._shot(int(d["index"]))
-    shot.status = "fired"
     if not shot.crossings:  # a recorded shot (resume): the raw ticks stand in for the live ones
         shot.crossings = [(int(c["gate"]), int(c["tick"])) for c in d.get("crossings", [])]
     if d.get("pressure_kpa") is not None:
@@ -151,16 +193,11 @@ def _fired(r: LiveRun, d: dict[str, Any]) -> None:
         r.gate_config = GateConfig(**d["gate_config"])
 
 
-def _measured(r: LiveRun, d: dict[str, Any], valid: bool) -> None:
+def _measured(r: LiveRun, d: dict[str, Any]) -> None:
     shot = r._shot(int(d["index"]))
-    shot.status = "valid" if valid else "invalid"
     shot.inbound = d.get("inbound_speed_m_s", shot.inbound)
     shot.rebound = d.get("rebound_speed_m_s", shot.rebound)
-    shot.metric, shot.u = d.get("metric"), d.get("u")
-    shot.reasons = [
-        f"{x['code']}: {x.get('message', '')}" for x in d.get("reasons", []) if x.get("invalidates", True)
-    ]
-    if valid:
+    if shot.entry.valid:
         r.note(f"shot {shot.index} valid: {r.metric_name} {shot.metric:.4f} +- {shot.u:.4f}")
     else:
         codes = ", ".join(x.split(":")[0] for x in shot.reasons) or "invalid"
@@ -169,19 +206,17 @@ def _measured(r: LiveRun, d: dict[str, Any], valid: bool) -> None:
 
 def _lost(r: LiveRun, d: dict[str, Any]) -> None:
     shot = r._shot(int(d["index"]))
-    shot.status, shot.reasons = "lost", [str(d.get("reason", ""))]
     r.note(f"shot {shot.index} lost: {d.get('reason', '')}")
 
 
 def _overruled(r: LiveRun, d: dict[str, Any]) -> None:
     shot = r._shot(int(d["index"]))
-    shot.status = "invalid"
-    shot.reasons = [f"OPERATOR_REJECTED: {d.get('reason', '')}"]
     r.note(f"shot {shot.index} rejected on review: re-shoot")
 
 
 def _chosen(r: LiveRun, d: dict[str, Any]) -> None:
-    r.best_location_in = float(d["from_barrel_end_in"])
+    best = r.run.best_location_in
+    r.best_location_in = float(best if best is not None else d["from_barrel_end_in"])
     r.note(f"location of maximum performance: {r.best_location_in:g} in from the tip")
 
 
@@ -195,7 +230,7 @@ def _answered(r: LiveRun, d: dict[str, Any]) -> None:
 
 
 def _finished(r: LiveRun, d: dict[str, Any]) -> None:
-    r.verdict = dict(d)
+    r.verdict = dict(r.run.verdict or d)
     cc = d.get("cross_check") or {}
     if cc.get("predicted") is not None:
         r.prediction = float(cc["predicted"])
@@ -233,8 +268,8 @@ _HANDLERS = {
     ev.INBOUND_MEASURED: _inbound,
     ev.REBOUND_MEASURED: _rebound,
     ev.SHOT_FIRED: _fired,
-    ev.SHOT_MEASURED: lambda r, d: _measured(r, d, True),
-    ev.SHOT_REJECTED: lambda r, d: _measured(r, d, False),
+    ev.SHOT_MEASURED: _measured,
+    ev.SHOT_REJECTED: _measured,
     ev.SHOT_LOST: _lost,
     ev.SHOT_OVERRULED: _overruled,
     ev.LOCATION_CHOSEN: _chosen,

@@ -11,6 +11,7 @@ from collections.abc import Sequence
 from rich.text import Text
 
 from rig.core.devices import CannonState, CannonStatus, GateConfig
+from rig.core.events import Verdict
 from rig.tui.live import LiveRun, LiveShot
 
 BLOCKS = "▁▂▃▄▅▆▇█"
@@ -179,7 +180,7 @@ def verdict_text(r: LiveRun) -> Text:
     v = r.verdict
     if not v:
         return Text()
-    passed = v.get("verdict") == "PASS"
+    passed = v.get("verdict") == Verdict.PASS
     text = Text(f" {v.get('verdict')} ", style="bold white on green" if passed else "bold white on red")
     if "mean" in v:
         text.append(
