@@ -10,7 +10,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from enum import StrEnum
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -20,17 +19,11 @@ from protocols.runner import Operator, RunControl, ScriptedOperator
 from rig.core.bat import BatSpec
 from rig.core.config import Model, RigConfig
 from rig.core.errors import ConfigError, RigError
+from rig.core.events import Verdict  # the one verdict enum (a str: == "PASS" holds)
 from rig.store import Store
 
 Bat = BatSpec  # `rig.Bat.load("bat.toml")`: table [bat] of a TOML file
 SQLITE_URL = "sqlite://"
-
-
-class Verdict(StrEnum):
-    """A finished run's decision (a str: `result.verdict == "PASS"` holds)."""
-
-    PASS = "PASS"
-    FAIL = "FAIL"
 
 
 def open_store(path: str | Path) -> Store:
