@@ -16,10 +16,11 @@ from typing import Any
 
 from protocols.procedure import Procedure
 from protocols.runner import Operator, RunControl, ScriptedOperator
+from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import Model, RigConfig
 from rig.core.errors import ConfigError, RigError
-from rig.core.events import Verdict  # the one verdict enum (a str: == "PASS" holds)
+from rig.core.events import Verdict  # the one verdict enum (a str, so == "PASS" holds)
 from rig.store import Store
 
 Bat = BatSpec  # `rig.Bat.load("bat.toml")`: table [bat] of a TOML file
@@ -119,7 +120,7 @@ def _procedure(procedure: str | Path | Procedure) -> Procedure:
 
 def _recorded(store: Store, run_id: str) -> tuple[Procedure, BatSpec]:
     """The procedure and bat a run started with (re-validated), for its resume."""
-    started = store.entries(run_id, kinds=["RunStarted"])
+    started = store.entries(run_id, kinds=[ev.RunStarted.kind])
     if not started:
         raise ConfigError(f"run {run_id} never started; start a new one", source="resume")
     payload = started[0].payload
@@ -193,7 +194,7 @@ def certify(
 
 def _result(store: Store, outcome: Any) -> Result:
     verdict = dict(outcome.verdict or {})
-    shots = len(store.entries(outcome.run_id, kinds=["ShotRequested"]))
+    shots = len(store.entries(outcome.run_id, kinds=[ev.ShotRequested.kind]))
     word = verdict.get("verdict")
     cross = verdict.get("cross_check")
     return Result(
