@@ -24,7 +24,7 @@ from rig.core.units import INCH
 from rig.measure.metrics import compute_metrics
 from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat, solve_batch
 from rig.physics.bat import impact_for
-from rig.population.dataset import METRICS, PopulationBat
+from rig.population.dataset import METRICS, PopulationBat, missing_column
 from rig.population.model import BALL_MASS_KG, SPEED_M_S
 
 # Where the ball strikes when a row gives no location_in: the middle of 6.0-7.0 in from the barrel
@@ -72,13 +72,9 @@ def fit_bats(bats: Sequence[PopulationBat], metric: str) -> list[FitBat]:
     """Check the rows the fit needs; CalibrationRefused names the first missing value."""
     if metric not in METRICS:
         raise CalibrationRefused(f"unknown metric {metric!r}; known: {', '.join(METRICS)}")
-    for column in ("moi_kgm2", "length_in", metric):
-        lacking = [b.bat_id for b in bats if getattr(b, column) is None]
-        if lacking:
-            raise CalibrationRefused(
-                f"missing column {column}: no value for {len(lacking)} of {len(bats)} bats"
-                f" (first {lacking[0]}); the fit needs hoop_hz, moi_kgm2, length_in and {metric}"
-            )
+    missing = missing_column(bats, ("moi_kgm2", "length_in", metric))
+    if missing:
+        raise CalibrationRefused(f"{missing}; the fit needs hoop_hz, moi_kgm2, length_in and {metric}")
     out = []
     for b in bats:
         assert b.moi_kgm2 is not None and b.length_in is not None

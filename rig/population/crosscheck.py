@@ -31,7 +31,7 @@ from rig.core.units import INCH
 from rig.physics import PivotedBat
 from rig.population.calfile import CalibrationFile, covariance_matrix
 from rig.population.calibrate import BOUNDS, FitBat, _metric_line, predict_many
-from rig.population.dataset import PopulationBat
+from rig.population.dataset import PopulationBat, missing_column
 from rig.population.model import SPEED_M_S
 
 GRADIENT_STEP = 0.05  # of each parameter's sigma: the delta method's central-difference step
@@ -245,13 +245,9 @@ def crosscheck_bats(
     t_factor(cal, coverage)
     if not bats:
         return []
-    for column in ("moi_kgm2", "length_in"):
-        lacking = [b.bat_id for b in bats if getattr(b, column) is None]
-        if lacking:
-            raise CrossCheckRefused(
-                f"missing column {column}: no value for {len(lacking)} of {len(bats)} bats"
-                f" (first {lacking[0]})"
-            )
+    missing = missing_column(bats, ("moi_kgm2", "length_in"))
+    if missing:
+        raise CrossCheckRefused(missing)
     rows = []
     for b in bats:
         assert b.moi_kgm2 is not None and b.length_in is not None

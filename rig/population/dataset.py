@@ -20,7 +20,7 @@ from __future__ import annotations
 import csv
 import io
 import tomllib
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -48,6 +48,16 @@ COLUMNS = (
 )
 METRICS = ("besr", "bbs", "bbcor")
 U_COLUMNS = ("u_besr", "u_bbs", "u_bbcor")
+
+
+def missing_column(bats: Sequence[PopulationBat], columns: Sequence[str]) -> str | None:
+    """'missing column C: no value for k of n bats (first ID)' for the first column lacking, else None."""
+    for column in columns:
+        lacking = [b.bat_id for b in bats if getattr(b, column) is None]
+        if lacking:
+            n = f"{len(lacking)} of {len(bats)}"
+            return f"missing column {column}: no value for {n} bats (first {lacking[0]})"
+    return None
 
 
 class PopulationBat(BaseModel):

@@ -97,6 +97,4 @@ def simulated_population(
     if not 0 <= altered <= n:
         raise ValueError(f"altered bats {altered} must be between 0 and the {n} bats")
     chosen = altered_indices(n, altered)
-    return [
-        simulated_bat(seed, i + 1, alteration_bbcor if i in chosen else 0.0) for i in range(n)
-    ]
+    return [simulated_bat(seed, i + 1, alteration_bbcor if i in chosen else 0.0) for i in range(n)]
