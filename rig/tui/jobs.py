@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from protocols.evaluate import cross_check
+from protocols.evaluate import cross_check, run_calibration
 from protocols.runner import RunControl
 from rig.certification import Outcome, certify
 from rig.core.errors import RigError
@@ -66,9 +66,13 @@ def predict(job: RunJob, moi_kgm2: float, location_in: float) -> tuple[float | N
     p, bat = job.procedure, job.bat
     try:
         q = bat.impact_from_pivot_m(location_in)
-        cc = cross_check(p, bat, p.target_speed_m_s, q, moi_kgm2, 0.0)
+        calibration = run_calibration(p, job.config)  # the one the verdict will use, if any
+        cc = cross_check(p, bat, p.target_speed_m_s, q, moi_kgm2, 0.0, calibration=calibration)
     except Exception as exc:  # the model is a help, never a reason to stop the run
         return None, f"model failed: {exc}"
     if cc["predicted"] is None:
         return None, "no hoop frequency: no model"
-    return float(cc["predicted"]), f"predicted at {location_in:g} in"
+    if not cc.get("calibrated"):
+        return float(cc["predicted"]), f"uncalibrated model at {location_in:g} in"
+    lo, hi = cc["interval"]
+    return float(cc["predicted"]), f"calibrated, {lo:.3f}-{hi:.3f} at {location_in:g} in"

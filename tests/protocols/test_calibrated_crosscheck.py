@@ -282,3 +282,22 @@ def test_cli_certify_report_and_verify_with_a_calibration(
     md = capsys.readouterr().out
     assert "prediction interval (95 %)" in md and cc["calibration"]["sha256"] in md
     assert main(["verify", "--db", db]) == 0
+
+
+def test_the_console_preview_uses_the_calibration_the_verdict_will(lab: Path) -> None:
+    """The console's prediction before the verdict (rig.tui.jobs.predict) is the calibrated one when
+    a calibration is named (it showed the paper's constants, 0.06-0.1 off, before)."""
+    from rig.tui.jobs import predict
+    from rig.tui.rigs import RunJob
+
+    procedure = Procedure.load(lab / "proc.toml")
+    job = RunJob(procedure, BAT, sim_config("ideal"), "sim")
+    value, note = predict(job, 0.19, 6.5)
+    q = BAT.impact_from_pivot_m(6.5)
+    assert value == pytest.approx(_expected(lab / "cal.json", q, 0.19), abs=1e-6)
+    assert note.startswith("calibrated, ")
+    plain = RunJob(
+        Procedure.load(ROOT / "tests" / "tui" / "quick-bbcor.toml"), BAT, sim_config("ideal"), "sim"
+    )
+    value, note = predict(plain, 0.19, 6.5)
+    assert note.startswith("uncalibrated") and value is not None
