@@ -9,9 +9,9 @@ scalar loops over a fixed 6-state system so that one solve costs tens of microse
 Parameter vector P: m1, k1, c1, a, b, m2, k2, c2, inv_body, inv_base, rigid.
 States: x1, v1, x2, v2, x3, v3 (ball, barrel, body). For a rigid barrel x2, v2 is the base.
 
-Why one module of ~500 lines: numba compiles the step, the event location, the re-contact search
-and the driver loop into one cached object; split across modules they would be compiled and cached
-separately and each call would cross a dispatcher boundary on the solve's hot path.
+Why one module of ~500 lines: it is one algorithm (step, dense output, end-of-contact location,
+re-contact search, driver loop) sharing the coefficient tables, the state layout and the status
+codes; split, each part would need all of them and be read without the others.
 """
 
 from __future__ import annotations
