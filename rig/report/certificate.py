@@ -21,9 +21,10 @@ from rig.core.bat import PIVOT_FROM_KNOB_IN
 from rig.core.errors import ConfigError
 from rig.core.events import Verdict
 from rig.core.units import INCH, OUNCE
+from rig.report.cert_crosscheck import cross_check_blocks
 from rig.report.cert_doc import Banner, Block, Code, Figure, Heading, Para, Table, kv, to_html, to_markdown
 from rig.report.cert_plots import certification_hits, metric_label, write_figures
-from rig.report.cert_sections import budget_blocks, cross_check_blocks, operator_blocks, shot_blocks
+from rig.report.cert_sections import budget_blocks, operator_blocks, shot_blocks
 
 FORMATS = ("md", "html")
 NOT_CERTIFIED = "NOT CERTIFIED — run interrupted"
