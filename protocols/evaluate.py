@@ -288,12 +288,13 @@ def run_calibration(p: Procedure, config: RigConfig) -> dict[str, Any] | None:
     The record holds the file's path, sha256 and whole content, so that a resumed run and a report
     made later use this very calibration whatever has become of the file.
     """
-    named = {k: v for k, v in (("procedure", p.calibration), ("rig config", config.model.calibration)) if v}
+    by_config = config.model.named_by
+    named = {k: v for k, v in (("procedure", p.calibration), (by_config, config.model.calibration)) if v}
     if not named:
         return None
     if len({str(Path(v).resolve()) for v in named.values()}) > 1:
         raise ConfigError(
-            f"the procedure names calibration {named['procedure']} and the rig config {named['rig config']}:"
+            f"the procedure names calibration {named['procedure']} and the {by_config} {named[by_config]}:"
             " name one",
             source="calibration",
         )

@@ -178,7 +178,7 @@ def certify(
     config = rig.config_for(spec)
     if calibration is not None:
         named = str(Path(calibration).expanduser().resolve())
-        config = config.model_copy(update={"model": Model(calibration=named)})
+        config = config.model_copy(update={"model": Model(calibration=named, named_by="script")})
     outcome = run_certification(
         store,
         proc,

@@ -103,7 +103,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
             from rig.core.config import Model
 
             named = str(Path(args.calibration).expanduser().resolve())
-            config = config.model_copy(update={"model": Model(calibration=named)})  # wins over [model]
+            config = config.model_copy(update={"model": Model(calibration=named, named_by="command line")})
         problems = dry_run(procedure, bat, config)
         if args.dry_run and not args.resume:
             from protocols.evaluate import run_calibration

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -134,6 +134,8 @@ class Model(_Model):
     """The collision model's calibration for this rig's cross-check (rig model calibrate)."""
 
     calibration: Annotated[str, Field(min_length=1, max_length=4096)] | None = None  # relative to the file
+    # who named it: the rig config file, or `rig certify --calibration` / rig.certify(calibration=)
+    named_by: Literal["rig config", "command line", "script"] = "rig config"
 
 
 class RigConfig(_Model):

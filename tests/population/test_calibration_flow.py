@@ -38,6 +38,7 @@ def test_certify_with_a_calibration_on_the_command_line(
     cc = record["cross_check"]
     lo, hi = cc["interval"]
     assert lo < cc["measured"] < hi and cc["flagged"] is False
+    assert cc["calibration"]["named_by"] == "command line"  # said "rig config" before
     assert cc["measured"] == pytest.approx(record["verdict"]["mean"], abs=1e-12)
     # the same calibration's prediction for this bat, through another command
     spec = bat.read_text()
