@@ -255,14 +255,14 @@ def check_identifiable(bats: Sequence[FitBat]) -> None:
         )
 
 
-def _at_bounds(bats: Sequence[FitBat], fit: Fit) -> str:
-    """Which parameters of a fit sit at a bound ('' if none): the usual cause of a singular Jacobian."""
+def _at_bounds(bats: Sequence[FitBat], fit: Fit) -> list[tuple[str, float, float, float]]:
+    """(name, value, lower, upper) of each parameter of a fit that sits at a bound."""
     out = []
     for n, v in fit.values.items():
         lo, hi = BOUNDS[n][0], _upper(bats, n)
         if min(v - lo, hi - v) <= 1e-6 * max(abs(hi - lo), 1.0):
-            out.append(f"{n} = {v:.4g} at its bound")
-    return ", ".join(out)
+            out.append((n, v, lo, hi))
+    return out
 
 
 def calibrate(
@@ -278,20 +278,20 @@ def calibrate(
         # neutral), so it fits at least as well in sample and cannot stall in a worse local minimum
         fit = fit_variant(rows, name, start={**START, **start})
         identified = bool(np.all(np.isfinite(fit.covariance)))
+        bounded = _at_bounds(rows, fit)
         if not identified:
+            why = ", ".join(f"{n} = {v:.4g} at its bound" for n, v, _, _ in bounded)
             notes.append(
                 f"variant {name}: not identified (condition number {fit.condition:.3g}:"
-                f" {_at_bounds(rows, fit) or 'the data cannot separate ' + ', '.join(fit.names)}); left out"
+                f" {why or 'the data cannot separate ' + ', '.join(fit.names)}); left out"
             )
             reports[name] = VariantReport(fit, np.full(len(rows), np.nan), False)
             continue
         start = start or fit.values
-        for n, v in fit.values.items():
-            lo, hi = BOUNDS[n][0], _upper(rows, n)
-            if min(v - lo, hi - v) <= 1e-6 * max(abs(hi - lo), 1.0):
-                notes.append(
-                    f"variant {name}: {n} = {v:.4g} at its bound ({lo:g}-{hi:.4g}); its sigma is unreliable"
-                )
+        for n, v, lo, hi in bounded:
+            notes.append(
+                f"variant {name}: {n} = {v:.4g} at its bound ({lo:g}-{hi:.4g}); its sigma is unreliable"
+            )
         reports[name] = VariantReport(fit, leave_one_out(rows, fit), True)
     if not any(r.identified for r in reports.values()):
         first = reports[variants[0]].fit
