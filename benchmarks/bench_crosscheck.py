@@ -41,7 +41,7 @@ from rig.population.crosscheck import crosscheck_bats
 from rig.population.simulate import SimulatedBat, simulated_population
 from rig.population.store_source import bats_from_store
 from rig.store import Store
-from simulators.population import measured_population, scan_maximum, true_metric
+from simulators.population import best_scan_location, measured_population, true_metric
 from simulators.scene import Scene
 
 ALTERATIONS = (0.01, 0.02, 0.025, 0.03)
@@ -135,7 +135,7 @@ def certified_tier(scene: Scene, n: int, seed: int) -> tuple[float, float]:
 def one_population(scene: Scene, seed: int, n: int, noise: float, u: float, tally: Tally) -> None:
     """Calibrate on n legal bats, cross-check n fresh legal bats and their altered twins."""
     rng = np.random.default_rng([seed, 7])
-    train = measured_population(scene, simulated_population(n, seed), scan_maximum, noise, rng, u=u)
+    train = measured_population(scene, simulated_population(n, seed), best_scan_location, noise, rng, u=u)
     t0 = time.perf_counter()
     try:
         cal = calibrate(train, "bbcor")
@@ -147,7 +147,7 @@ def one_population(scene: Scene, seed: int, n: int, noise: float, u: float, tall
     tally.variants.append(record.variant)
     tally.loo_rmse.append(record.loo_rmse)
     fresh_bats = simulated_population(n, seed + 100_000)
-    fresh = measured_population(scene, fresh_bats, scan_maximum, noise, rng, u=u)
+    fresh = measured_population(scene, fresh_bats, best_scan_location, noise, rng, u=u)
     checks = crosscheck_bats(record, fresh)
     tally.n_legal += len(checks)
     tally.false_flags += sum(bool(c.flagged) for c in checks)

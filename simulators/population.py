@@ -43,28 +43,43 @@ def bat_scene(scene: Scene, bat: SimulatedBat) -> Scene:
     return out.with_alteration(bat.alteration_bbcor) if bat.altered else out
 
 
-def true_metric(scene: Scene, bat: SimulatedBat, location_in: float, metric: str = "bbcor") -> float:
-    """The metric the simulated rig's collision gives this bat at `location_in` from the barrel end."""
+def bat_metric(scene: Scene, bat: SimulatedBat, metric: str = "bbcor") -> Callable[[float], float]:
+    """The metric the simulated rig's collision gives this bat, as a function of the location from
+    the barrel end: the bat's scene and collision effect built once (the effect caches its solves)."""
     sc = bat_scene(scene, bat)
     slot = [e for e in sc.active_effects() if getattr(e, "slot", None) == "collision"]
     if not slot:
         raise ValueError(f"scene {scene.name!r} has no collision effect: its barrel is rigid")
     effect = slot[0].build(sc, random.Random(0))  # the collision draws nothing at random
-    q = (bat.spec.length_in - location_in) * INCH - sc.rig.pivot_from_knob_m
-    e_a, _ = effect.collide(sc.ball, SPEED_M_S, q)  # type: ignore[attr-defined]
-    m = compute_metrics(SPEED_M_S, e_a * SPEED_M_S, q, bat.moi_kgm2, sc.ball.m1, bat.spec.length_m)
-    return float(getattr(m, metric))
+
+    def at(location_in: float) -> float:
+        q = (bat.spec.length_in - location_in) * INCH - sc.rig.pivot_from_knob_m
+        e_a, _ = effect.collide(sc.ball, SPEED_M_S, q)  # type: ignore[attr-defined]
+        m = compute_metrics(SPEED_M_S, e_a * SPEED_M_S, q, bat.moi_kgm2, sc.ball.m1, bat.spec.length_m)
+        return float(getattr(m, metric))
+
+    return at
+
+
+def true_metric(scene: Scene, bat: SimulatedBat, location_in: float, metric: str = "bbcor") -> float:
+    """The metric the simulated rig's collision gives this bat at `location_in` from the barrel end."""
+    return bat_metric(scene, bat, metric)(location_in)
+
+
+def best_scan_location(at: Callable[[float], float]) -> float:
+    """The scan location (SCAN_IN) where `at` (a bat's metric by location) is largest."""
+    return max(SCAN_IN, key=at)
 
 
 def scan_maximum(scene: Scene, bat: SimulatedBat, metric: str = "bbcor") -> float:
     """The scan location (SCAN_IN) where the bat's true metric is largest: where a scan ends up."""
-    return max(SCAN_IN, key=lambda loc: true_metric(scene, bat, loc, metric))
+    return best_scan_location(bat_metric(scene, bat, metric))
 
 
 def measured_population(
     scene: Scene,
     bats: Sequence[SimulatedBat],
-    location_in: float | Callable[[Scene, SimulatedBat], float],
+    location_in: float | Callable[[Callable[[float], float]], float],
     noise_sd: float,
     rng: np.random.Generator,
     metric: str = "bbcor",
@@ -72,13 +87,14 @@ def measured_population(
 ) -> list[PopulationBat]:
     """Population rows: each bat's true metric plus N(0, noise_sd); u_<metric> = u (else noise_sd).
 
-    `location_in` is a location from the barrel end, or a function choosing one per bat
-    (scan_maximum: where the procedure's scan would settle).
+    `location_in` is a location from the barrel end, or a function choosing one from the bat's
+    metric by location (best_scan_location: where the procedure's scan would settle).
     """
     rows = []
     for bat in bats:
-        loc = location_in(scene, bat) if callable(location_in) else location_in
-        value = true_metric(scene, bat, loc, metric) + float(rng.normal(0.0, noise_sd))
+        at = bat_metric(scene, bat, metric)
+        loc = location_in(at) if callable(location_in) else location_in
+        value = at(loc) + float(rng.normal(0.0, noise_sd))
         rows.append(
             PopulationBat.model_validate(
                 {

@@ -19,7 +19,7 @@ from rig.population.calibrate import calibrate
 from rig.population.crosscheck import crosscheck_bats
 from rig.population.simulate import simulated_bat, simulated_population
 from simulators.effects.trampoline import TrampolineConfig, bat_offset_bbcor
-from simulators.population import SCAN_IN, measured_population, scan_maximum, true_metric
+from simulators.population import SCAN_IN, best_scan_location, measured_population, scan_maximum, true_metric
 from simulators.scene import Scene
 
 LAB = Scene.load("lab")
@@ -83,10 +83,10 @@ def test_power_on_one_population_meets_the_goal() -> None:
     """
     rng = np.random.default_rng(11)
     noise, u = 0.0005, 0.001
-    train = measured_population(LAB, simulated_population(40, 11), scan_maximum, noise, rng, u=u)
+    train = measured_population(LAB, simulated_population(40, 11), best_scan_location, noise, rng, u=u)
     cal = calibrate(train, "bbcor")
     record = CalibrationFile.model_validate(calibration_record(cal, b"sim", "sim"))
-    fresh = measured_population(LAB, simulated_population(40, 100_011), scan_maximum, noise, rng, u=u)
+    fresh = measured_population(LAB, simulated_population(40, 100_011), best_scan_location, noise, rng, u=u)
     legal = crosscheck_bats(record, fresh)
     altered = crosscheck_bats(record, [b.model_copy(update={"bbcor": (b.bbcor or 0) + 0.025}) for b in fresh])
     false_flags = sum(bool(c.flagged) for c in legal)
@@ -105,7 +105,7 @@ def test_gradient_step_stays_below_the_bats_own_mass() -> None:
     Before, the step up (0.05 sigma) put m2 above the bat's effective mass and the solve raised.
     """
     rng = np.random.default_rng(3)
-    train = measured_population(LAB, simulated_population(12, 3), scan_maximum, 0.0005, rng, u=0.001)
+    train = measured_population(LAB, simulated_population(12, 3), best_scan_location, 0.0005, rng, u=0.001)
     cal = calibrate(train, "bbcor", variants=("m2+c2+k1_scale",))
     record = calibration_record(cal, b"sim", "sim")
     bat = train[0].model_copy(update={"bat_id": "HEAVY-M2"})
