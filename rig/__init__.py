@@ -1,7 +1,8 @@
 """Controller software for a bat-certification air-cannon rig.
 
 `import rig` gives the public Python API (docs/api.md): `open_store`, `Bat`, `simulated`,
-`from_config`, `certify`, `Result`, `Verdict`, `RigSpec`, `RunControl` and `RigError`. They load on
+`from_config`, `certify`, `Result`, `Verdict`, `RigSpec`, `RunControl` and `RigError`, and
+`rig.plans` for composing a lab's own procedure from the standard steps. They load on
 first use, so that `import rig` (the CLI's start-up) stays light: no pydantic, numpy or drivers.
 Type checkers read their types from __init__.pyi; import-linter sees no import of rig.api here.
 """
@@ -34,6 +35,7 @@ __all__ = [
     "certify",
     "from_config",
     "open_store",
+    "plans",
     "simulated",
 ]
 
@@ -44,6 +46,8 @@ def __getattr__(name: str) -> object:
         return importlib.import_module("rig.core.errors").RigError
     if name in _API:
         return getattr(importlib.import_module("rig.api"), name)
+    if name == "plans":
+        return importlib.import_module("rig.plans")
     raise AttributeError(f"module 'rig' has no attribute {name!r}")
 
 

@@ -1,4 +1,5 @@
 # Types of the lazily loaded public names (rig/__init__.py loads them on first use).
+from rig import plans as plans
 from rig.api import Bat as Bat
 from rig.api import Result as Result
 from rig.api import RigSpec as RigSpec

@@ -14,6 +14,7 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
+from protocols.plan import PlanFactory
 from protocols.procedure import Procedure
 from protocols.runner import Operator, RunControl, ScriptedOperator
 from rig.core import events as ev
@@ -145,6 +146,7 @@ def certify(
     resume: str | Result | None = None,
     calibration: str | Path | None = None,
     control: RunControl | None = None,
+    plan: PlanFactory | None = None,
 ) -> Result:
     """Run a certification of `bat` by `procedure` on `rig`, recording it in `store`.
 
@@ -152,6 +154,8 @@ def certify(
     of the run's events as it happens, unchanged. `resume` (a run id or a Result) goes on with an
     interrupted run; its bat and procedure are the recorded ones. `calibration` names the model
     calibration for the cross-check (new runs only). `control` pauses or aborts from another thread.
+    `plan` is a lab's own procedure composed from rig.plans (default: the standard one); its name is
+    recorded in RunStarted, and a resumed run must be given the same plan again.
     Bad input (including a procedure that does not fit the rig or the bat) raises RigError before
     anything is recorded; see `Result` for how a run ends.
     """
@@ -188,6 +192,7 @@ def certify(
         operator=operator or ScriptedOperator(who="script (rig.certify)"),
         subscribers=[on_event] if on_event is not None else [],
         control=control,
+        **({"plan": plan} if plan is not None else {}),
     )
     return _result(store, outcome)
 

@@ -16,9 +16,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from protocols.dryrun import rehearse
 from protocols.evaluate import run_calibration
+from protocols.plan import PlanFactory
 from protocols.procedure import Procedure
-from protocols.runner import BudgetExceeded, Operator, RunControl, Runner, dry_run
+from protocols.runner import BudgetExceeded, Operator, RunControl, Runner
+from protocols.steps import certification
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
@@ -127,20 +130,24 @@ def certify(
     review_shots: bool = False,
     on_open: Callable[[RigSession], None] | None = None,
     rig_checked: Signoff | None = None,
+    plan: PlanFactory = certification,
 ) -> Outcome:
     """Run (or with `run_id`, resume) a certification; returns its outcome.
 
     `on_open` sees the open session before the runner starts: an operator console uses it to read
     device status on the runner's thread while the runner waits for the operator. `rig_checked`
-    records that the rig was checked (who, why): the re-shoot budget starts again.
+    records that the rig was checked (who, why): the re-shoot budget starts again. `plan` is the
+    procedure's plan (protocols.steps.certification, or a lab's own from the same steps).
     """
     listeners = list(subscribers)
-    problems = dry_run(procedure, bat, config)
-    if problems:
-        raise ConfigError("; ".join(problems), source="dry run")
     resuming = run_id is not None
     if run_id is not None:
         _running(store, run_id, "--resume")
+    # rehearse the plan (a resumed run: what is left of it) before anything is recorded or opened
+    past = history(store, run_id) if run_id is not None else None
+    problems = rehearse(procedure, bat, config, plan, past).problems
+    if problems:
+        raise ConfigError("; ".join(problems), source="dry run")
     if run_id is None:
         run_calibration(procedure, config)  # a named calibration that will not load stops us here
         bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
@@ -186,6 +193,7 @@ def certify(
                 confirm_fire=confirm_fire,
                 review_shots=review_shots,
                 rig_check=None if rig_checked is None else rig_checked.as_dict(),
+                plan=plan,
             )
             try:
                 verdict = runner.run()

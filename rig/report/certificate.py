@@ -58,6 +58,14 @@ def title(record: dict[str, Any]) -> str:
     return f"Bat performance certificate: {proc.get('name', 'unknown procedure')} — bat {bat.get('id', '?')}"
 
 
+def own_plan(record: dict[str, Any]) -> list[tuple[str, str]]:
+    """The plan row, for a run carried out by a lab's own plan rather than the standard steps."""
+    plan = record.get("plan")
+    if not plan:
+        return []
+    return [("plan", f"{plan}: a lab's own plan, not the standard procedure's steps (rig.plans)")]
+
+
 def build(record: dict[str, Any], figures: dict[str, tuple[Path, str]]) -> list[Block]:
     """Every section of the certificate, in reading order."""
     proc = record.get("procedure") or {}
@@ -69,6 +77,7 @@ def build(record: dict[str, Any], figures: dict[str, tuple[Path, str]]) -> list[
             [
                 ("run", str(record.get("run_id"))),
                 ("procedure", f"{proc.get('name', '?')} (standard: {proc.get('standard', '?')})"),
+                *own_plan(record),
                 ("started (UTC)", str(record.get("started_utc") or "?")),
                 ("record status", str(record.get("status"))),
             ]

@@ -60,6 +60,8 @@ def _fill(record: dict[str, Any], st: RunState, locks: list[LogEntry]) -> None:
     if st.setup is not None:
         for key in ("procedure", "bat", "rig", "software"):
             record[key] = st.setup.get(key)
+        if st.setup.get("plan"):  # a lab's own plan (rig.plans) ran the procedure, not the standard one
+            record["plan"] = st.setup["plan"]
     record["environment"] = [{**n.data, "t_utc": n.t_utc} for n in st.environment_checks]
     record["moi"] = st.moi
     record["operator"] = [{"kind": n.kind, **n.data, "t_utc": n.t_utc} for n in st.operator]

@@ -1,0 +1,75 @@
+"""Who answers a run's prompts, how a UI steers a run, and how a run stops early."""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+from typing import Protocol
+
+from rig.core.errors import RigError
+
+
+class Operator(Protocol):
+    """Answers the operator prompts (ring check, ball replacement)."""
+
+    def ask(self, prompt_id: str, text: str) -> bool: ...
+
+
+@dataclass
+class ScriptedOperator:
+    """An operator for scripted runs: answers every prompt the same way, recorded as such."""
+
+    answer: bool = True
+    who: str = "script"
+
+    def ask(self, prompt_id: str, text: str) -> bool:
+        """Return the scripted answer."""
+        return self.answer
+
+
+class RunControl:
+    """Commands from a UI to a running procedure: pause, resume, abort (thread-safe)."""
+
+    def __init__(self) -> None:
+        self._go = threading.Event()
+        self._go.set()
+        self._abort = threading.Event()
+        self.reason = "aborted by the operator"
+        self.settled = False  # the run's outcome is being recorded: nothing is left to stop
+
+    def pause(self) -> None:
+        """Hold before the next shot."""
+        self._go.clear()
+
+    def resume(self) -> None:
+        """Go on after a pause."""
+        self._go.set()
+
+    def abort(self, reason: str = "aborted by the operator") -> None:
+        """Stop before the next shot (the one in progress is recorded first); the run stays resumable."""
+        if not self._abort.is_set():
+            self.reason = reason
+        self._abort.set()
+        self._go.set()
+
+    @property
+    def paused(self) -> bool:
+        """Whether a pause is in force."""
+        return not self._go.is_set()
+
+    @property
+    def aborted(self) -> bool:
+        """Whether an abort was asked for."""
+        return self._abort.is_set()
+
+    def wait(self, timeout_s: float | None = None) -> bool:
+        """Block while paused; True once free to go on."""
+        return self._go.wait(timeout_s)
+
+
+class RunAborted(RigError):
+    """The run cannot go on; the reason is recorded and the run can be resumed after a fix."""
+
+
+class BudgetExceeded(RunAborted):
+    """More invalid shots than the procedure allows since the rig was last checked."""

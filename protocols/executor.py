@@ -1,0 +1,328 @@
+"""Carries out a plan (protocols.plan): run control, persistence, prompts, and the devices behind them.
+
+The executor keeps the run's folded state current (every Record goes to `emit`, is committed,
+then folded), so a plan resumes from a killed run's record exactly. What the devices do is a
+backend's business: `LiveRig` drives the real (or simulated) cannon, gates and clamp;
+protocols.dryrun's `CheckingRig` answers from checking fakes. A shot requested in this session
+whose outcome is not recorded when anything stops the plan is recorded lost, never fired again.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable
+from typing import Any, Protocol, TypeVar
+
+from protocols import evaluate
+from protocols.control import Operator, RunAborted, RunControl, ScriptedOperator
+from protocols.plan import (
+    Ask,
+    Checkpoint,
+    ClearFault,
+    Decide,
+    Evaluate,
+    Fire,
+    Fired,
+    Move,
+    Msg,
+    Plan,
+    PlanContext,
+    Prepare,
+    Problem,
+    ReadEnvironment,
+    Record,
+    TimePendulum,
+)
+from protocols.shot import ShotFailed, fire_shot, prepare
+from protocols.state import RunState, fold
+from rig.core import events as ev
+from rig.core.config import RigConfig
+from rig.core.devices import (
+    Cannon,
+    CannonState,
+    Clamp,
+    Environment,
+    GateConfig,
+    GateCrossing,
+    Gates,
+    PendulumPeriod,
+)
+from rig.core.errors import ConfigError, DeviceError, DeviceGone, SafetyRefusal
+from rig.core.events import RunEvent
+from rig.measure.realtime import InboundKnown, ReboundKnown, ShotTracker
+
+T = TypeVar("T")
+Traffic = Callable[[], list[dict[str, Any]]]
+
+
+class Backend(Protocol):
+    """What the devices do for a plan (real devices, or checking fakes in a dry run)."""
+
+    def clear_fault(self) -> None: ...
+    def environment(self) -> Environment: ...
+    def time_pendulum(self, cycles: int) -> PendulumPeriod: ...
+    def prepare(self, impact_from_pivot_m: float) -> GateConfig: ...
+    def move(self, impact_from_pivot_m: float) -> None: ...
+    def fire(
+        self, config: RigConfig, aim_speed_m_s: float, gates: GateConfig, live: Callable[[GateCrossing], None]
+    ) -> Fired: ...
+    def recover(self, exc: DeviceError) -> None: ...
+    def evaluate(self, ctx: PlanContext, fired: Fired) -> dict[str, Any]: ...
+    def decide(self, ctx: PlanContext) -> dict[str, Any]: ...
+    def problem(self, text: str) -> None: ...
+
+
+class LiveRig:
+    """The devices of a rig session: every message becomes device commands."""
+
+    def __init__(self, cannon: Cannon, gates: Gates, clamp: Clamp) -> None:
+        self.cannon, self.gates, self.clamp = cannon, gates, clamp
+
+    def clear_fault(self) -> None:
+        """Reset a fault left by the previous session (its tank is vented)."""
+        if self.cannon.status().state is CannonState.FAULT:
+            self.cannon.reset()
+
+    def environment(self) -> Environment:
+        """The cannon's lab sensor."""
+        return self.cannon.environment()
+
+    def time_pendulum(self, cycles: int) -> PendulumPeriod:
+        """The clamp times the swings."""
+        return self.clamp.measure_period(cycles)
+
+    def prepare(self, impact_from_pivot_m: float) -> GateConfig:
+        """Gates self-tested, bat locked, stage set."""
+        return prepare(self.cannon, self.gates, self.clamp, impact_from_pivot_m)
+
+    def move(self, impact_from_pivot_m: float) -> None:
+        """Stage to the impact point (waits until it is there)."""
+        self.clamp.move_to(impact_from_pivot_m * 1000.0)
+
+    def fire(
+        self, config: RigConfig, aim_speed_m_s: float, gates: GateConfig, live: Callable[[GateCrossing], None]
+    ) -> Fired:
+        """Aim, fire, collect; a shot without usable data still returns its raw record."""
+        try:
+            return Fired(fire_shot(self.cannon, self.gates, self.clamp, config, aim_speed_m_s, gates, live))
+        except ShotFailed as exc:
+            if exc.record is None:
+                raise
+            return Fired(exc.record, str(exc))
+
+    def recover(self, exc: DeviceError) -> None:
+        """After a shot lost to a device error: make the cannon safe, or stop the run.
+
+        An open interlock or a vanished device stops the run, to be resumed once fixed.
+        """
+        if isinstance(exc, SafetyRefusal | DeviceGone):
+            raise RunAborted(f"shot not completed: {exc}") from exc
+        try:
+            state = self.cannon.status().state
+            if state is CannonState.FAULT:
+                self.cannon.reset()
+            elif state is CannonState.ARMED:
+                self.cannon.vent()
+        except DeviceError as again:
+            raise RunAborted(f"device failure: {exc}; then {again}") from exc
+
+    def evaluate(self, ctx: PlanContext, fired: Fired) -> dict[str, Any]:
+        """The shot's measurement (protocols.evaluate)."""
+        return evaluate.shot(fired.record, ctx.procedure, ctx.bat, ctx.state, fired.failure, ctx.config)
+
+    def decide(self, ctx: PlanContext) -> dict[str, Any]:
+        """The verdict (protocols.evaluate)."""
+        return evaluate.verdict(ctx.procedure, ctx.bat, ctx.state, ctx.config)
+
+    def problem(self, text: str) -> None:
+        """A real run does not go on past a problem."""
+        raise ConfigError(text, source="procedure")
+
+
+class Executor:
+    """Runs plans for one run: owns the state, run control, persistence and the stage's position."""
+
+    def __init__(
+        self,
+        ctx: PlanContext,
+        backend: Backend,
+        emit: Callable[[RunEvent], None],
+        operator: Operator | None = None,
+        control: RunControl | None = None,
+        drain_traffic: Traffic | None = None,
+    ) -> None:
+        self.ctx, self.backend, self._emit = ctx, backend, emit
+        self.operator = operator or ScriptedOperator()
+        self.control = control or RunControl()
+        self.drain_traffic = drain_traffic or (lambda: [])
+        self.gate_config: GateConfig | None = None
+        self._requested: int | None = None  # the shot this session requested and has not resolved
+        # Where this session put the stage (inches from the tip); None until a move is confirmed.
+        # Never taken from the record: a resumed session or a recovered device may be anywhere.
+        self._stage_at: float | None = None
+
+    @property
+    def state(self) -> RunState:
+        """The run's folded state."""
+        return self.ctx.state
+
+    def run(self, plan: Callable[[PlanContext], Plan[T]]) -> T:
+        """Execute `plan` to its end; an error in a message is thrown into the plan where it yielded."""
+        gen = plan(self.ctx)
+        send: Callable[[Any], Msg] = gen.send
+        value: Any = None
+        while True:
+            try:
+                msg = send(value)
+            except StopIteration as stop:
+                return stop.value
+            except BaseException as exc:
+                self._lose_requested(exc)
+                raise
+            try:
+                value, send = self.handle(msg), gen.send
+            except BaseException as exc:
+                value, send = exc, gen.throw
+
+    # -- persistence ------------------------------------------------------------------------
+    def emit(self, event: RunEvent) -> None:
+        """Record a fact (persisted ones are committed first), then fold it into the state."""
+        self._emit(event)
+        if event.persisted:
+            self.state.apply(event)
+            if isinstance(event, ev.ShotRequested):
+                self._requested = event.index
+
+    def flush_traffic(self) -> None:
+        """Record device traffic not yet attached to a shot (e.g. before an interruption)."""
+        chunks = self.drain_traffic()
+        if chunks:
+            self.emit(ev.Traffic(index=None, chunks=chunks))
+
+    def _lose_requested(self, exc: BaseException) -> None:
+        """Anything that stops the plan between a shot's request and its outcome marks it lost."""
+        pending = self.state.pending
+        if self._requested is None or pending is None or pending.index != self._requested:
+            return
+        index = pending.index
+        with contextlib.suppress(Exception):
+            self.emit(ev.Traffic(index=index, chunks=self.drain_traffic()))
+            self.emit(
+                ev.ShotLost(
+                    index=index,
+                    reason=f"the run stopped during this shot ({type(exc).__name__}: {exc}); "
+                    "it may have been fired, so it is not fired again",
+                )
+            )
+
+    # -- messages ---------------------------------------------------------------------------
+    def handle(self, msg: Msg) -> Any:
+        """Carry out one message and return its answer."""
+        if isinstance(msg, Record):
+            if isinstance(msg.event, ev.RunFinished):
+                self.flush_traffic()  # nothing the devices said is left out of a closed run
+            self.emit(msg.event)
+            return None
+        if isinstance(msg, Checkpoint):
+            return self._hold()
+        if isinstance(msg, Ask):
+            return self._ask(msg)
+        if isinstance(msg, Fire):
+            return self._fire(msg)
+        if isinstance(msg, Move):
+            return self._move(msg.location_in)
+        if isinstance(msg, Evaluate):
+            return self.backend.evaluate(self.ctx, msg.fired)
+        if isinstance(msg, Decide):
+            return self.backend.decide(self.ctx)
+        if isinstance(msg, Prepare):
+            self._stage_at = None
+            self.gate_config = self.backend.prepare(self.ctx.q(msg.location_in))
+            self._stage_at = msg.location_in
+            self.emit(
+                ev.LocationSet(
+                    from_barrel_end_in=msg.location_in, impact_from_pivot_m=self.ctx.q(msg.location_in)
+                )
+            )
+            return None
+        if isinstance(msg, ReadEnvironment):
+            return self.backend.environment()
+        if isinstance(msg, TimePendulum):
+            return self.backend.time_pendulum(msg.cycles)
+        if isinstance(msg, ClearFault):
+            return self.backend.clear_fault()
+        if isinstance(msg, Problem):
+            return self.backend.problem(msg.text)
+        raise TypeError(f"the executor has no handler for {type(msg).__name__}")
+
+    def _hold(self) -> None:
+        """Honour pause and abort."""
+        if self.control.paused:
+            self.emit(ev.RunPaused())
+            self.control.wait()
+            if not self.control.aborted:
+                self.emit(ev.RunContinued())
+        if self.control.aborted:
+            raise RunAborted(self.control.reason)
+
+    def _ask(self, msg: Ask) -> bool:
+        self.emit(ev.OperatorPrompted(prompt_id=msg.prompt_id, text=msg.text))
+        answer = bool(self.operator.ask(msg.prompt_id, msg.text))
+        self.emit(ev.OperatorAnswered(prompt_id=msg.prompt_id, answer=answer, who=self.ctx.who))
+        return answer
+
+    def _move(self, loc_in: float) -> None:
+        """Command the stage to `loc_in` and wait for it there; only then is the position known."""
+        if self._stage_at == loc_in:
+            return
+        self._stage_at = None
+        q = self.ctx.q(loc_in)
+        self.backend.move(q)
+        self._stage_at = loc_in
+        self.emit(ev.LocationSet(from_barrel_end_in=loc_in, impact_from_pivot_m=q))
+
+    def _fire(self, msg: Fire) -> Fired | None:
+        """Fire and record the raw data, or the loss; None if the shot was lost."""
+        if self.gate_config is None:
+            raise ConfigError("fire before prepare: the gates' configuration is not known", source="plan")
+        config = self.ctx.config.model_copy(update={"impact_from_pivot_m": self.ctx.q(msg.location_in)})
+        index = msg.index
+        try:
+            fired = self.backend.fire(config, msg.aim_speed_m_s, self.gate_config, self._live(index))
+        except ShotFailed as exc:  # nothing at all came back: no raw record to keep
+            self._record_fired(index, None)
+            self.emit(ev.ShotLost(index=index, reason=str(exc)))
+            return None
+        except DeviceError as exc:
+            self._stage_at = None  # a device may have been reset or reopened: command the stage again
+            self.emit(ev.Traffic(index=index, chunks=self.drain_traffic()))
+            self.emit(ev.ShotLost(index=index, reason=f"{type(exc).__name__}: {exc}"))
+            self.backend.recover(exc)
+            return None
+        self._record_fired(index, fired)
+        return fired
+
+    def _record_fired(self, index: int, fired: Fired | None) -> None:
+        raw = fired.record.as_dict() if fired is not None else {"crossings": []}
+        self.emit(ev.event(ev.SHOT_FIRED, index=index, ball_number=self.state.ball_number, **raw))
+        self.emit(ev.Traffic(index=index, chunks=self.drain_traffic()))
+
+    def _live(self, index: int) -> Callable[[GateCrossing], None]:
+        """Feed each gate event to a tracker; speeds go out as live events as soon as known."""
+        assert self.gate_config is not None
+        tracker = ShotTracker(self.gate_config, self.ctx.config.gates.positions_m)
+
+        def on_crossing(c: GateCrossing) -> None:
+            self.emit(ev.GateCrossed(index=index, gate=c.gate, tick=c.tick, host_time_s=c.host_time_s))
+            for update in tracker.add(c):
+                if isinstance(update, InboundKnown):
+                    self.emit(ev.InboundMeasured(index=index, speed_m_s=update.v))
+                elif isinstance(update, ReboundKnown):
+                    self.emit(ev.ReboundMeasured(index=index, speed_m_s=update.v))
+
+        return on_crossing
+
+
+def context_from(history: list[RunEvent], **kw: Any) -> PlanContext:
+    """A plan context whose state is the fold of `history`."""
+    return PlanContext(state=fold(history), **kw)

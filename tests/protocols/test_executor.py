@@ -1,0 +1,194 @@
+"""The executor (run control, persistence, the stage, losses) and the dry run (the same plan, checked)."""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from protocols import steps
+from protocols.control import RunAborted, RunControl, ScriptedOperator
+from protocols.dryrun import dry_run, rehearse
+from protocols.executor import Executor
+from protocols.plan import Checkpoint, Fire, Fired, Move, Plan, PlanContext, Prepare, Record
+from protocols.procedure import Procedure
+from protocols.state import fold
+from rig.certification import certify
+from rig.core import events as ev
+from rig.core.bat import BatSpec
+from rig.core.devices import GateConfig
+from rig.core.errors import DeviceError, GarbledReply
+from rig.session import sim_config
+from rig.store import Store
+
+ROOT = Path(__file__).resolve().parents[2]
+BAT = BatSpec.load(ROOT / "protocols" / "examples" / "sample-bat.toml")
+
+
+class FakeRig:
+    """A backend written for these tests: counts stage moves, fails a fire on request."""
+
+    def __init__(self, fail_fire: BaseException | None = None) -> None:
+        self.moves: list[float] = []
+        self.fail_fire = fail_fire
+        self.recovered: list[DeviceError] = []
+
+    def prepare(self, q: float) -> GateConfig:
+        self.moves.append(q)
+        return GateConfig(3, 10.0, 32)
+
+    def move(self, q: float) -> None:
+        self.moves.append(q)
+
+    def fire(self, config: Any, aim: float, gates: GateConfig, live: Any) -> Fired:
+        if self.fail_fire is not None:
+            raise self.fail_fire
+        raise AssertionError("these tests fire only to fail")
+
+    def recover(self, exc: DeviceError) -> None:
+        self.recovered.append(exc)
+
+    def problem(self, text: str) -> None:
+        raise AssertionError(text)
+
+
+def executor(backend: Any, control: RunControl | None = None) -> tuple[Executor, list[ev.RunEvent]]:
+    recorded: list[ev.RunEvent] = []
+    ctx = PlanContext(Procedure.load("bbcor"), BAT, sim_config("ideal", bat=BAT), fold([]))
+    return Executor(ctx, backend, recorded.append, ScriptedOperator(), control), recorded
+
+
+def one_shot(ctx: PlanContext) -> Plan[None]:
+    yield Prepare(5.0)
+    yield Record(ev.ShotRequested(index=1, purpose="scan", location_in=5.0))
+    yield Fire(1, 5.0, 60.8)
+
+
+def test_an_error_during_a_requested_shot_records_it_lost_and_stops() -> None:
+    ex, recorded = executor(FakeRig(fail_fire=KeyboardInterrupt()))
+    with pytest.raises(KeyboardInterrupt):
+        ex.run(one_shot)
+    lost = [e for e in recorded if isinstance(e, ev.ShotLost)]
+    assert [x.index for x in lost] == [1] and "KeyboardInterrupt" in (lost[0].reason or "")
+    assert ex.state.pending is None  # never fired again on resume
+
+
+def test_a_device_error_loses_the_shot_recovers_and_commands_the_stage_again() -> None:
+    rig = FakeRig(fail_fire=GarbledReply("cannon", "garbled reply"))
+
+    def plan(ctx: PlanContext) -> Plan[Any]:
+        yield from one_shot(ctx)
+        yield Move(5.0)  # the same place: after a device error it is commanded again
+        yield Move(5.0)  # and now it is known to be there
+
+    ex, recorded = executor(rig)
+    ex.run(plan)
+    assert [type(e) for e in rig.recovered] == [GarbledReply]
+    assert len(rig.moves) == 2  # prepare, then one move after the error; the second move skipped
+    assert [e.kind for e in recorded if e.persisted][-2:] == ["ShotLost", "LocationSet"]
+
+
+def test_an_abort_is_thrown_into_the_plan_which_may_handle_it() -> None:
+    control = RunControl()
+    control.abort("stop for the test")
+
+    def plan(ctx: PlanContext) -> Plan[str]:
+        try:
+            yield Checkpoint()
+        except RunAborted as exc:
+            yield Record(ev.RunInterrupted(reason=str(exc)))
+            return "handled"
+        return "not aborted"
+
+    ex, recorded = executor(FakeRig(), control)
+    assert ex.run(plan) == "handled"
+    assert [e.reason for e in recorded if isinstance(e, ev.RunInterrupted)] == ["stop for the test"]
+
+
+def test_a_pause_holds_at_the_checkpoint_until_resumed() -> None:
+    control = RunControl()
+    control.pause()
+    ex, recorded = executor(FakeRig(), control)
+    threading.Timer(0.2, control.resume).start()
+    t0 = time.monotonic()
+    ex.run(lambda ctx: (yield Checkpoint()))
+    assert time.monotonic() - t0 >= 0.15
+    assert [e.kind for e in recorded] == ["RunPaused", "RunContinued"]
+
+
+# -- the dry run -------------------------------------------------------------------------------
+def test_the_dry_run_lists_every_problem_at_once() -> None:
+    p = Procedure.load("bbcor")
+    p = p.model_copy(
+        update={
+            "target_speed_m_s": 70.0,  # the ideal rig's aim table ends at 68 m/s
+            "scan": p.scan.model_copy(update={"to_in": 30.0, "step_in": 5.0}),  # 30 in: past the pivot
+            "moi": p.moi.model_copy(update={"source": "entered"}),
+        }
+    )
+    bat = BAT.model_copy(update={"moi_kgm2": None})
+    problems = dry_run(p, bat, sim_config("ideal", bat=bat))
+    text = "\n".join(problems)
+    assert "target speed 69.55 m/s is outside the aim calibration" in text
+    assert "scan location 30 in from the tip is not on the bat beyond the pivot" in text
+    assert "the bat file has no moi_kgm2" in text
+
+
+def test_the_dry_run_fires_where_the_procedure_says_and_records_nothing(tmp_path: Path) -> None:
+    p = Procedure.load("bbcor")
+    found = rehearse(p, BAT, sim_config("ideal", bat=BAT))
+    assert found.problems == [] and found.finished
+    planned = p.scan.locations_in()
+    at = [BAT.impact_from_pivot_m(x) for x in planned]
+    scan_fires = [q for q, _ in found.fired[: len(planned)]]
+    assert scan_fires == pytest.approx(at)
+    centre = (planned[0] + planned[-1]) / 2  # the fakes' metric peaks mid-scan: valid hits go there
+    mid = min(planned, key=lambda x: (abs(x - centre), x))
+    valid = [q for q, _ in found.fired[len(planned) :]]
+    assert len(valid) == p.hits.valid_hits and valid == pytest.approx(
+        [BAT.impact_from_pivot_m(mid)] * len(valid)
+    )
+    assert not list(tmp_path.iterdir())
+
+
+def test_the_dry_run_and_the_real_run_follow_one_plan(tmp_path: Path) -> None:
+    """Up to the first shot's outcome the record of a real run and the rehearsal say the same."""
+    p = Procedure.load("bbcor")
+    config = sim_config("ideal", bat=BAT)
+    found = rehearse(p, BAT, config)
+    with Store.open(tmp_path / "r.db") as store:
+        out = certify(store, p, BAT, config)
+        real = [e.kind for e in store.entries(out.run_id) if e.kind in ev.BY_KIND and e.kind != ev.TRAFFIC]
+    dry = [e.kind for e in found.events if e.persisted and e.kind != ev.TRAFFIC]
+    upto = real.index(ev.SHOT_MEASURED) + 1
+    assert real[:upto] == dry[:upto]
+    assert real.count(ev.SHOT_REQUESTED) >= p.scan.count + p.hits.valid_hits
+    assert dry.count(ev.SHOT_REQUESTED) == p.scan.count + p.hits.valid_hits
+
+
+def test_a_custom_plan_runs_through_the_runner_and_its_steps_compose(tmp_path: Path) -> None:
+    """A lab's own procedure: no scan, three valid hits at 6 in, from the standard steps."""
+    from rig.core.events import LocationChosen
+
+    def three_at_six(ctx: PlanContext) -> Plan[dict[str, Any]]:
+        yield from steps.preflight(ctx)
+        yield from steps.start(ctx)
+        yield from steps.environment(ctx)
+        yield from steps.prepare(ctx)
+        yield from steps.measure_moi(ctx)
+        yield Record(LocationChosen(from_barrel_end_in=6.0, extra={"bracketed": False, "by": "lab plan"}))
+        yield from steps.valid_hits(ctx)
+        return (yield from steps.decide(ctx))
+
+    p = Procedure.load("bbcor")
+    p = p.model_copy(update={"hits": p.hits.model_copy(update={"valid_hits": 3})})
+    with Store.open(tmp_path / "r.db") as store:
+        out = certify(store, p, BAT, sim_config("ideal", bat=BAT), plan=three_at_six)
+        entries = store.entries(out.run_id)
+    assert out.status == "finished" and out.verdict["verdict"] in ("PASS", "FAIL")
+    requested = [e.payload for e in entries if e.kind == ev.SHOT_REQUESTED]
+    assert {r["purpose"] for r in requested} == {"valid"} and {r["location_in"] for r in requested} == {6.0}
+    assert out.verdict["hits"] and len(out.verdict["hits"]) == 3
