@@ -104,7 +104,8 @@ def cmd_certify(args: argparse.Namespace) -> int:
 
             named = str(Path(args.calibration).expanduser().resolve())
             config = config.model_copy(update={"model": Model(calibration=named, named_by="command line")})
-        problems = dry_run(procedure, bat, config)
+        past = ev.parse_log(store.entries(run_id)) if run_id is not None else None
+        problems = dry_run(procedure, bat, config, past)  # a resumed run: rehearse what is left of it
         if args.dry_run and not args.resume:
             from protocols.evaluate import run_calibration
 

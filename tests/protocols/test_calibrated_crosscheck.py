@@ -141,6 +141,28 @@ def test_resume_uses_the_recorded_calibration_even_when_the_file_is_gone(lab: Pa
         assert store.verify().ok
 
 
+def test_the_cli_resumes_with_the_recorded_calibration_when_the_file_is_gone(
+    lab: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The resume's dry run rehearses what is left of the run: it does not load the calibration again."""
+    from rig.cli import main
+
+    own = tmp_path / "lab"
+    own.mkdir()
+    for name in ("cal.json", "proc.toml"):
+        (own / name).write_bytes((lab / name).read_bytes())
+    bad = sim_config("ideal", bat=BAT).model_copy(update={"cannon_cycle_s": 1e308})
+    db = tmp_path / "r.db"
+    with Store.open(db) as store:
+        out = certify(store, Procedure.load(own / "proc.toml"), BAT, bad)
+    assert out.status == "interrupted"
+    (own / "cal.json").unlink()
+    assert main(["certify", "--resume", out.run_id, "--sim", "ideal", "--db", str(db), "--dry-run"]) == 0
+    assert main(["certify", "--resume", out.run_id, "--sim", "ideal", "--db", str(db)]) in (0, 1)
+    with Store.open(db) as store:
+        assert store.run(out.run_id).status == "finished"
+
+
 def test_without_a_calibration_the_prediction_is_shown_and_not_judged(tmp_path: Path) -> None:
     with Store.open(tmp_path / "r.db") as store:
         out = certify(
