@@ -137,6 +137,25 @@ class Rehearsal:
     finished: bool
     stopped: str = ""  # why the plan would stop early (a run-time stop such as the re-shoot budget)
 
+    def summary(self) -> str:
+        """One line: what the plan would do if every shot were valid (its least)."""
+        asked = [e for e in self.events if isinstance(e, ev.ShotRequested)]
+        purposes = {p: [e.location_in for e in asked if e.purpose == p] for p in ("scan", "valid")}
+        prompts = sum(1 for e in self.events if isinstance(e, ev.OperatorPrompted))
+        timed = sum(1 for e in self.events if isinstance(e, ev.MoiMeasured) and "periods_s" in e.extra)
+        parts = [f"{len(asked)} shots at least"]
+        if purposes["scan"]:
+            scan = purposes["scan"]
+            parts.append(f"{len(scan)} scanning {min(scan):g}-{max(scan):g} in")
+        if purposes["valid"]:
+            parts.append(f"{len(purposes['valid'])} valid hits at the maximum")
+        parts.append(f"{prompts} operator prompts")
+        if timed:
+            parts.append("MOI timed on the pendulum")
+        if self.stopped:
+            parts.append(f"the run would stop: {self.stopped}")
+        return ", ".join(parts)
+
 
 def rehearse(
     procedure: Procedure,

@@ -58,8 +58,9 @@ def _end(args: argparse.Namespace) -> int:
 
 def cmd_certify(args: argparse.Namespace) -> int:
     """rig certify: run a certification procedure on a bat, live, recording everything."""
+    from protocols.dryrun import rehearse
     from protocols.procedure import Procedure
-    from protocols.runner import RunControl, ScriptedOperator, dry_run
+    from protocols.runner import RunControl, ScriptedOperator
     from rig.certification import certify
     from rig.core.bat import BatSpec
     from rig.report.live import LiveConsole
@@ -105,13 +106,15 @@ def cmd_certify(args: argparse.Namespace) -> int:
             named = str(Path(args.calibration).expanduser().resolve())
             config = config.model_copy(update={"model": Model(calibration=named, named_by="command line")})
         past = ev.parse_log(store.entries(run_id)) if run_id is not None else None
-        problems = dry_run(procedure, bat, config, past)  # a resumed run: rehearse what is left of it
+        rehearsal = rehearse(procedure, bat, config, history=past)  # a resumed run: what is left of it
+        problems = rehearsal.problems
         if args.dry_run and not args.resume:
             from protocols.evaluate import run_calibration
 
             run_calibration(procedure, config)  # a named calibration that will not load is named here
         if problems or args.dry_run:
-            for line in problems or ["dry run: the procedure fits this rig and this bat"]:
+            fits = f"dry run: the procedure fits this rig and this bat ({rehearsal.summary()})"
+            for line in problems or [fits]:
                 print(line, file=sys.stderr)
             if problems:
                 raise ConfigError("; ".join(problems), source="dry run")

@@ -192,3 +192,23 @@ def test_a_custom_plan_runs_through_the_runner_and_its_steps_compose(tmp_path: P
     requested = [e.payload for e in entries if e.kind == ev.SHOT_REQUESTED]
     assert {r["purpose"] for r in requested} == {"valid"} and {r["location_in"] for r in requested} == {6.0}
     assert out.verdict["hits"] and len(out.verdict["hits"]) == 3
+
+
+def test_the_cli_dry_run_says_what_the_plan_would_do(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from rig.cli import main
+
+    bat = str(ROOT / "protocols" / "examples" / "sample-bat.toml")
+    args = ["certify", "--procedure", "bbcor", "--bat", bat, "--sim", "lab", "--dry-run"]
+    assert main([*args, "--db", str(tmp_path / "r.db")]) == 0
+    line = capsys.readouterr().err.strip()
+    p = Procedure.load("bbcor")
+    scan = p.scan.count * p.scan.hits_per_location  # 6 locations, 5.0-7.5 in
+    shots = scan + p.hits.valid_hits
+    prompts = 2 * shots + (shots - 1) // p.ball.replace_after_hits  # ring before and after, new balls
+    assert line == (
+        f"dry run: the procedure fits this rig and this bat ({shots} shots at least, {scan} scanning "
+        f"{p.scan.from_in:g}-{p.scan.to_in:g} in, {p.hits.valid_hits} valid hits at the maximum, "
+        f"{prompts} operator prompts, MOI timed on the pendulum)"
+    )
