@@ -19,11 +19,11 @@ from protocols.plan import Fired, Plan, PlanContext
 from protocols.procedure import Procedure
 from protocols.shot import ShotRecord
 from protocols.state import fold
-from protocols.steps import STAGE_RANGE_MM, certification
+from protocols.steps import certification
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
-from rig.core.devices import Environment, GateConfig, GateCrossing, PendulumPeriod
+from rig.core.devices import STAGE_RANGE_MM, Environment, GateConfig, GateCrossing, PendulumPeriod
 from rig.core.errors import ConfigError, DeviceError, RigError
 from rig.core.events import RunEvent
 

@@ -31,11 +31,10 @@ from protocols.plan import (
 from rig import __version__
 from rig.core import events as ev
 from rig.core.bat import PIVOT_FROM_KNOB_IN, BatSpec
+from rig.core.devices import STAGE_RANGE_MM
 from rig.core.errors import ConfigError
 from rig.core.units import INCH
 from rig.measure.moi import entered_budget, pendulum_moi
-
-STAGE_RANGE_MM = (100.0, 900.0)  # the clamp's impact-point stage, from the pivot
 
 
 def location_problem(bat: BatSpec, loc_in: float) -> str | None:

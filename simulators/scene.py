@@ -16,6 +16,7 @@ from typing import Annotated, Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from rig.core.bat import HOOP_HZ, LENGTH_IN, MOI_KGM2, PIVOT_FROM_KNOB_M, WEIGHT_OZ
+from rig.core.devices import STAGE_RANGE_MM
 from rig.core.errors import ConfigError, ParameterError
 from rig.core.units import INCH, OUNCE
 from rig.physics import CollisionParams
@@ -55,7 +56,9 @@ class RigGeometry(BaseModel):
     pivot_from_knob_m: float = Field(
         PIVOT_FROM_KNOB_M, gt=0.0, le=12 * INCH, description="pivot axis from the knob end, m (<= 12 in)"
     )
-    stage_start_mm: float = Field(500.0, ge=100.0, le=900.0, description="stage position at power-up")
+    stage_start_mm: float = Field(
+        500.0, ge=STAGE_RANGE_MM[0], le=STAGE_RANGE_MM[1], description="stage position at power-up"
+    )
     stage_speed_mm_s: float = Field(100.0, ge=1.0, le=2000.0, description="stage travel speed (1-2000)")
     lock_time_s: float = Field(0.3, gt=0.0, le=60.0, description="grip close to lock confirming, s (<= 60)")
     swing_amplitude_deg: float = Field(5.0, gt=0.0, le=30.0, description="SWING release amplitude")

@@ -9,10 +9,9 @@ from __future__ import annotations
 
 from drivers.codec import CommandSpec, flag, integer, number
 from drivers.wire import Event, Reply
-from rig.core.devices import ClampStatus, PendulumPeriod, Recoil
+from rig.core.devices import STAGE_RANGE_MM, ClampStatus, PendulumPeriod, Recoil
 
-STAGE_MIN_MM = 100.0
-STAGE_MAX_MM = 900.0
+STAGE_MIN_MM, STAGE_MAX_MM = STAGE_RANGE_MM
 
 
 SPECS = {

@@ -87,6 +87,9 @@ class GateCrossing:
     host_time_s: float = 0.0
 
 
+STAGE_RANGE_MM = (100.0, 900.0)  # the clamp stage: impact point from the pivot, the one statement of it
+
+
 @dataclass(frozen=True)
 class ClampStatus:
     """What the pivot clamp reports of itself."""

@@ -9,6 +9,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import pytest
+
 from rig.core.bat import PIVOT_FROM_KNOB_IN, PIVOT_FROM_KNOB_M
 from rig.measure.metrics import SwingModel
 from simulators.scene import RigGeometry
@@ -42,4 +44,30 @@ def test_no_module_restates_the_pivot() -> None:
                     continue
                 if RESTATED.search(" ".join(lines[n : n + 2])):
                     restated.append(f"{path.relative_to(ROOT)}:{n + 1}: {line.strip()}")
+    assert restated == []
+
+
+def test_the_stage_range_has_one_home() -> None:
+    """The clamp stage's 100-900 mm: the wire codec, the plan's location check and the dry run's
+    fakes all take it from rig.core.devices (a stage range written as numbers elsewhere fails)."""
+    from drivers.clamp.codec import SPECS, STAGE_MAX_MM, STAGE_MIN_MM
+    from protocols.steps import location_problem
+    from rig.core.bat import BatSpec
+    from rig.core.devices import STAGE_RANGE_MM
+
+    assert (STAGE_MIN_MM, STAGE_MAX_MM) == STAGE_RANGE_MM == (100.0, 900.0)
+    move = SPECS["MOVE"]
+    assert move.check(900.0) == ("900.0",) or move.check(900.0)
+    for outside in (99.9, 900.1):
+        with pytest.raises(ValueError, match="outside"):
+            move.check(outside)
+    bat = BatSpec.load(ROOT / "protocols" / "examples" / "sample-bat.toml")  # 33 in: 5 in is 558.8 mm
+    assert location_problem(bat, 5.0) is None
+    restated = [
+        str(p.relative_to(ROOT))
+        for package in PRODUCT
+        for p in sorted((ROOT / package).rglob("*.py"))
+        if re.search(r"\b100(\.0)?\b.{0,40}\b900(\.0)?\b", p.read_text(), re.S)
+        and p != ROOT / "rig/core/devices.py"
+    ]
     assert restated == []
