@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from rig.physics.curve_cost import CurveTradeoffRow
 from rig.physics.fast import DEFAULT_RTOL
+from rig.physics.first_step import FirstStepRow
 from rig.physics.precision import (
     IMPLICIT,
     KERNEL,
-    CurveTradeoffRow,
-    FirstStepRow,
     PrecisionRow,
     PrecisionStudy,
     cost_to_reach,

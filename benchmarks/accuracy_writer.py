@@ -34,25 +34,22 @@ from benchmarks.accuracy_text import (
     _stiff_sentence,
     _target_sentences,
 )
-from benchmarks.timing import best_time, load_average, machine, parallel_call_probe
+from benchmarks.timing import careful, load_average, machine, parallel_call_probe
 from rig.physics import fast
+from rig.physics.curve_cost import CurveTradeoffRow, curve_tradeoff
 from rig.physics.equations import Impact
+from rig.physics.first_step import FirstStepRow, first_step_effect
 from rig.physics.params import DEFAULT_PARAMS
 from rig.physics.precision import (
     EXPLICIT_RTOLS,
     IMPLICIT_RTOLS,
     KERNEL,
-    MIN_TIMED_S,
     REFERENCE_AGREEMENT,
     REFERENCE_RTOL,
-    CurveTradeoffRow,
-    FirstStepRow,
     PrecisionRow,
     PrecisionStudy,
     ReferenceValue,
     ToleranceFit,
-    curve_tradeoff,
-    first_step_effect,
     work_precision,
 )
 from rig.report.precision_plots import (
@@ -65,6 +62,7 @@ from rig.report.precision_plots import (
     plot_work_precision,
     references_markdown,
 )
+from rig.studies import MIN_TIMED_S, stamped
 
 SPEED = 60.8
 NEAR_RIGID_HZ = 1e6
@@ -283,21 +281,20 @@ def write_accuracy_doc(
     doc = Path(path)
     fig_dir = doc.parent / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
-    study = _on_this_machine(lambda: work_precision(repeats=repeats, speed=SPEED, timer=best_time))
+    study = _on_this_machine(lambda: work_precision(speed=SPEED, timer=careful(repeats)))
     near = None
     if near_rigid:
         near = _on_this_machine(
             lambda: work_precision(
-                repeats=NEAR_RIGID_REPEATS,
                 speed=SPEED,
                 hoops=(NEAR_RIGID_HZ,),
                 rtols=NEAR_RIGID_RTOLS,
                 implicit_rtols=NEAR_RIGID_IMPLICIT_RTOLS,
-                timer=best_time,
+                timer=careful(NEAR_RIGID_REPEATS),
             )
         )
     curve_load = [load_average()]
-    curve = curve_tradeoff(speed=SPEED, repeats=repeats, timer=best_time)
+    curve = curve_tradeoff(speed=SPEED, timer=careful(repeats))
     curve_load.append(load_average())
     h0 = study.cases()[0]
     first = first_step_effect(Impact(DEFAULT_PARAMS, SPEED, h0), cor_ref=study.references[0].cor)
@@ -329,9 +326,9 @@ def write_accuracy_doc(
 
 
 def _on_this_machine(run: Callable[[], PrecisionStudy]) -> PrecisionStudy:
-    """Run a study and record the machine and its load average before and after it."""
+    """Run a study and record its wall time, the machine and its load average before and after it."""
     before = load_average()
-    study = run()
+    study = stamped(run)
     env = {**machine(), "load_average_before": before, "load_average_after": load_average()}
     return dataclasses.replace(study, environment=env)
 

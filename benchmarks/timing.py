@@ -1,6 +1,6 @@
 """The timing harness of the studies: careful timing and a description of the machine.
 
-The package measures what a solve costs (rig.physics.precision.time_per_call); this harness adds
+The package's study harness times a solve (rig.studies: Stopwatch, time_per_call); this one adds
 what only a study needs: the garbage collector paused inside timed batches (as timeit does), the
 CPU model, the load average and numba's threading set-up, without which timings mean little.
 """
@@ -16,15 +16,11 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
-from rig.physics.precision import MIN_TIMED_S, best_batch, calls_per_batch, versions
+from rig.studies import MIN_TIMED_S, Stopwatch, best_batch, calls_per_batch, versions
 
 
-def best_time(
-    solve: Callable[[], object], repeats: int, min_time_s: float = MIN_TIMED_S, once_s: float | None = None
-) -> float:
-    """`time_per_call` with the collector paused during the timed batches (a collection inside one
-    batch is noise, not solver cost); a calibrating call, if one is needed, runs before the pause."""
-    number = calls_per_batch(solve, min_time_s, once_s)
+def paused_batch(solve: Callable[[], object], repeats: int, number: int) -> float:
+    """`best_batch` with the collector paused (a collection inside one batch is noise, not solver cost)."""
     enabled = gc.isenabled()
     gc.disable()
     try:
@@ -32,6 +28,19 @@ def best_time(
     finally:
         if enabled:
             gc.enable()
+
+
+def best_time(
+    solve: Callable[[], object], repeats: int, min_time_s: float = MIN_TIMED_S, once_s: float | None = None
+) -> float:
+    """`time_per_call` with the collector paused during the timed batches; a calibrating call, if
+    one is needed, runs before the pause."""
+    return paused_batch(solve, repeats, calls_per_batch(solve, min_time_s, once_s))
+
+
+def careful(repeats: int, min_time_s: float = MIN_TIMED_S) -> Stopwatch:
+    """The study's stopwatch with the collector paused inside the timed batches."""
+    return Stopwatch(repeats, min_time_s, batch=paused_batch)
 
 
 def load_average() -> list[float] | None:

@@ -1,93 +1,28 @@
-"""From a shot's raw record to its metrics, uncertainty and validity; from the hits to the verdict.
+"""From a shot's raw record to its metrics, uncertainty and validity.
 
-The decision rule (docs/procedures.md): with guarded acceptance a bat passes only when its mean
-metric plus the expanded uncertainty k u stays within the limit; with the simple rule, when the
-mean alone does. The model cross-check predicts the metric from the bat's hoop frequency: with a
-calibration (rig model calibrate; named by the procedure or the rig config, recorded whole in
-RunStarted) it gives the calibrated prediction interval and flags a bat outside it
-(rig.population.crosscheck); without one it shows the raw prediction and flags nothing, because
-the model's absolute level is not validated.
+The verdict over the valid hits and the model cross-check are protocols.verdict; the lab air and
+the input distributions both use are protocols.run_inputs. This module re-exports them, so that
+`evaluate.shot`, `evaluate.verdict` and `evaluate.run_calibration` name the whole evaluation.
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
-from dataclasses import asdict, replace
-from pathlib import Path
+from dataclasses import asdict
 from typing import Any
 
 from protocols.procedure import Metric, Procedure
+from protocols.run_inputs import NOMINAL_AIR, air_density, drag_inputs, uncertainty_model
 from protocols.shot import ShotRecord
 from protocols.state import RunState
-from rig.core.bat import Barrel, BatSpec
+from protocols.verdict import UNCALIBRATED, cross_check, drag_summary, run_calibration, verdict
+from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
-from rig.core.devices import Environment, Recoil
-from rig.core.errors import ConfigError, RigError
-from rig.core.events import Verdict
-from rig.measure.drag import AirDensity, lab_air
-from rig.measure.metrics import DEFAULT_SWING, DEFINITIONS, compute_metrics
-from rig.measure.model import (
-    BALL_DIAMETER_M,
-    OUTPUTS,
-    ShotInputs,
-    Spread,
-    UncertaintyModel,
-    inbound_at_impact,
-    outputs,
-)
+from rig.core.devices import Recoil
+from rig.measure.metrics import DEFAULT_SWING, compute_metrics
+from rig.measure.model import ShotInputs, inbound_at_impact
 from rig.measure.speeds import ShotDataError, shot_speeds, split_passes
-from rig.measure.tradeoff import tradeoff_table
-from rig.measure.uncertainty import budget, u_with_scatter
+from rig.measure.uncertainty import budget
 from rig.measure.validity import Invalidity, ValidityLimits, check_shot, is_valid
-from rig.physics import DEFAULT_PARAMS, PivotedBat, predict_bat
-from rig.population.calfile import CalibrationFile, load_calibration
-from rig.population.crosscheck import crosscheck_at
-
-UNCALIBRATED = (
-    "uncalibrated: the model's absolute value is not validated (the paper validates only normalized"
-    " efficiency); the prediction is shown, nothing is flagged"
-)
-
-NOMINAL_AIR = Environment(temperature_c=20.0, humidity_pct=50.0)  # when no check is recorded
-
-
-def air_density(config: RigConfig, state: RunState) -> AirDensity:
-    """The lab air's density from the latest environment check and the rig's stated pressure."""
-    env = state.environment or {}
-    t = float(env.get("temperature_c", NOMINAL_AIR.temperature_c))
-    rh = float(env.get("humidity_pct", NOMINAL_AIR.humidity_pct))
-    a = config.air
-    return lab_air(t, rh, a.pressure_kpa, a.temperature_u_c, a.humidity_u_pct, a.pressure_u_kpa)
-
-
-def uncertainty_model(
-    p: Procedure,
-    config: RigConfig | None = None,
-    state: RunState | None = None,
-    air: AirDensity | None = None,
-) -> UncertaintyModel:
-    """The input distributions: the MOI's derived u (its MoiMeasured record), the rig's gates and air."""
-    kw: dict[str, Any] = {"coverage_k": p.decision.coverage_k}
-    moi = state.moi if state is not None else None
-    if moi and moi.get("u_kgm2") and moi.get("moi_kgm2"):
-        kw["moi_relative"] = Spread(width=float(moi["u_kgm2"]) / float(moi["moi_kgm2"]))
-    if config is not None:
-        a = config.air
-        kw["gate_position"] = Spread(width=config.gates.position_uncertainty_m, shape="rectangular")
-        kw["drag_in"] = Spread(width=a.drag_coefficient_u)
-        kw["drag_out"] = Spread(width=a.rebound_drag_coefficient_u)
-        air = air or air_density(config, state or RunState())
-        kw["air_density"] = Spread(width=air.u)
-    return UncertaintyModel(**kw)
-
-
-def drag_inputs(config: RigConfig | None, air: AirDensity | None) -> tuple[float, float, float, float]:
-    """(Cd inbound, Cd rebound, air density, ball diameter) of the drag correction; zeros: none."""
-    if config is None or air is None:
-        return (0.0, 0.0, 0.0, BALL_DIAMETER_M)
-    a = config.air
-    return (a.drag_coefficient, a.rebound_drag_coefficient, air.rho, a.ball_diameter_m)
 
 
 def _metric_u(p: Procedure, bud: dict[str, Any], v_pitch_plus_bat: float) -> float:
@@ -191,217 +126,15 @@ def shot(
     return out
 
 
-def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> dict[str, Any]:
-    """Mean of the valid hits at the chosen location, its uncertainty, the decision, the cross-check."""
-    loc = state.best_location_in
-    hits = state.valid_shots("valid", loc)
-    values = [float(h.metric) for h in hits if h.metric is not None]
-    if not values:
-        raise RigError("no valid hits to decide on")
-    n = len(values)
-    mean = sum(values) / n
-    inputs = [
-        ShotInputs(**{k: tuple(v) if isinstance(v, list) else v for k, v in h.measured["inputs"].items()})
-        for h in hits
-    ]
-    model = uncertainty_model(p, config, state)
-    per_bat = budget(inputs, model)
-    per_hit = budget(inputs[0], model)
-    name = p.standard.value if p.standard is not Metric.BBS else "e_a"
-    if n >= 2:
-        u = u_with_scatter(per_bat, [float(h.measured["metrics"][name]) for h in hits], name)
-    else:
-        u = per_bat.u_of(name)
-    if p.standard is Metric.BBS:
-        u *= hits[0].measured["metrics"]["v_bat"] + DEFAULT_SWING.pitch_speed_m_s
-    k = p.decision.coverage_k
-    big_u = k * u
-    if p.decision.rule == "guarded":
-        passed = mean + big_u <= p.limit
-        rule = f"guarded acceptance: PASS if mean + {k:g} u <= limit"
-    else:
-        passed = mean <= p.limit
-        rule = "simple acceptance: PASS if mean <= limit"
-    zone = (
-        "pass" if passed else ("fail: within the guard band" if mean <= p.limit else "fail: above the limit")
-    )
-    v_in_mean = (
-        sum(h.measured.get("inbound_at_impact_m_s", h.measured["inbound_speed_m_s"]) for h in hits) / n
-    )
-    q = bat.impact_from_pivot_m(loc) if loc is not None else config.impact_from_pivot_m
-    moi = float(state.moi["moi_kgm2"]) if state.moi else float(bat.moi_kgm2 or 0.0)
-    return {
-        "verdict": Verdict.PASS if passed else Verdict.FAIL,
-        "zone": zone,
-        "metric": p.standard.value,
-        "definition": DEFINITIONS.get(p.standard.value, ""),
-        "mean": mean,
-        "u": u,
-        "U": big_u,
-        "coverage_k": k,
-        "limit": p.limit,
-        "decision_rule": rule,
-        "n_hits": n,
-        "hits": values,
-        "location_in": loc,
-        "impact_from_pivot_m": q,
-        "moi_kgm2": moi,
-        "edition": p.edition,
-        "budget": per_bat.as_dict(),
-        "drag": drag_summary(config, state, inputs, name, per_bat.value(name)),
-        "cross_check": cross_check(p, bat, v_in_mean, q, moi, mean, u, state.calibration),
-        "tradeoff": [
-            r.as_dict() for r in tradeoff_table(per_hit, name, max_hits=12, cycle_s=config.cannon_cycle_s)
-        ],
-    }
-
-
-def drag_summary(
-    config: RigConfig, state: RunState, inputs: list[ShotInputs], name: str, corrected: float
-) -> dict[str, Any]:
-    """The drag correction's inputs (Cd, air) and what it changed in the mean of `name`."""
-    index = OUTPUTS.index(name)
-    plain = [
-        float(outputs(replace(i, cd_in=0.0, cd_out=0.0).vector(), i.gates, i.ball_diameter_m)[index])
-        for i in inputs
-    ]
-    a = config.air
-    return {
-        "applied": any(i.cd_in > 0.0 or i.cd_out > 0.0 for i in inputs) and inputs[0].air_density > 0.0,
-        "drag_coefficient": a.drag_coefficient,
-        "drag_coefficient_u": a.drag_coefficient_u,
-        "rebound_drag_coefficient": a.rebound_drag_coefficient,
-        "rebound_drag_coefficient_u": a.rebound_drag_coefficient_u,
-        "ball_diameter_m": a.ball_diameter_m,
-        "air": air_density(config, state).as_dict(),
-        "output": name,
-        "mean_uncorrected": sum(plain) / len(plain),
-        "correction": corrected - sum(plain) / len(plain),
-    }
-
-
-def run_calibration(p: Procedure, config: RigConfig) -> dict[str, Any] | None:
-    """The calibration a new run uses, as RunStarted records it (None: no calibration named).
-
-    Named by the procedure (`calibration`) or the rig config ([model] calibration); both naming
-    different files is refused, as are a file that does not load, another metric or another speed.
-    The record holds the file's path, sha256 and whole content, so that a resumed run and a report
-    made later use this very calibration whatever has become of the file.
-    """
-    by_config = config.model.named_by
-    named = {k: v for k, v in (("procedure", p.calibration), (by_config, config.model.calibration)) if v}
-    if not named:
-        return None
-    if len({str(Path(v).resolve()) for v in named.values()}) > 1:
-        raise ConfigError(
-            f"the procedure names calibration {named['procedure']} and the {by_config} {named[by_config]}:"
-            " name one",
-            source="calibration",
-        )
-    by, path = next(iter(named.items()))
-    cal = load_calibration(path)
-    if cal.metric != p.standard.value:
-        raise ConfigError(
-            f"a {cal.metric} calibration; the procedure certifies {p.standard.value}", source=path
-        )
-    if abs(cal.speed_m_s - p.target_speed_m_s) > p.speed_tolerance_m_s:
-        raise ConfigError(
-            f"calibrated at {cal.speed_m_s:g} m/s; the procedure shoots at {p.target_speed_m_s:g} m/s",
-            source=path,
-        )
-    data = Path(path).read_bytes()
-    return {
-        "path": str(path),
-        "named_by": by,
-        "sha256": hashlib.sha256(data).hexdigest(),
-        "file": json.loads(data),
-    }
-
-
-def _uncalibrated(
-    p: Procedure, bat: BatSpec, v_in: float, q: float, moi: float, measured: float, note: str
-) -> dict[str, Any]:
-    hoop = None if bat.barrel is Barrel.WOOD else bat.hoop_hz
-    params = DEFAULT_PARAMS.model_copy(update={"m1": p.ball.mass_kg})
-    pred = predict_bat(params, v_in, hoop, PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q))
-    m = compute_metrics(v_in, pred.e_a * v_in, q, moi, p.ball.mass_kg, bat.length_m)
-    predicted = m.as_dict()[p.standard.value]
-    return {
-        "calibrated": False,
-        "predicted": predicted,
-        "measured": measured,
-        "difference": measured - predicted,
-        "interval": None,
-        "z": None,
-        "hoop_hz": hoop,
-        "model": "pivoted bat, rigid barrel" if hoop is None else "pivoted bat with hoop mode (Eqs. 1-2)",
-        "flagged": None,
-        "consistent": None,
-        "note": note,
-    }
-
-
-def cross_check(
-    p: Procedure,
-    bat: BatSpec,
-    v_in: float,
-    q: float,
-    moi: float,
-    measured: float,
-    u: float | None = None,
-    calibration: dict[str, Any] | None = None,
-) -> dict[str, Any]:
-    """The model's prediction at the bat's hoop frequency next to the measured value (u: its k = 1 u).
-
-    With `calibration` (as run_calibration records it) the calibrated prediction interval and the
-    flag; without, the uncalibrated prediction and no flag.
-    """
-    if bat.hoop_hz is None and bat.barrel is not Barrel.WOOD:
-        return {
-            "predicted": None,
-            "flagged": None,
-            "note": "no hoop frequency in the bat file: no model cross-check",
-        }
-    if calibration is None:
-        return _uncalibrated(p, bat, v_in, q, moi, measured, UNCALIBRATED)
-    if bat.barrel is Barrel.WOOD or bat.hoop_hz is None:
-        note = "the calibration is of the barrel's hoop mode; a wood barrel is rigid: " + UNCALIBRATED
-        return _uncalibrated(p, bat, v_in, q, moi, measured, note)
-    try:
-        cal = CalibrationFile.model_validate(calibration["file"])
-        c = crosscheck_at(
-            cal, bat.hoop_hz, moi, q, bat.length_in, measured, u, p.cross_check_coverage, bat_id=bat.id
-        )
-    except (RigError, ValueError, KeyError) as exc:  # the cross-check informs; it never stops a verdict
-        errors = getattr(exc, "errors", None)  # a pydantic ValidationError: its first message
-        reason = errors()[0]["msg"] if callable(errors) else str(exc).splitlines()[0]
-        return _uncalibrated(
-            p, bat, v_in, q, moi, measured, f"recorded calibration not usable ({reason}): {UNCALIBRATED}"
-        )
-    prov = cal.provenance
-    where = f" (outside the calibration's {prov.hoop_min_hz:.0f}-{prov.hoop_max_hz:.0f} Hz: extrapolated)"
-    note = (
-        "measured performance outside the calibrated model's prediction interval: possibly an altered bat"
-        " or a rig fault"
-        if c.flagged
-        else "measured performance consistent with the calibrated model at this hoop frequency"
-    ) + (where if c.extrapolated else "")
-    return {
-        **c.as_dict(),
-        "calibrated": True,
-        "consistent": not c.flagged,
-        "difference": measured - c.predicted,
-        "model": f"pivoted bat with hoop mode (Eqs. 1-2), calibrated ({cal.variant})",
-        "calibration": {
-            "path": calibration["path"],
-            "named_by": calibration["named_by"],
-            "sha256": calibration["sha256"],
-            "variant": cal.variant,
-            "parameters": dict(cal.parameters),
-            "uncertainty": dict(cal.uncertainty),
-            "scatter": cal.scatter,
-            "loo_rmse": cal.loo_rmse,
-            "provenance": prov.model_dump(),
-        },
-        "note": note,
-    }
+__all__ = [
+    "NOMINAL_AIR",
+    "UNCALIBRATED",
+    "air_density",
+    "cross_check",
+    "drag_inputs",
+    "drag_summary",
+    "run_calibration",
+    "shot",
+    "uncertainty_model",
+    "verdict",
+]

@@ -26,8 +26,12 @@ class Outgoing:
 
 
 @dataclass(frozen=True)
-class Shot:
-    """What really happened in one shot: the truth a measurement is checked against."""
+class ShotTruth:
+    """What really happened in one simulated shot: the ground truth a measurement is checked against.
+
+    Not a measurement: the measured shot is protocols.shot.ShotRecord (the raw record of a firing)
+    and, folded from the log, rig.core.run_state.ShotEntry.
+    """
 
     number: int  # 1-based count of balls fired
     fire_time_s: float

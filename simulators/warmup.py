@@ -20,7 +20,7 @@ from drivers.gates.codec import SPECS as GATES_SPECS
 from drivers.wire import Reply
 from simulators.device import SimDevice
 from simulators.effects import FaultConfig
-from simulators.records import Shot
+from simulators.records import ShotTruth
 from simulators.scene import Scene
 from simulators.world import SimWorld
 
@@ -41,7 +41,7 @@ class _Host:
             raise RuntimeError(f"warm-up: {self.device.name} {verb} was not accepted: {items}")
 
 
-def warm_up(scene: Scene) -> Shot:
+def warm_up(scene: Scene) -> ShotTruth:
     """Fire one dummy shot at the bat in a throwaway world of `scene`; return its true record.
 
     The shot aims at 60.8 m/s (or 90 % of a weaker cannon's top speed), 80 % of the way from the

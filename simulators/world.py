@@ -29,7 +29,7 @@ from simulators.physics import (
     drop_m,
     pendulum_period,
 )
-from simulators.records import Crossing, Outgoing, Shot
+from simulators.records import Crossing, Outgoing, ShotTruth
 from simulators.scene import Scene
 from simulators.timeline import Schedule
 
@@ -66,7 +66,7 @@ class SimWorld:
         self.estop = True
         self._pending_ilk: list[tuple[float, str, bool]] = []
         self.attempts = 0  # FIRE commands accepted (misfires included): the faults' shot number
-        self.shots: list[Shot] = []
+        self.shots: list[ShotTruth] = []
         self.cannon = SimCannon(self)
         self.gates = SimGates(self)
         self.clamp = SimClamp(self)
@@ -183,7 +183,7 @@ class SimWorld:
         lever = bat.balance_point_m - rig.pivot_from_knob_m
         return pendulum_period(bat.moi_kgm2, bat.mass_kg, lever, math.radians(rig.swing_amplitude_deg))
 
-    def fire(self, pressure_kpa: float, shot: int) -> Shot:
+    def fire(self, pressure_kpa: float, shot: int) -> ShotTruth:
         """Launch one ball now: gate crossings in and out, the impact, the recoil; queue the events."""
         scene, rig, bat = self.scene, self.scene.rig, self.scene.bat
         t0 = self.clock
@@ -221,7 +221,7 @@ class SimWorld:
             crossings = hook(crossings, shot)  # type: ignore[assignment]
         ticks = tuple((x.gate, self.counter(self.ticker.latch(x.gate, x.time_s))) for x in crossings)
         self.gates.stream(crossings, ticks, shot)
-        record = Shot(
+        record = ShotTruth(
             number=len(self.shots) + 1,
             fire_time_s=t0,
             pressure_kpa=pressure_kpa,

@@ -266,9 +266,11 @@ def _print_calibrated(c: dict[str, Any]) -> None:
 def cmd_accuracy(args: argparse.Namespace) -> int:
     """rig model accuracy: the work-precision study of the collision solvers."""
     from rig.physics.precision import work_precision
+    from rig.studies import stamped, stopwatch
 
     check_flags(args, BOUNDS)
-    study = work_precision(quick=args.quick, repeats=args.repeats)
+    timer = stopwatch(quick=args.quick, repeats=args.repeats)
+    study = stamped(lambda: work_precision(quick=args.quick, timer=timer))
     if args.plot:
         from rig.report.precision_plots import plot_work_precision
 

@@ -12,8 +12,8 @@ import matplotlib.pyplot as plt
 from matplotlib.ticker import NullFormatter
 from rich.table import Table
 
+from rig.physics.curve_cost import CurveTradeoffRow
 from rig.physics.precision import (
-    CurveTradeoffRow,
     PrecisionRow,
     PrecisionStudy,
     cost_to_reach,

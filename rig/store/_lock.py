@@ -14,6 +14,8 @@ from __future__ import annotations
 import os
 import socket
 import sqlite3
+import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 
@@ -130,3 +132,27 @@ def _is_zombie(pid: int) -> bool:
             return f.read().rsplit(")", 1)[1].split()[0] == "Z"
     except (OSError, IndexError):
         return False
+
+
+class Heartbeat(threading.Thread):
+    """Calls `renew` every `interval_s` until stopped or `renew` says the lock is gone (False)."""
+
+    def __init__(self, renew: Callable[[], bool], name: str, interval_s: float) -> None:
+        super().__init__(name=name, daemon=True)
+        self._renew, self._interval_s = renew, interval_s
+        self._stopped = threading.Event()
+
+    def run(self) -> None:
+        """Renew at each beat; a broken lock ends the beat, a busy or closed store only skips one."""
+        while not self._stopped.wait(self._interval_s):
+            try:
+                if not self._renew():
+                    return  # broken: the store refuses this runner's next append
+            except StoreError:
+                continue  # busy or closed: try again at the next beat
+
+    def stop(self) -> None:
+        """Stop beating and wait for the thread to end."""
+        self._stopped.set()
+        if self.is_alive():
+            self.join()

@@ -7,7 +7,7 @@ import os
 import sqlite3
 import threading
 import uuid
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
@@ -29,12 +29,12 @@ from rig.store._records import (
     RunSummary,
     VerifyReport,
 )
+from rig.store._rows import ENTRY_COLUMNS, check_id, entry_from_row, known_ids
 from rig.store._schema import connect
 
 Clock = Callable[[], datetime]
 EntrySpec = tuple[str | None, str, dict[str, Any]]  # (run_id, kind, payload) for append_many
 
-_ENTRY_COLUMNS = "seq, run_id, kind, payload, t_utc, prev_hash, hash"
 _RUN_COLUMNS = ", ".join(_derive.RUN_COLUMNS)
 _CLOSED_STATUSES = CLOSED_STATUSES
 DEFAULT_LEASE_S = 30.0  # a killed runner on another machine blocks its run this long at most
@@ -91,7 +91,7 @@ class Store:
 
     def register_bat(self, bat_id: str, spec: dict[str, Any]) -> LogEntry:
         """Record a bat (rig-level 'BatRegistered' entry); an id is registered once only."""
-        _check_id("bat_id", bat_id)
+        check_id("bat_id", bat_id)
         with self._write() as conn:
             if conn.execute("SELECT 1 FROM bats WHERE id = ?", (bat_id,)).fetchone():
                 raise RecordRefused(f"bat {bat_id} is already registered")
@@ -101,12 +101,12 @@ class Store:
 
     def create_run(self, procedure: str, bat_id: str, meta: dict[str, Any]) -> str:
         """Start a run of `procedure` on a registered bat ('RunCreated' entry); returns its id."""
-        _check_id("procedure", procedure)
+        check_id("procedure", procedure)
         run_id = uuid.uuid4().hex
         with self._write() as conn:
             if not conn.execute("SELECT 1 FROM bats WHERE id = ?", (bat_id,)).fetchone():
                 known = [b for (b,) in conn.execute("SELECT id FROM bats ORDER BY id")]
-                raise UnknownRecord(f"no bat {bat_id!r}; {_known('bats', known)}")
+                raise UnknownRecord(f"no bat {bat_id!r}; {known_ids('bats', known)}")
             payload = {"procedure": procedure, "bat_id": bat_id, "meta": meta}
             entry = self._append(conn, run_id, RUN_CREATED, payload, new_run=True)
             conn.execute(
@@ -150,7 +150,7 @@ class Store:
     def run_lock(self, run_id: str, *, lease_s: float = DEFAULT_LEASE_S) -> Iterator[_lock.RunLock]:
         """Hold the run's lock while the block runs (renewed by a heartbeat); see `acquire_run`."""
         held = self.acquire_run(run_id, lease_s=lease_s)
-        beat = _Heartbeat(self, held, interval_s=lease_s / 4)
+        beat = _lock.Heartbeat(lambda: self._renew(held), f"run-lock-heartbeat-{run_id[:8]}", lease_s / 4)
         beat.start()
         try:
             yield held
@@ -235,15 +235,15 @@ class Store:
             kinds = list(kinds)
             where.append(f"kind IN ({', '.join('?' * len(kinds))})")
             params += kinds
-        sql = f"SELECT {_ENTRY_COLUMNS} FROM log WHERE {' AND '.join(where)} ORDER BY seq"
+        sql = f"SELECT {ENTRY_COLUMNS} FROM log WHERE {' AND '.join(where)} ORDER BY seq"
         with self._read() as conn:
-            return [_entry(row) for row in conn.execute(sql, params)]
+            return [entry_from_row(row) for row in conn.execute(sql, params)]
 
     def entry(self, seq: int) -> LogEntry | None:
         """The entry at `seq`, or None if there is none."""
         with self._read() as conn:
-            row = conn.execute(f"SELECT {_ENTRY_COLUMNS} FROM log WHERE seq = ?", (seq,)).fetchone()
-        return _entry(row) if row else None
+            row = conn.execute(f"SELECT {ENTRY_COLUMNS} FROM log WHERE seq = ?", (seq,)).fetchone()
+        return entry_from_row(row) if row else None
 
     def runs(self) -> list[RunSummary]:
         """Every run, oldest first."""
@@ -339,7 +339,7 @@ class Store:
         t_utc = self._clock().astimezone(UTC).isoformat(timespec="microseconds")
         digest = entry_hash(prev_hash, seq, run_id, kind, t_utc, text)
         conn.execute(
-            f"INSERT INTO log ({_ENTRY_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?)",
+            f"INSERT INTO log ({ENTRY_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?)",
             (seq, run_id, kind, text, t_utc, prev_hash, digest),
         )
         if run_id is not None and not new_run:
@@ -365,49 +365,6 @@ class Store:
         if row is None:
             recent = [r for (r,) in conn.execute("SELECT run_id FROM runs ORDER BY started_utc DESC")]
             close = [r for r in recent if isinstance(run_id, str) and run_id and r.startswith(run_id)]
-            hint = f"did you mean {', '.join(close[:3])}?" if close else _known("runs", recent)
+            hint = f"did you mean {', '.join(close[:3])}?" if close else known_ids("runs", recent)
             raise UnknownRecord(f"no run {run_id!r}; {hint}")
         return RunSummary(*row)
-
-
-class _Heartbeat(threading.Thread):
-    """Renews a run lock's lease every `interval_s` until stopped or the lock is found broken."""
-
-    def __init__(self, store: Store, held: _lock.RunLock, interval_s: float) -> None:
-        super().__init__(name=f"run-lock-heartbeat-{held.run_id[:8]}", daemon=True)
-        self._store, self._held, self._interval_s = store, held, interval_s
-        self._stopped = threading.Event()
-
-    def run(self) -> None:
-        while not self._stopped.wait(self._interval_s):
-            try:
-                if not self._store._renew(self._held):
-                    return  # broken: the store refuses this runner's next append
-            except StoreError:
-                continue  # busy or closed: try again at the next beat
-
-    def stop(self) -> None:
-        self._stopped.set()
-        if self.is_alive():
-            self.join()
-
-
-def _entry(row: Sequence[Any]) -> LogEntry:
-    seq, run_id, kind, payload, t_utc, prev_hash, hash_ = row
-    try:
-        decoded = decode_payload(payload)
-    except (StoreError, TypeError) as exc:  # only a tampered file gets here; verify() says more
-        raise StoreError(f"seq {seq}: {exc}") from None
-    return LogEntry(seq, run_id, kind, decoded, t_utc, prev_hash, hash_)
-
-
-def _check_id(name: str, value: object) -> None:
-    if not isinstance(value, str) or not value.strip():
-        raise RecordRefused(f"{name} {value!r}: must be a non-empty str")
-
-
-def _known(what: str, ids: list[str], shown: int = 5) -> str:
-    if not ids:
-        return f"there are no {what} yet"
-    more = f" and {len(ids) - shown} more" if len(ids) > shown else ""
-    return f"known {what}: {', '.join(ids[:shown])}{more}"

@@ -11,30 +11,32 @@ import pytest
 from benchmarks.timing import best_time
 from rig.core.errors import ParameterError, SolverError
 from rig.physics import precision
+from rig.physics.curve_cost import CurveTradeoffRow, curve_tradeoff
 from rig.physics.equations import Impact
+from rig.physics.first_step import first_step_effect
 from rig.physics.params import DEFAULT_PARAMS
 from rig.physics.precision import (
     REFERENCE_AGREEMENT,
     PrecisionRow,
     PrecisionStudy,
-    curve_tradeoff,
     reliable_rtol,
     tolerance_fit,
     work_precision,
 )
 from rig.physics.reference import CollisionResult
+from rig.studies import Stopwatch, stamped, stopwatch
 
 ROW_KEYS = {"method", "rtol", "cor_error", "nfev", "time_s"}
 
 
 @pytest.fixture(scope="module")
 def study() -> PrecisionStudy:
-    return work_precision(quick=True)
+    return stamped(lambda: work_precision(quick=True, timer=stopwatch(quick=True)))
 
 
 @pytest.fixture(scope="module")
-def curve_rows() -> tuple[precision.CurveTradeoffRow, ...]:
-    return curve_tradeoff(quick=True)
+def curve_rows() -> tuple[CurveTradeoffRow, ...]:
+    return curve_tradeoff(quick=True, timer=stopwatch(quick=True))
 
 
 def _by_method(study: PrecisionStudy) -> dict[str, list[PrecisionRow]]:
@@ -141,11 +143,14 @@ def test_best_time_loops_fast_calls() -> None:
 def test_unknown_method_and_bad_repeats_are_refused() -> None:
     with pytest.raises(ParameterError, match="method"):
         work_precision(quick=True, methods=("Euler",))
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ParameterError, match="repeats"):
+            Stopwatch(repeats=bad)  # type: ignore[arg-type]
     with pytest.raises(ParameterError, match="repeats"):
-        work_precision(repeats=0)
+        stopwatch(repeats=0)
 
 
-def test_curve_tradeoff_rows(curve_rows: tuple[precision.CurveTradeoffRow, ...]) -> None:
+def test_curve_tradeoff_rows(curve_rows: tuple[CurveTradeoffRow, ...]) -> None:
     assert len(curve_rows) == 4
     for r in curve_rows:
         assert r.time_s > 0.0 and r.grid_time_s > 0.0
@@ -160,7 +165,7 @@ def test_curve_tradeoff_rows(curve_rows: tuple[precision.CurveTradeoffRow, ...])
 
 
 def test_plots_write_png_and_svg(
-    study: PrecisionStudy, curve_rows: tuple[precision.CurveTradeoffRow, ...], tmp_path
+    study: PrecisionStudy, curve_rows: tuple[CurveTradeoffRow, ...], tmp_path
 ) -> None:
     from rig.report.precision_plots import plot_curve_tradeoff, plot_work_precision
 
@@ -202,11 +207,11 @@ def test_cli_accuracy_json(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_accuracy_doc_markdown_from_a_quick_run(
-    study: PrecisionStudy, curve_rows: tuple[precision.CurveTradeoffRow, ...]
+    study: PrecisionStudy, curve_rows: tuple[CurveTradeoffRow, ...]
 ) -> None:
     from benchmarks.accuracy_writer import build_markdown
 
-    first = precision.first_step_effect(
+    first = first_step_effect(
         Impact(DEFAULT_PARAMS, 60.8, 1250.0), rtols=(1e-6,), cor_ref=study.references[0].cor
     )
     # scipy with the kernel's first step is the kernel's own method and error control: same steps

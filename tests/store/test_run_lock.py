@@ -11,7 +11,9 @@ from pathlib import Path
 
 import pytest
 
+from rig.core.errors import StoreError
 from rig.store import RecordRefused, RunLocked, Store
+from rig.store._lock import Heartbeat
 
 
 @pytest.fixture
@@ -126,3 +128,22 @@ def test_lease_must_be_a_sensible_number_of_seconds(db: tuple[Path, str]) -> Non
         for bad in (0, -1, float("nan"), float("inf"), 1e300):
             with pytest.raises(RecordRefused, match="lease_s"):
                 store.acquire_run(run, lease_s=bad)
+
+
+def test_the_heartbeat_skips_a_busy_beat_and_ends_itself_when_the_lock_is_gone() -> None:
+    answers: list[object] = [True, StoreError("database is locked"), True, False]
+    calls: list[float] = []
+
+    def renew() -> bool:
+        calls.append(time.monotonic())
+        answer = answers.pop(0)
+        if isinstance(answer, Exception):
+            raise answer
+        return bool(answer)
+
+    beat = Heartbeat(renew, "test-beat", interval_s=0.01)
+    beat.start()
+    beat.join(timeout=5.0)
+    assert not beat.is_alive()  # ended on its own at the False, without stop()
+    assert len(calls) == 4 and answers == []  # the StoreError beat was skipped, not fatal
+    beat.stop()  # harmless after the end
