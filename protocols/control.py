@@ -73,3 +73,8 @@ class RunAborted(RigError):
 
 class BudgetExceeded(RunAborted):
     """More invalid shots than the procedure allows since the rig was last checked."""
+
+
+class PlanError(RigError):
+    """A plan asked the executor for something it must refuse (a shot without its recorded intent,
+    a second shot while one is unresolved, a plan that does not end): a bug in the plan."""

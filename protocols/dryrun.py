@@ -19,7 +19,7 @@ from protocols.plan import Fired, Plan, PlanContext
 from protocols.procedure import Procedure
 from protocols.shot import ShotRecord
 from protocols.state import fold
-from protocols.steps import certification
+from protocols.steps import certification, plan_name
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
@@ -29,7 +29,7 @@ from rig.core.events import RunEvent
 
 NOMINAL_GATES = GateConfig(gates=3, tick_ns=10.0, bits=32)
 NOMINAL_PERIOD_S = 1.4  # a bat's swing on the pivot: a second and a half, give or take
-MAX_MESSAGES = 20_000  # a plan still going after this many messages does not end
+MAX_MESSAGES = 100_000  # a plan still going after this many messages does not end
 
 
 @dataclass
@@ -38,6 +38,7 @@ class CheckingRig:
 
     procedure: Procedure
     problems: list[str] = field(default_factory=list)
+    stage: list[str] = field(default_factory=list)  # positions the stage cannot reach
     fired: list[tuple[float, float]] = field(default_factory=list)  # (impact from pivot m, aim m/s)
 
     def problem(self, text: str) -> None:
@@ -60,8 +61,9 @@ class CheckingRig:
     def _stage(self, impact_from_pivot_m: float) -> None:
         lo, hi = STAGE_RANGE_MM
         mm = impact_from_pivot_m * 1000.0
-        if not lo <= mm <= hi:
-            self.problem(f"the stage cannot go to {mm:.0f} mm from the pivot (range {lo:g}-{hi:g} mm)")
+        text = f"the stage cannot go to {mm:.0f} mm from the pivot (range {lo:g}-{hi:g} mm)"
+        if not lo <= mm <= hi and text not in self.stage:
+            self.stage.append(text)
 
     def prepare(self, impact_from_pivot_m: float) -> GateConfig:
         """Check the first stage position."""
@@ -171,12 +173,14 @@ def rehearse(
     events: list[RunEvent] = []
 
     def keep(event: RunEvent) -> None:
-        if len(events) > MAX_MESSAGES:
-            raise RigError(f"the plan did not end within {MAX_MESSAGES} events")
         events.append(event)
 
-    ctx = PlanContext(procedure, bat, config, fold(history or []), who="dry run", **options)
-    executor = Executor(ctx, fakes, keep, operator=ScriptedOperator(True, "dry run"))
+    ctx = PlanContext(
+        procedure, bat, config, fold(history or []), who="dry run", plan_name=plan_name(plan), **options
+    )
+    executor = Executor(
+        ctx, fakes, keep, operator=ScriptedOperator(True, "dry run"), max_messages=MAX_MESSAGES
+    )
     finished, stopped = False, ""
     try:
         executor.run(plan)
@@ -185,7 +189,9 @@ def rehearse(
         stopped = str(exc)
     except RigError as exc:
         fakes.problem(str(exc))
-    return Rehearsal(list(fakes.problems), events, list(fakes.fired), finished, stopped)
+    # the stage's own limits back up the plan's location checks (a lab's plan may skip preflight)
+    problems = fakes.problems or fakes.stage
+    return Rehearsal(list(problems), events, list(fakes.fired), finished, stopped)
 
 
 def dry_run(

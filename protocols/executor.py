@@ -14,7 +14,7 @@ from collections.abc import Callable
 from typing import Any, Protocol, TypeVar
 
 from protocols import evaluate
-from protocols.control import Operator, RunAborted, RunControl, ScriptedOperator
+from protocols.control import Operator, PlanError, RunAborted, RunControl, ScriptedOperator
 from protocols.plan import (
     Ask,
     Checkpoint,
@@ -150,8 +150,10 @@ class Executor:
         operator: Operator | None = None,
         control: RunControl | None = None,
         drain_traffic: Traffic | None = None,
+        max_messages: int | None = None,
     ) -> None:
         self.ctx, self.backend, self._emit = ctx, backend, emit
+        self.max_messages = max_messages  # a rehearsal stops a plan that does not end
         self.operator = operator or ScriptedOperator()
         self.control = control or RunControl()
         self.drain_traffic = drain_traffic or (lambda: [])
@@ -171,6 +173,7 @@ class Executor:
         gen = plan(self.ctx)
         send: Callable[[Any], Msg] = gen.send
         value: Any = None
+        count = 0
         while True:
             try:
                 msg = send(value)
@@ -179,10 +182,15 @@ class Executor:
             except BaseException as exc:
                 self._lose_requested(exc)
                 raise
+            count += 1
+            if self.max_messages is not None and count > self.max_messages:
+                gen.close()
+                raise PlanError(f"the plan did not end within {self.max_messages} messages")
             try:
                 value, send = self.handle(msg), gen.send
             except BaseException as exc:
-                value, send = exc, gen.throw
+                self._lose_requested(exc)  # before the plan sees it: a plan that catches it cannot leave
+                value, send = exc, gen.throw  # the shot unresolved
 
     # -- persistence ------------------------------------------------------------------------
     def emit(self, event: RunEvent) -> None:
@@ -219,6 +227,8 @@ class Executor:
     def handle(self, msg: Msg) -> Any:
         """Carry out one message and return its answer."""
         if isinstance(msg, Record):
+            if isinstance(msg.event, ev.ShotRequested):
+                self._check_request(msg.event)
             if isinstance(msg.event, ev.RunFinished):
                 self.flush_traffic()  # nothing the devices said is left out of a closed run
             self.emit(msg.event)
@@ -255,6 +265,17 @@ class Executor:
             return self.backend.problem(msg.text)
         raise TypeError(f"the executor has no handler for {type(msg).__name__}")
 
+    def _check_request(self, event: ev.ShotRequested) -> None:
+        """A shot is requested only when none is unresolved, and numbered next."""
+        pending = self.state.pending
+        if pending is not None:
+            raise PlanError(
+                f"shot {event.index} requested while shot {pending.index} is unresolved "
+                "(a resumed plan resolves it first: rig.plans.resolve_pending)"
+            )
+        if event.index != len(self.state.shots) + 1:
+            raise PlanError(f"shot {event.index} requested; the next shot is {len(self.state.shots) + 1}")
+
     def _hold(self) -> None:
         """Honour pause and abort."""
         if self.control.paused:
@@ -283,10 +304,22 @@ class Executor:
 
     def _fire(self, msg: Fire) -> Fired | None:
         """Fire and record the raw data, or the loss; None if the shot was lost."""
+        index, pending = msg.index, self.state.pending
+        if pending is None or pending.index != index or self._requested != index or pending.fired:
+            raise PlanError(
+                f"fire shot {index}: no intent recorded for it in this session "
+                "(record ShotRequested with its index and location first; a shot fires once)"
+            )
+        if pending.location_in != msg.location_in:
+            raise PlanError(
+                f"fire shot {index} at {msg.location_in:g} in: it was requested at {pending.location_in:g} in"
+            )
         if self.gate_config is None:
-            raise ConfigError("fire before prepare: the gates' configuration is not known", source="plan")
+            raise PlanError("fire before prepare: the gates' configuration is not known")
+        if self.control.aborted:  # an abort is honoured even by a plan that caught it
+            raise RunAborted(self.control.reason)
+        self._move(msg.location_in)  # never fire where this session did not put the stage
         config = self.ctx.config.model_copy(update={"impact_from_pivot_m": self.ctx.q(msg.location_in)})
-        index = msg.index
         try:
             fired = self.backend.fire(config, msg.aim_speed_m_s, self.gate_config, self._live(index))
         except ShotFailed as exc:  # nothing at all came back: no raw record to keep

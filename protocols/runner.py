@@ -18,7 +18,7 @@ from protocols.executor import Executor, LiveRig
 from protocols.plan import PlanContext, PlanFactory
 from protocols.procedure import Procedure
 from protocols.state import RunState, fold
-from protocols.steps import certification, location_problem
+from protocols.steps import certification, location_problem, plan_name
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.devices import Cannon, Clamp, Gates
@@ -35,11 +35,6 @@ __all__ = [
     "dry_run",
     "location_problem",
 ]
-
-
-def plan_name(plan: PlanFactory) -> str:
-    """How a lab's own plan is named in the record: module and qualified name."""
-    return f"{getattr(plan, '__module__', '?')}.{getattr(plan, '__qualname__', repr(plan))}"
 
 
 class Runner:
@@ -75,7 +70,7 @@ class Runner:
             confirm_fire=confirm_fire,
             review_shots=review_shots,
             rig_check=rig_check,
-            plan_name=None if plan is certification else plan_name(plan),
+            plan_name=plan_name(plan),
         )
         self.executor = Executor(
             self.ctx, LiveRig(cannon, gates, clamp), emit, operator, control, drain_traffic

@@ -68,8 +68,19 @@ def start(ctx: PlanContext) -> Plan[None]:
     """Record the run's start (procedure, bat, rig, software, calibration), or its resumption."""
     if ctx.state.ended is not None:
         raise ConfigError("the run was ended without a verdict; start a new one", source="resume")
+    recorded = (ctx.state.setup or {}).get("plan")
+    if ctx.state.started and recorded != ctx.plan_name:
+        raise ConfigError(
+            f"the run was started with {_plan_words(recorded)}, not {_plan_words(ctx.plan_name)}: "
+            "resume it with the same plan (rig.certify(resume=..., plan=...))",
+            source="resume",
+        )
     if not ctx.state.started:
-        calibration = evaluate.run_calibration(ctx.procedure, ctx.config)
+        try:
+            calibration = evaluate.run_calibration(ctx.procedure, ctx.config)
+        except ConfigError as exc:  # a dry run lists it with the rest
+            yield Problem(str(exc))
+            calibration = None
         yield Record(
             ev.RunStarted(
                 procedure=ctx.procedure.model_dump(mode="json"),
@@ -85,6 +96,17 @@ def start(ctx: PlanContext) -> Plan[None]:
     else:
         yield Record(ev.RunResumed(shots_so_far=len(ctx.state.shots)))
     yield ClearFault()
+
+
+def plan_name(plan: object) -> str | None:
+    """How a lab's own plan is named in the record (module.function); None for the standard one."""
+    if plan is certification:
+        return None
+    return f"{getattr(plan, '__module__', '?')}.{getattr(plan, '__qualname__', repr(plan))}"
+
+
+def _plan_words(name: str | None) -> str:
+    return f"the plan {name}" if name else "the standard procedure"
 
 
 def check_budget(ctx: PlanContext) -> Plan[None]:

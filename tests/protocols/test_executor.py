@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from pathlib import Path
@@ -10,17 +11,17 @@ from typing import Any
 import pytest
 
 from protocols import steps
-from protocols.control import RunAborted, RunControl, ScriptedOperator
+from protocols.control import PlanError, RunAborted, RunControl, ScriptedOperator
 from protocols.dryrun import dry_run, rehearse
 from protocols.executor import Executor
-from protocols.plan import Checkpoint, Fire, Fired, Move, Plan, PlanContext, Prepare, Record
+from protocols.plan import Checkpoint, Evaluate, Fire, Fired, Move, Plan, PlanContext, Prepare, Record
 from protocols.procedure import Procedure
 from protocols.state import fold
 from rig.certification import certify
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.devices import GateConfig
-from rig.core.errors import DeviceError, GarbledReply
+from rig.core.errors import ConfigError, DeviceError, GarbledReply
 from rig.session import sim_config
 from rig.store import Store
 
@@ -212,3 +213,150 @@ def test_the_cli_dry_run_says_what_the_plan_would_do(
         f"{p.scan.from_in:g}-{p.scan.to_in:g} in, {p.hits.valid_hits} valid hits at the maximum, "
         f"{prompts} operator prompts, MOI timed on the pendulum)"
     )
+
+
+# -- what the executor refuses a lab's own plan (found by a review of the plan refactor) --------
+def _setup(ctx: PlanContext) -> Plan[None]:
+    yield from steps.preflight(ctx)
+    yield from steps.start(ctx)
+    yield from steps.environment(ctx)
+    yield from steps.prepare(ctx)  # the stage goes to the scan's first location, 5.0 in
+    yield from steps.measure_moi(ctx)
+
+
+def test_a_plan_that_forgets_to_move_still_fires_where_the_shot_was_requested(tmp_path: Path) -> None:
+    """Checked on the wire: the stage position at each FIRE is the shot's recorded location."""
+    from tests.protocols.wire import check_fires
+
+    def forgets_the_move(ctx: PlanContext) -> Plan[dict[str, Any]]:
+        yield from _setup(ctx)
+        yield Record(ev.LocationChosen(from_barrel_end_in=7.0, extra={"bracketed": False}))
+        yield Record(ev.ShotRequested(index=1, purpose="valid", location_in=7.0))
+        fired = yield Fire(1, 7.0, ctx.procedure.target_speed_m_s)  # no Move: the stage is at 5.0 in
+        result = yield Evaluate(fired)
+        yield Record(ev.event(ev.SHOT_MEASURED if result["valid"] else ev.SHOT_REJECTED, index=1, **result))
+        yield from steps.valid_hits(ctx)
+        return (yield from steps.decide(ctx))
+
+    p = Procedure.load("bbcor")
+    p = p.model_copy(update={"hits": p.hits.model_copy(update={"valid_hits": 2})})
+    with Store.open(tmp_path / "r.db") as store:
+        out = certify(store, p, BAT, sim_config("ideal", bat=BAT), plan=forgets_the_move)
+        entries = store.entries(out.run_id)
+    assert out.status == "finished", out.reason
+    assert set(check_fires(entries).values()) == {1}  # every shot once, each at its recorded location
+
+
+def test_no_shot_fires_without_its_recorded_intent() -> None:
+    rig = FakeRig(fail_fire=AssertionError("the cannon was fired"))
+
+    def unrequested(ctx: PlanContext) -> Plan[None]:
+        yield Prepare(5.0)
+        yield Fire(1, 5.0, 60.8)
+
+    ex, recorded = executor(rig)
+    with pytest.raises(PlanError, match="no intent recorded"):
+        ex.run(unrequested)
+    assert not [e for e in recorded if isinstance(e, ev.ShotFired)]
+
+
+def test_a_shot_is_never_requested_while_another_is_unresolved() -> None:
+    def two_at_once(ctx: PlanContext) -> Plan[None]:
+        yield Prepare(5.0)
+        yield Record(ev.ShotRequested(index=1, purpose="scan", location_in=5.0))
+        yield Record(ev.ShotRequested(index=2, purpose="scan", location_in=5.0))
+
+    ex, recorded = executor(FakeRig())
+    with pytest.raises(PlanError, match="shot 1 is unresolved"):
+        ex.run(two_at_once)
+    assert [e.kind for e in recorded if isinstance(e, ev.ShotRequested | ev.ShotLost)] == [
+        "ShotRequested",
+        "ShotLost",  # the first: stopped between its request and its outcome
+    ]
+
+
+def test_a_plan_that_catches_a_failed_fire_finds_the_shot_already_lost() -> None:
+    seen: list[bool] = []
+
+    def catches(ctx: PlanContext) -> Plan[None]:
+        yield from one_shot(ctx)
+
+    def wrapper(ctx: PlanContext) -> Plan[None]:
+        try:
+            yield from catches(ctx)
+        except RuntimeError:
+            seen.append(ctx.state.pending is None)
+
+    ex, recorded = executor(FakeRig(fail_fire=RuntimeError("a bug in a driver")))
+    ex.run(wrapper)
+    assert seen == [True]  # lost before the plan saw the error: a resume never meets it unresolved
+    assert [e.index for e in recorded if isinstance(e, ev.ShotLost)] == [1]
+
+
+def test_an_abort_caught_by_a_plan_still_stops_the_next_fire() -> None:
+    control = RunControl()
+    rig = FakeRig(fail_fire=AssertionError("the cannon was fired after the abort"))
+
+    def swallows(ctx: PlanContext) -> Plan[None]:
+        yield Prepare(5.0)
+        with contextlib.suppress(RunAborted):
+            yield Checkpoint()
+        yield Record(ev.ShotRequested(index=1, purpose="scan", location_in=5.0))
+        yield Fire(1, 5.0, 60.8)
+
+    ex, recorded = executor(rig, control)
+    control.abort("operator stop")
+    with pytest.raises(RunAborted, match="operator stop"):
+        ex.run(swallows)
+    assert [e.index for e in recorded if isinstance(e, ev.ShotLost)] == [1]
+
+
+def test_a_run_resumes_only_with_the_plan_it_started_with(tmp_path: Path) -> None:
+    def one_then_stop(ctx: PlanContext) -> Plan[dict[str, Any]]:
+        yield from _setup(ctx)
+        raise RunAborted("stop here for the test")
+
+    p = Procedure.load("bbcor")
+    config = sim_config("ideal", bat=BAT)
+    with Store.open(tmp_path / "r.db") as store:
+        out = certify(store, p, BAT, config, plan=one_then_stop)
+        assert out.status == "interrupted"
+        before = len(store.entries(out.run_id))
+        with pytest.raises(ConfigError, match=r"started with the plan .*one_then_stop, not the standard"):
+            certify(store, p, BAT, config, run_id=out.run_id)
+        assert len(store.entries(out.run_id)) == before  # refused before anything was recorded
+
+
+def test_a_plan_that_never_ends_is_a_dry_run_problem_not_a_hang() -> None:
+    def forever(ctx: PlanContext) -> Plan[None]:
+        while True:
+            yield Checkpoint()
+
+    found = rehearse(Procedure.load("bbcor"), BAT, sim_config("ideal", bat=BAT), forever)
+    assert found.problems == ["the plan did not end within 100000 messages"]
+
+
+def test_the_dry_run_lists_a_missing_calibration_with_the_other_problems(tmp_path: Path) -> None:
+    p = Procedure.load("bbcor")
+    p = p.model_copy(
+        update={
+            "calibration": str(tmp_path / "gone.json"),
+            "moi": p.moi.model_copy(update={"source": "entered"}),
+        }
+    )
+    bat = BAT.model_copy(update={"moi_kgm2": None})
+    problems = dry_run(p, bat, sim_config("ideal", bat=bat))
+    assert any("gone.json" in x for x in problems)
+    assert "procedure wants the MOI entered, but the bat file has no moi_kgm2" in problems
+
+
+def test_a_location_off_the_bat_is_named_once(tmp_path: Path) -> None:
+    p = Procedure.load("bbcor")
+    p = p.model_copy(
+        update={"scan": p.scan.model_copy(update={"from_in": 28.0, "to_in": 30.0, "step_in": 2.0})}
+    )
+    problems = dry_run(p, BAT, sim_config("ideal", bat=BAT))
+    assert problems == [
+        "scan location 28 in from the tip is not on the bat beyond the pivot",
+        "scan location 30 in from the tip is not on the bat beyond the pivot",
+    ]
