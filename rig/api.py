@@ -29,15 +29,21 @@ SQLITE_URL = "sqlite://"
 
 
 def open_store(path: str | Path) -> Store:
-    """Open (creating if need be) a record store: a file path or a `sqlite:///path` URL.
+    """Open (creating if need be) a record store: a file path, a `sqlite:///path` URL or a lab's
+    PostgreSQL database, `postgresql://user@host/dbname` (docs/records.md).
 
     Use it as a context manager; a file that is not a store raises StoreFileError (a RigError).
     """
     text = str(path)
+    if text.startswith(("postgresql://", "postgres://")):
+        return Store.open(text, create=True)
     if "://" in text:
         if not text.startswith(SQLITE_URL + "/"):
             scheme = text.split("://", 1)[0]
-            raise ConfigError(f"{scheme}:// stores are not supported; give a path or sqlite:///PATH", "store")
+            raise ConfigError(
+                f"{scheme}:// stores are not supported; give a path, sqlite:///PATH or postgresql://...",
+                "store",
+            )
         text = text[len(SQLITE_URL) + 1 :]  # sqlite:///rel.db -> rel.db, sqlite:////abs.db -> /abs.db
         if not text:
             raise ConfigError("the sqlite URL names no file", "store")

@@ -94,6 +94,13 @@ def default_db() -> Path:
     return where()
 
 
+def shown_db(db: object) -> str:
+    """A --db value as it may be printed: a database URL's password masked."""
+    from rig.store import safe_url
+
+    return safe_url(str(db))
+
+
 def open_db(args: argparse.Namespace) -> Any:
     from rig.store import Store
 

@@ -16,6 +16,7 @@ from rig.cli.common import (
     open_db,
     resolve_run,
     rig_config,
+    shown_db,
 )
 from rig.core import events as ev
 from rig.core.events import Verdict
@@ -33,7 +34,7 @@ def _interrupted(outcome: Any, args: argparse.Namespace) -> int:
     """Tell the operator how to go on after an interruption; exit status 3."""
     where = ("--config", args.config) if args.config else ("--sim", args.sim) if args.sim else None
     rig = f"{where[0]} {shlex.quote(where[1])}" if where else "--config RIG.toml"
-    db = f" --db {shlex.quote(str(args.db))}" if args.db else ""
+    db = f" --db {shlex.quote(shown_db(args.db))}" if args.db else ""
     resume = f"rig certify --resume {outcome.run_id} {rig}{db}"
     print(f"rig: run {outcome.run_id} interrupted: {outcome.reason}; resume with: {resume}", file=sys.stderr)
     if outcome.budget_exceeded:
@@ -158,7 +159,7 @@ def cmd_runs(args: argparse.Namespace) -> int:
         json.dump(rows, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
-    table = Table(title=f"Runs in {args.db or 'rig-records.db'}")
+    table = Table(title=f"Runs in {shown_db(args.db) if args.db else 'rig-records.db'}")
     for col in ("run", "procedure", "bat", "started (UTC)", "status", "verdict"):
         table.add_column(col)
     for r in runs:

@@ -1,4 +1,4 @@
-"""Run records: an append-only, hash-chained log in SQLite (WAL) with tables derived from it.
+"""Run records: an append-only, hash-chained log, in SQLite (WAL) or PostgreSQL, with tables derived from it.
 
 The log is the record of truth (rule 5, "nothing is lost"); `bats` and `runs` are conveniences
 rebuilt from it at will. See docs/records.md for the schema, the chain and its limits.
@@ -7,6 +7,7 @@ rebuilt from it at will. See docs/records.md for the schema, the chain and its l
 from rig.core.errors import RecordRefused, StoreError, StoreFileError, UnknownRecord
 from rig.store._codec import GENESIS_HASH, canonical_json, decode_bytes, encode_bytes, entry_hash
 from rig.store._lock import RunLock, RunLocked
+from rig.store._pg import is_url, safe_url
 from rig.store._records import (
     RESERVED_KINDS,
     RUN_STATUSES,
@@ -42,4 +43,6 @@ __all__ = [
     "decode_bytes",
     "encode_bytes",
     "entry_hash",
+    "is_url",
+    "safe_url",
 ]

@@ -19,7 +19,13 @@ BAT_REGISTERED = "BatRegistered"
 RUN_CREATED = "RunCreated"
 RUN_STATUS_CHANGED = "RunStatusChanged"
 RUN_LOCK_BROKEN = "RunLockBroken"  # a stale runner's lock was broken by the next runner
-RESERVED_KINDS = frozenset({BAT_REGISTERED, RUN_CREATED, RUN_STATUS_CHANGED, RUN_LOCK_BROKEN})
+# Chain format 2: the lab chain anchors each run's chain when it opens and when it is sealed.
+RUN_OPENED = "RunOpened"
+RUN_SEALED = "RunSealed"
+RESERVED_KINDS = frozenset(
+    {BAT_REGISTERED, RUN_CREATED, RUN_STATUS_CHANGED, RUN_LOCK_BROKEN, RUN_OPENED, RUN_SEALED}
+)
+LAB_CHAIN = "lab"  # format 2: the chain of entries that belong to no run (bats, run anchors)
 CLOSED_STATUSES: tuple[str, ...] = ("finished", "aborted")  # a run in one of these is sealed
 
 
@@ -34,6 +40,7 @@ class LogEntry:
     t_utc: str
     prev_hash: str
     hash: str
+    chain_seq: int | None = None  # format 2: the entry's number in its chain (its run's, or the lab's)
 
     @property
     def time(self) -> datetime:

@@ -9,17 +9,17 @@ from rig.core.errors import RecordRefused, StoreError
 from rig.store._codec import decode_payload
 from rig.store._records import LogEntry
 
-ENTRY_COLUMNS = "seq, run_id, kind, payload, t_utc, prev_hash, hash"
+ENTRY_COLUMNS = "seq, run_id, kind, payload, t_utc, prev_hash, hash, chain_seq"
 
 
 def entry_from_row(row: Sequence[Any]) -> LogEntry:
     """A `log` row (ENTRY_COLUMNS order) as a LogEntry; a payload that does not decode raises StoreError."""
-    seq, run_id, kind, payload, t_utc, prev_hash, hash_ = row
+    seq, run_id, kind, payload, t_utc, prev_hash, hash_, chain_seq = row
     try:
         decoded = decode_payload(payload)
     except (StoreError, TypeError) as exc:  # only a tampered file gets here; verify() says more
         raise StoreError(f"seq {seq}: {exc}") from None
-    return LogEntry(seq, run_id, kind, decoded, t_utc, prev_hash, hash_)
+    return LogEntry(seq, run_id, kind, decoded, t_utc, prev_hash, hash_, chain_seq)
 
 
 def check_id(name: str, value: object) -> None:

@@ -55,6 +55,16 @@ MIGRATIONS: tuple[tuple[str, ...], ...] = (
             heartbeat_utc TEXT NOT NULL,
             lease_s REAL NOT NULL CHECK (lease_s > 0))""",
     ),
+    (
+        # Version 3: chain format 2, one hash chain per run plus the lab chain (entries of no run,
+        # and each run's anchors), so that several rigs append to one database without waiting
+        # for each other and a run's records can be copied whole to another store (rig sync).
+        # A file that already holds entries keeps format 1 (one chain through every entry).
+        "ALTER TABLE log ADD COLUMN chain TEXT",
+        "ALTER TABLE log ADD COLUMN chain_seq INTEGER",
+        "CREATE UNIQUE INDEX log_by_chain ON log (chain, chain_seq)",
+        "CREATE TABLE store_meta (key TEXT PRIMARY KEY, value TEXT NOT NULL)",
+    ),
 )
 SCHEMA_VERSION = len(MIGRATIONS)
 APPEND_ONLY_TRIGGERS = ("log_no_update", "log_no_delete")
@@ -133,6 +143,7 @@ def _migrate(conn: sqlite3.Connection, path: Path, fresh: bool) -> None:
                 "INSERT INTO schema_version (version, applied_utc) VALUES (?, ?)",
                 (target, datetime.now(UTC).isoformat(timespec="seconds")),
             )
+        _settle_format(conn)
         conn.execute(f"PRAGMA application_id={APPLICATION_ID}")
         conn.execute("COMMIT")
     except BaseException:
@@ -153,3 +164,40 @@ def _current_version(conn: sqlite3.Connection, path: Path, fresh: bool) -> int:
     if version is None:
         raise StoreFileError(f"{path}: the schema_version table is empty")
     return int(version)
+
+
+CHAIN_FORMATS = (1, 2)
+
+
+def _settle_format(conn: sqlite3.Connection) -> None:
+    """Record the file's chain format once: 2 for a file with no entries yet, else 1."""
+    if not _has_meta(conn) or conn.execute("SELECT 1 FROM store_meta WHERE key = 'chain_format'").fetchone():
+        return
+    empty = conn.execute("SELECT count(*) FROM log").fetchone()[0] == 0
+    conn.execute("INSERT INTO store_meta (key, value) VALUES ('chain_format', ?)", ("2" if empty else "1",))
+
+
+def chain_format(conn: sqlite3.Connection, path: Path) -> int:
+    """The file's chain format (1: one chain through the file; 2: a chain per run and the lab's)."""
+    if not _has_meta(conn):
+        return 1  # a file of a schema before 3: one chain
+    row = conn.execute("SELECT value FROM store_meta WHERE key = 'chain_format'").fetchone()
+    if row is None or row[0] not in ("1", "2"):
+        raise StoreFileError(f"{path}: no valid chain format recorded (store_meta damaged?)")
+    return int(row[0])
+
+
+def set_chain_format(conn: sqlite3.Connection, path: Path, version: int) -> None:
+    """Choose the chain format of a store with no entries yet (tests of format 1, old tools)."""
+    if version not in CHAIN_FORMATS:
+        raise StoreFileError(f"{path}: chain format {version!r}: known formats are 1 and 2")
+    if chain_format(conn, path) == version:
+        return
+    if conn.execute("SELECT count(*) FROM log").fetchone()[0]:
+        raise StoreFileError(f"{path}: holds entries; its chain format cannot change")
+    conn.execute("UPDATE store_meta SET value = ? WHERE key = 'chain_format'", (str(version),))
+
+
+def _has_meta(conn: sqlite3.Connection) -> bool:
+    query = "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = 'store_meta'"
+    return bool(conn.execute(query).fetchone()[0])

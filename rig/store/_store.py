@@ -14,15 +14,19 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any, Self
 
-from rig.core.errors import RecordRefused, StoreError, UnknownRecord
+from rig.core.errors import RecordRefused, StoreError, StoreFileError, UnknownRecord
 from rig.store import _derive, _lock, _verify
 from rig.store._codec import GENESIS_HASH, check_kind, check_payload, decode_payload, entry_hash
+from rig.store._pg import connect_pg, db_error_text, is_db_error, is_url, safe_url
 from rig.store._records import (
     BAT_REGISTERED,
     CLOSED_STATUSES,
+    LAB_CHAIN,
     RESERVED_KINDS,
     RUN_CREATED,
     RUN_LOCK_BROKEN,
+    RUN_OPENED,
+    RUN_SEALED,
     RUN_STATUS_CHANGED,
     Anchor,
     LogEntry,
@@ -30,7 +34,7 @@ from rig.store._records import (
     VerifyReport,
 )
 from rig.store._rows import ENTRY_COLUMNS, check_id, entry_from_row, known_ids
-from rig.store._schema import connect
+from rig.store._schema import chain_format, connect, set_chain_format
 
 Clock = Callable[[], datetime]
 EntrySpec = tuple[str | None, str, dict[str, Any]]  # (run_id, kind, payload) for append_many
@@ -51,26 +55,68 @@ class Store:
     write method returns, its entries are on disk.
     """
 
-    def __init__(self, conn: sqlite3.Connection, path: Path, clock: Clock) -> None:
+    def __init__(self, conn: Any, path: Path | str, clock: Clock) -> None:
         """Use `Store.open`."""
-        self._conn: sqlite3.Connection | None = conn
-        self._path = path
+        self._conn: Any = conn  # sqlite3.Connection, or a PgConn for a PostgreSQL URL
+        self.engine = getattr(conn, "engine", "sqlite")
+        self.chain_format = chain_format(conn, path) if self.engine == "sqlite" else 2
+        self._path = path  # a Path, or the URL without its password
         self._clock = clock
         self._lock = threading.RLock()
         self._held: dict[str, str] = {}  # run_id -> owner token of the run locks this Store holds
 
     @classmethod
     def open(
-        cls, path: str | Path, *, create: bool = True, busy_timeout_s: float = 5.0, clock: Clock | None = None
+        cls,
+        path: str | Path,
+        *,
+        create: bool = True,
+        busy_timeout_s: float = 5.0,
+        clock: Clock | None = None,
+        chain_format: int | None = None,
     ) -> Store:
-        """Open (and with `create`, make) a store; a bad or foreign file raises StoreFileError."""
+        """Open (and with `create`, make) a store; a bad or foreign file raises StoreFileError.
+
+        `chain_format` chooses the chain of a store with no entries yet (default 2, a chain per run
+        and the lab's; 1 is the single chain of stores written before it, kept for them).
+        """
+        if is_url(path):
+            return cls._open_url(str(path), create, busy_timeout_s, clock, chain_format)
         path = Path(path)
-        return cls(connect(path, create=create, busy_timeout_s=busy_timeout_s), path, clock or _utc_now)
+        conn = connect(path, create=create, busy_timeout_s=busy_timeout_s)
+        if chain_format is not None:
+            try:
+                conn.execute("BEGIN IMMEDIATE")
+                set_chain_format(conn, path, chain_format)
+                conn.execute("COMMIT")
+            except BaseException:
+                if conn.in_transaction:
+                    conn.execute("ROLLBACK")
+                conn.close()
+                raise
+        return cls(conn, path, clock or _utc_now)
+
+    @classmethod
+    def _open_url(
+        cls, url: str, create: bool, timeout_s: float, clock: Clock | None, chain_format: int | None
+    ) -> Store:
+        if url.startswith("sqlite:"):
+            raise StoreFileError(f"{url}: give a SQLite store as a file path")
+        if chain_format not in (None, 2):
+            raise StoreFileError(f"{safe_url(url)}: a PostgreSQL store has chain format 2 only")
+        return cls(connect_pg(url, create=create, timeout_s=timeout_s), safe_url(url), clock or _utc_now)
 
     @property
     def path(self) -> Path:
-        """The store's file."""
+        """The store's file (a SQLite store; a PostgreSQL store has none: StoreError)."""
+        if not isinstance(self._path, Path):
+            raise StoreError(f"{self._path}: a PostgreSQL store has no file")
         return self._path
+
+    @property
+    def location(self) -> str:
+        """Where the records are: the file, or the database URL without its password."""
+        return str(self._path)
 
     def close(self) -> None:
         """Close the file; further calls raise StoreError. Closing twice is harmless."""
@@ -113,6 +159,8 @@ class Store:
                 f"INSERT INTO runs ({_RUN_COLUMNS}) VALUES (?, ?, ?, ?, 'running', NULL, ?)",
                 (run_id, procedure, bat_id, entry.t_utc, entry.seq),
             )
+            if self.chain_format == 2:  # the lab chain anchors the run's first entry
+                self._append(conn, None, RUN_OPENED, {"run_id": run_id, "hash": entry.hash})
         return run_id
 
     def append(self, run_id: str | None, kind: str, payload: dict[str, Any]) -> LogEntry:
@@ -142,6 +190,9 @@ class Store:
             conn.execute(
                 "UPDATE runs SET status = ?, verdict = ? WHERE run_id = ?", (status, verdict, run_id)
             )
+            if self.chain_format == 2:  # the lab chain anchors the sealed run's last entry
+                anchor = {"run_id": run_id, "chain_seq": entry.chain_seq, "hash": entry.hash}
+                self._append(conn, None, RUN_SEALED, {**anchor, "status": status})
         return entry
 
     # --- one runner per run ----------------------------------------------------------------
@@ -248,7 +299,8 @@ class Store:
     def runs(self) -> list[RunSummary]:
         """Every run, oldest first."""
         with self._read() as conn:
-            rows = conn.execute(f"SELECT {_RUN_COLUMNS} FROM runs ORDER BY started_utc, rowid")
+            order = "rowid" if self.engine == "sqlite" else "last_seq"  # PostgreSQL has no rowid
+            rows = conn.execute(f"SELECT {_RUN_COLUMNS} FROM runs ORDER BY started_utc, {order}")
             return [RunSummary(*row) for row in rows]
 
     def open_runs(self) -> list[RunSummary]:
@@ -281,9 +333,10 @@ class Store:
         """Walk the chain from genesis, cross-check the tables and any outside anchors."""
         anchors = list(anchors)
         with self._read() as conn:
-            conn.execute("BEGIN")  # one snapshot: a concurrent append must not look like a mismatch
+            # one snapshot: a concurrent append must not look like a mismatch
+            conn.execute("BEGIN" if self.engine == "sqlite" else "BEGIN ISOLATION LEVEL REPEATABLE READ")
             try:
-                return _verify.verify(conn, anchors)
+                return _verify.verify(conn, anchors, self.chain_format, self.engine)
             finally:
                 if conn.in_transaction:
                     conn.execute("COMMIT")
@@ -297,7 +350,7 @@ class Store:
     # --- internals -----------------------------------------------------------------------
 
     @contextmanager
-    def _read(self) -> Iterator[sqlite3.Connection]:
+    def _read(self) -> Iterator[Any]:
         with self._lock:
             if self._conn is None:
                 raise StoreError(f"{self._path}: the store is closed")
@@ -305,9 +358,13 @@ class Store:
                 yield self._conn
             except sqlite3.Error as exc:
                 raise StoreError(f"{self._path}: {exc}") from exc
+            except Exception as exc:
+                if self.engine == "sqlite" or not is_db_error(exc):
+                    raise
+                raise StoreError(f"{self._path}: {db_error_text(exc)}") from exc
 
     @contextmanager
-    def _write(self) -> Iterator[sqlite3.Connection]:
+    def _write(self) -> Iterator[Any]:
         # IMMEDIATE takes the write lock before reading the head, so that two writers (even in
         # two processes) can never both append after the same entry.
         with self._read() as conn:
@@ -322,7 +379,7 @@ class Store:
 
     def _append(
         self,
-        conn: sqlite3.Connection,
+        conn: Any,
         run_id: str | None,
         kind: str,
         payload: dict[str, Any],
@@ -334,19 +391,54 @@ class Store:
             raise RecordRefused(f"run_id {run_id!r}: must be a str or None")
         if run_id is not None and not new_run:
             self._check_open(conn, run_id, kind)
-        head = conn.execute("SELECT seq, hash FROM log ORDER BY seq DESC LIMIT 1").fetchone()
-        seq, prev_hash = (head[0] + 1, head[1]) if head else (1, GENESIS_HASH)
         t_utc = self._clock().astimezone(UTC).isoformat(timespec="microseconds")
-        digest = entry_hash(prev_hash, seq, run_id, kind, t_utc, text)
+        if self.engine != "sqlite":
+            return self._append_pg(conn, run_id, kind, text, t_utc, new_run)
+        last = conn.execute("SELECT seq FROM log ORDER BY seq DESC LIMIT 1").fetchone()
+        seq = last[0] + 1 if last else 1
+        chain: str | None = None
+        number: int | None = None
+        if self.chain_format == 1:  # one chain through every entry, numbered by seq
+            head = conn.execute("SELECT hash FROM log WHERE seq = ?", (seq - 1,)).fetchone()
+            prev_hash, hashed_seq = (head[0] if head else GENESIS_HASH), seq
+        else:  # the run's own chain, or the lab's, numbered within it
+            chain = run_id if run_id is not None else LAB_CHAIN
+            head = conn.execute(
+                "SELECT chain_seq, hash FROM log WHERE chain = ? ORDER BY chain_seq DESC LIMIT 1", (chain,)
+            ).fetchone()
+            number, prev_hash = (head[0] + 1, head[1]) if head else (1, GENESIS_HASH)
+            hashed_seq = number
+        digest = entry_hash(prev_hash, hashed_seq, run_id, kind, t_utc, text)
         conn.execute(
-            f"INSERT INTO log ({ENTRY_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?)",
-            (seq, run_id, kind, text, t_utc, prev_hash, digest),
+            "INSERT INTO log (seq, run_id, kind, payload, t_utc, prev_hash, hash, chain, chain_seq) "
+            "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+            (seq, run_id, kind, text, t_utc, prev_hash, digest, chain, number),
         )
         if run_id is not None and not new_run:
             conn.execute("UPDATE runs SET last_seq = ? WHERE run_id = ?", (seq, run_id))
-        return LogEntry(seq, run_id, kind, decode_payload(text), t_utc, prev_hash, digest)
+        return LogEntry(seq, run_id, kind, decode_payload(text), t_utc, prev_hash, digest, number)
 
-    def _check_open(self, conn: sqlite3.Connection, run_id: str, kind: str) -> None:
+    def _append_pg(
+        self, conn: Any, run_id: str | None, kind: str, text: str, t_utc: str, new_run: bool
+    ) -> LogEntry:
+        """Append to the run's chain (or the lab's) under that chain's lock only."""
+        chain = run_id if run_id is not None else LAB_CHAIN
+        conn.lock_chain(chain)
+        head = conn.execute(
+            "SELECT chain_seq, hash FROM log WHERE chain = ? ORDER BY chain_seq DESC LIMIT 1", (chain,)
+        ).fetchone()
+        number, prev_hash = (head[0] + 1, head[1]) if head else (1, GENESIS_HASH)
+        digest = entry_hash(prev_hash, number, run_id, kind, t_utc, text)
+        seq = conn.execute(
+            "INSERT INTO log (run_id, kind, payload, t_utc, prev_hash, hash, chain, chain_seq) "
+            "VALUES (?, ?, ?, ?, ?, ?, ?, ?) RETURNING seq",
+            (run_id, kind, text, t_utc, prev_hash, digest, chain, number),
+        ).fetchone()[0]
+        if run_id is not None and not new_run:
+            conn.execute("UPDATE runs SET last_seq = ? WHERE run_id = ?", (seq, run_id))
+        return LogEntry(seq, run_id, kind, decode_payload(text), t_utc, prev_hash, digest, number)
+
+    def _check_open(self, conn: Any, run_id: str, kind: str) -> None:
         """Refuse an entry for an unknown or sealed run, or one another runner holds."""
         run = self._run(conn, run_id)  # refuses an unknown run with the known ids
         if run.status != "running":
@@ -360,7 +452,7 @@ class Store:
         if held is None and mine is not None:
             raise _lock.RunLocked(f"run {run_id}: this runner's lock was broken (lease ran out); stopping")
 
-    def _run(self, conn: sqlite3.Connection, run_id: str) -> RunSummary:
+    def _run(self, conn: Any, run_id: str) -> RunSummary:
         row = conn.execute(f"SELECT {_RUN_COLUMNS} FROM runs WHERE run_id = ?", (run_id,)).fetchone()
         if row is None:
             recent = [r for (r,) in conn.execute("SELECT run_id FROM runs ORDER BY started_utc DESC")]

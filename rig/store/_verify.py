@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import json
-import sqlite3
 from collections.abc import Iterable
+from typing import Any
 
 from rig.core import events as ev
+from rig.store._chains import Chains, check_anchors, check_chain
 from rig.store._codec import GENESIS_HASH, entry_hash
 from rig.store._derive import Deriver, compare_tables
 from rig.store._records import Anchor, VerifyReport
@@ -20,7 +21,15 @@ _MAX_LISTED = 50  # a wholesale rewrite would otherwise list every row
 _SELECT = (
     "SELECT seq, "
     + ", ".join(f"CAST({c} AS BLOB), typeof({c})" for c in _TEXT_COLUMNS)
-    + " FROM log ORDER BY seq"
+    + ", chain, chain_seq FROM log ORDER BY seq"
+)
+# PostgreSQL keeps text valid UTF-8 in a UTF-8 database: its bytes and whether it is NULL suffice
+_SELECT_PG = (
+    "SELECT seq, "
+    + ", ".join(
+        f"convert_to({c}, 'UTF8'), CASE WHEN {c} IS NULL THEN 'null' ELSE 'text' END" for c in _TEXT_COLUMNS
+    )
+    + ", chain, chain_seq FROM log ORDER BY seq"
 )
 
 
@@ -104,25 +113,48 @@ class _RunAudit:
             )
 
 
-def verify(conn: sqlite3.Connection, anchors: Iterable[Anchor] = ()) -> VerifyReport:
+def verify(
+    conn: Any, anchors: Iterable[Anchor] = (), chain_format: int = 1, engine: str = "sqlite"
+) -> VerifyReport:
     """Check the log, the tables and the anchors (caller holds a read transaction)."""
-    chain, deriver, audit = _Chain(), Deriver(), _RunAudit()
-    for row in conn.execute(_SELECT):
-        seq, raw = row[0], row[1:]
-        fields = chain.feed(seq, raw)
+    chain, deriver, audit, chains = _Chain(), Deriver(), _RunAudit(), Chains()
+    last = Anchor(0, GENESIS_HASH)
+    for row in conn.execute(_SELECT if engine == "sqlite" else _SELECT_PG):
+        seq, raw, chain_name, chain_seq = row[0], row[1:-2], row[-2], row[-1]
+        if chain_format == 1:
+            fields = chain.feed(seq, raw)
+        else:
+            chain.checked += 1
+            fields, why = _decode(raw)
+            if why is not None:
+                chains.problems.append((seq, why))
+                fields = None
+            else:
+                chains.feed(seq, chain_name, chain_seq, fields)
+                last = Anchor(seq, str(fields[5]))
         if fields is not None:
             run_id, kind, payload, t_utc = fields[:4]
             deriver.feed(seq, run_id, kind or "", payload, t_utc or "")
             audit.feed(seq, run_id, kind or "", payload)
-    problems = [f"seq {seq}: {reason}" for seq, reason in chain.problems[:_MAX_LISTED]]
-    if len(chain.problems) > _MAX_LISTED:
-        problems.append(f"... and {len(chain.problems) - _MAX_LISTED} more broken entries")
+    broken = list(chain.problems)
+    extra: list[str] = []
+    if chain_format == 2:
+        broken += chains.problems
+        for name, rows in chains.rows.items():
+            broken += check_chain(name, rows)[0]
+        broken.sort()
+        extra = check_anchors(chains.rows)
+        chain.head = last
+    problems = [f"seq {seq}: {reason}" for seq, reason in broken[:_MAX_LISTED]]
+    if len(broken) > _MAX_LISTED:
+        problems.append(f"... and {len(broken) - _MAX_LISTED} more broken entries")
+    problems += extra[:_MAX_LISTED]
     problems += deriver.problems[:_MAX_LISTED]
     problems += audit.problems[:_MAX_LISTED]
     problems += compare_tables(conn, deriver)[:_MAX_LISTED]
-    problems += _check_anchors(conn, anchors)
-    problems += _check_triggers(conn)
-    first = chain.problems[0] if chain.problems else (None, None)
+    problems += _check_anchors(conn, anchors, engine)
+    problems += _check_triggers(conn, engine)
+    first = broken[0] if broken else (None, None)
     return VerifyReport(
         ok=not problems,
         entries_checked=chain.checked,
@@ -150,10 +182,11 @@ def _decode(raw: tuple[object, ...]) -> tuple[tuple[str | None, ...], str | None
     return tuple(values), None
 
 
-def _check_anchors(conn: sqlite3.Connection, anchors: Iterable[Anchor]) -> list[str]:
+def _check_anchors(conn: Any, anchors: Iterable[Anchor], engine: str) -> list[str]:
     problems = []
+    raw_hash = "CAST(hash AS BLOB)" if engine == "sqlite" else "convert_to(hash, 'UTF8')"
     for anchor in anchors:
-        row = conn.execute("SELECT CAST(hash AS BLOB) FROM log WHERE seq = ?", (anchor.seq,)).fetchone()
+        row = conn.execute(f"SELECT {raw_hash} FROM log WHERE seq = ?", (anchor.seq,)).fetchone()
         if row is None:
             problems.append(f"anchor seq {anchor.seq}: no such entry (the log was truncated)")
         elif bytes(row[0]) != anchor.hash.encode():
@@ -164,7 +197,12 @@ def _check_anchors(conn: sqlite3.Connection, anchors: Iterable[Anchor]) -> list[
     return problems
 
 
-def _check_triggers(conn: sqlite3.Connection) -> list[str]:
-    present = {name for (name,) in conn.execute("SELECT name FROM sqlite_master WHERE type = 'trigger'")}
+def _check_triggers(conn: Any, engine: str) -> list[str]:
+    query = (
+        "SELECT name FROM sqlite_master WHERE type = 'trigger'"
+        if engine == "sqlite"
+        else "SELECT tgname FROM pg_trigger WHERE tgrelid = 'log'::regclass AND tgenabled <> 'D'"
+    )
+    present = {name for (name,) in conn.execute(query)}
     missing = [name for name in APPEND_ONLY_TRIGGERS if name not in present]
     return [f"append-only triggers removed: {', '.join(missing)}"] if missing else []

@@ -15,8 +15,17 @@ from rig.store import Store
 
 @pytest.fixture
 def store(tmp_path: Path) -> Iterator[Store]:
-    """An empty store in a temporary folder."""
-    with Store.open(tmp_path / "rig.db") as s:
+    """An empty store of chain format 1 (the one chain that files written before format 2 keep,
+    whose tampering tests count seqs); format 2 is tested in test_chains.py."""
+    with Store.open(tmp_path / "rig.db", chain_format=1) as s:
+        yield s
+
+
+@pytest.fixture
+def store2(tmp_path: Path) -> Iterator[Store]:
+    """An empty store of chain format 2 (a chain per run and the lab's): what new files are."""
+    with Store.open(tmp_path / "rig2.db") as s:
+        assert s.chain_format == 2
         yield s
 
 

@@ -9,10 +9,11 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
+import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from rig.store import Store
+from rig.store import RESERVED_KINDS, Store
 from tests.store.conftest import raw
 
 _scalars = (
@@ -29,16 +30,19 @@ _values = st.recursive(
 )
 payloads = st.dictionaries(st.text(max_size=6), _values, max_size=5)
 kinds = st.from_regex(r"[A-Za-z][A-Za-z0-9_.]{0,10}", fullmatch=True).filter(
-    lambda k: k not in {"BatRegistered", "RunCreated", "RunStatusChanged"}
+    lambda k: k not in RESERVED_KINDS
 )
 # (in the run or rig-level, kind, payload, batched with the previous one)
 appends = st.lists(st.tuples(st.booleans(), kinds, payloads, st.booleans()), min_size=1, max_size=12)
 
 
 @contextmanager
-def _fresh_store() -> Iterator[Store]:
+def _fresh_store(chain_format: int = 2) -> Iterator[Store]:
     # Hypothesis reruns the test body many times: one folder per example, not one per test.
-    with tempfile.TemporaryDirectory() as folder, Store.open(Path(folder) / "p.db") as store:
+    with (
+        tempfile.TemporaryDirectory() as folder,
+        Store.open(Path(folder) / "p.db", chain_format=chain_format) as store,
+    ):
         yield store
 
 
@@ -55,16 +59,26 @@ def _write(store: Store, plan: list[tuple[bool, str, dict[str, Any], bool]]) -> 
     return [{"procedure": "bbcor", "bat_id": "B", "meta": {}}] + [p for _, _, p, _ in plan]
 
 
+@pytest.mark.parametrize("chain_format", [1, 2])
 @given(plan=appends)
-def test_any_appends_verify_and_read_back(plan: list[tuple[bool, str, dict[str, Any], bool]]) -> None:
-    with _fresh_store() as store:
+def test_any_appends_verify_and_read_back(
+    chain_format: int, plan: list[tuple[bool, str, dict[str, Any], bool]]
+) -> None:
+    with _fresh_store(chain_format) as store:
         expected = _write(store, plan)
         report = store.verify()
         assert report.ok, report
-        entries = store.entries()
-        assert [e.seq for e in entries] == list(range(1, len(plan) + 3))
+        every = store.entries()
+        assert [e.seq for e in every] == list(range(1, len(every) + 1))
+        entries = [e for e in every if e.kind != "RunOpened"]  # format 2: the lab chain's run anchor
+        assert len(every) - len(entries) == (chain_format == 2)
         assert [e.payload for e in entries[1:]] == expected
         assert [e.kind for e in entries[2:]] == [k for _, k, _, _ in plan]
+        if chain_format == 2:  # each chain numbered from 1 in append order
+            for chain in {e.run_id for e in every}:
+                assert [e.chain_seq for e in every if e.run_id == chain] == list(
+                    range(1, sum(e.run_id == chain for e in every) + 1)
+                )
 
 
 @given(plan=appends, data=st.data())

@@ -131,6 +131,7 @@ def test_a_version_1_file_still_resumes_verifies_and_reports(
     from rig.store import _schema
 
     db = tmp_path / "r.db"
+    Store.open(db, chain_format=1).close()  # entries as schema 1 wrote them: one chain
     code = main(
         ["certify", "--procedure", "bbcor", "--bat", str(SAMPLE_BAT), "--sim", "faulty", "--db", str(db)]
     )
@@ -138,6 +139,10 @@ def test_a_version_1_file_still_resumes_verifies_and_reports(
     run_id = capsys.readouterr().err.split("rig certify --resume ")[1].split()[0]
     conn = sqlite3.connect(db)  # back to schema 1, as files written before the lock table are
     conn.execute("DROP TABLE run_locks")
+    conn.execute("DROP INDEX log_by_chain")  # and before chain format 2
+    conn.execute("ALTER TABLE log DROP COLUMN chain")
+    conn.execute("ALTER TABLE log DROP COLUMN chain_seq")
+    conn.execute("DROP TABLE store_meta")
     conn.execute("DELETE FROM schema_version WHERE version > 1")
     conn.commit()
     conn.close()
@@ -159,5 +164,6 @@ def test_a_version_1_file_still_resumes_verifies_and_reports(
     with Store.open(db) as store:
         assert store.run(run_id).status == "finished"
     conn = sqlite3.connect(db)
-    assert [v for (v,) in conn.execute("SELECT version FROM schema_version ORDER BY version")] == [1, 2]
+    assert [v for (v,) in conn.execute("SELECT version FROM schema_version ORDER BY version")] == [1, 2, 3]
+    assert conn.execute("SELECT value FROM store_meta").fetchone() == ("1",)  # it stays one chain
     conn.close()

@@ -40,7 +40,7 @@ def forge_append(
 def finished(tmp_path: Path) -> Iterator[tuple[Path, str, Anchor]]:
     """A store holding one run that failed and was closed; yields (path, run id, its seal)."""
     path = tmp_path / "rig.db"
-    with Store.open(path) as store:
+    with Store.open(path, chain_format=1) as store:
         store.register_bat("B-1", {"model": "X"})
         run = store.create_run("bbcor", "B-1", {})
         store.append(run, "RunStarted", {"procedure": {}, "bat": {}, "rig": {}})
@@ -77,7 +77,7 @@ def forge_pass(path: Path, run: str) -> list[int]:
 
 def test_the_store_refuses_appends_to_a_closed_run(finished: tuple[Path, str, Anchor]) -> None:
     path, run, seal = finished
-    with Store.open(path) as store:
+    with Store.open(path, chain_format=1) as store:
         for kind in ("RunFinished", "Note"):
             with pytest.raises(RecordRefused, match=f"finished and sealed at seq {seal.seq}: no {kind}"):
                 store.append(run, kind, {"verdict": "PASS"})
@@ -96,7 +96,7 @@ def test_verify_reports_a_verdict_forged_after_the_seal(
 ) -> None:
     path, run, seal = finished
     forged = forge_pass(path, run)
-    with Store.open(path) as store:
+    with Store.open(path, chain_format=1) as store:
         report = store.verify([seal])  # the certificate's anchor still matches its own entry
     assert not report.ok
     assert report.first_broken_seq is None  # the chain itself links: only the seal catches it
@@ -113,7 +113,7 @@ def test_a_report_shows_only_what_the_seal_covers(
 ) -> None:
     path, run, seal = finished
     forged = forge_pass(path, run)
-    with Store.open(path) as store:
+    with Store.open(path, chain_format=1) as store:
         record = run_record(store, run)
     assert record["verdict"]["verdict"] == "FAIL" and record["verdict"]["mean"] == 0.51  # the real one
     assert record["status"] == "finished"
@@ -133,7 +133,7 @@ def test_a_report_as_far_as_an_anchor(
     finished: tuple[Path, str, Anchor], capsys: pytest.CaptureFixture[str]
 ) -> None:
     path, run, _ = finished
-    with Store.open(path) as store:
+    with Store.open(path, chain_format=1) as store:
         first_shot = store.entries(run, kinds=["ShotMeasured"])[0]
         record = run_record(store, run, Anchor(first_shot.seq, first_shot.hash))
     assert record["status"] == "running" and record["verdict"] is None

@@ -11,6 +11,8 @@ import pytest
 from rig.store import Anchor, Store, StoreError, entry_hash
 from tests.store.conftest import Populated, raw
 
+COLS = "INSERT INTO log (seq, run_id, kind, payload, t_utc, prev_hash, hash) "
+
 
 def test_a_clean_store_verifies(populated: Populated) -> None:
     report = populated.store.verify()
@@ -90,7 +92,7 @@ def test_inserted_row_with_a_valid_hash(populated: Populated) -> None:
         db.execute("UPDATE log SET seq = seq + 1000 WHERE seq >= 6")
         db.execute("UPDATE log SET seq = seq - 999 WHERE seq >= 1006")
         db.execute(
-            "INSERT INTO log VALUES (6, ?, 'ShotMeasured', ?, ?, ?, ?)",
+            COLS + "VALUES (6, ?, 'ShotMeasured', ?, ?, ?, ?)",
             (run, payload, t, before.hash, entry_hash(before.hash, 6, run, "ShotMeasured", t, payload)),
         )
     _broken_at(populated.store, 7, "prev_hash mismatch")
@@ -100,7 +102,7 @@ def test_row_appended_behind_the_stores_back(populated: Populated) -> None:
     head = populated.store.head()
     with raw(populated.store.path) as db:
         db.execute(
-            "INSERT INTO log VALUES (11, NULL, 'Note', '{}', '2026-01-01T00:00:00+00:00', ?, ?)",
+            COLS + "VALUES (11, NULL, 'Note', '{}', '2026-01-01T00:00:00+00:00', ?, ?)",
             (head.hash, "f" * 64),
         )
     _broken_at(populated.store, 11, "hash mismatch")
@@ -163,7 +165,7 @@ def test_rebuild_refuses_a_log_that_contradicts_itself(populated: Populated) -> 
     with raw(populated.store.path) as db:
         t, payload = "2026-01-01T00:00:00+00:00", "{}"
         db.execute(
-            "INSERT INTO log VALUES (11, 'ghost', 'ShotFired', ?, ?, ?, ?)",
+            COLS + "VALUES (11, 'ghost', 'ShotFired', ?, ?, ?, ?)",
             (payload, t, head.hash, entry_hash(head.hash, 11, "ghost", "ShotFired", t, payload)),
         )
     with pytest.raises(StoreError, match="run ghost, which was never created"):

@@ -101,8 +101,11 @@ def test_a_url_opens_the_same_store(tmp_path: Path) -> None:
     with rig.open_store(f"sqlite:///{path}") as store:
         assert store.path == path and store.runs() == []
     assert path.exists()
-    with pytest.raises(rig.RigError, match="postgres:// stores are not supported"):
-        rig.open_store("postgres://lab/records")
+    with pytest.raises(rig.RigError, match="mysql:// stores are not supported"):
+        rig.open_store("mysql://lab/records")
+    # a PostgreSQL URL is a lab database: an unreachable one is one line naming it, password masked
+    with pytest.raises(rig.RigError, match=r"postgresql://ann:\*\*\*@127\.0\.0\.1:1/records: cannot connect"):
+        rig.open_store("postgresql://ann:secret@127.0.0.1:1/records")
 
 
 @pytest.mark.parametrize(
