@@ -119,7 +119,9 @@ per_shot AS (
         max(seq) FILTER (WHERE kind IN ('ShotMeasured', 'ShotRejected')) AS outcome_seq,
         max(seq) FILTER (WHERE kind = 'ShotLost') AS lost_seq,
         {d.join}('OPERATOR_REJECTED', ',') FILTER (WHERE kind = 'ShotOverruled') AS overrules
-    FROM shot_entries GROUP BY run_id, shot_index)
+    FROM shot_entries GROUP BY run_id, shot_index),
+created AS MATERIALIZED (  -- joined by run: a lookup by kind per shot would scan every run
+    SELECT run_id, seq FROM log WHERE kind = 'RunCreated')
 SELECT
     f.run_id AS run_id,
     {d.text("c", "meta.rig.name")} AS rig,
@@ -140,7 +142,8 @@ SELECT
 FROM shot_entries AS f
 JOIN log AS fl ON fl.seq = f.seq
 JOIN per_shot AS p ON p.run_id = f.run_id AND p.shot_index = f.shot_index
-LEFT JOIN log AS c ON c.run_id = f.run_id AND c.kind = 'RunCreated'
+LEFT JOIN created ON created.run_id = f.run_id
+LEFT JOIN log AS c ON c.seq = created.seq
 LEFT JOIN log AS q ON q.seq = p.requested_seq
 LEFT JOIN log AS o ON o.seq = p.outcome_seq
 WHERE f.kind = 'ShotFired'"""
