@@ -186,12 +186,15 @@ POSTGRES_VIEWS: tuple[str, ...] = (shots_sql(POSTGRES), runs_summary_sql(POSTGRE
 """The same views on PostgreSQL, over a `log` table with the same columns (payload as text or jsonb)."""
 
 
-def view_query(view: str, run_id: str | None = None) -> tuple[str, tuple[Any, ...]]:
-    """The SELECT (and its parameters) reading a view in a stable order, of one run or all."""
+def view_query(view: str, run_id: str | None = None, placeholder: str = "?") -> tuple[str, tuple[Any, ...]]:
+    """The SELECT (and its parameters) reading a view in a stable order, of one run or all.
+
+    `placeholder` is the driver's parameter mark: '?' for sqlite3, '%s' for psycopg.
+    """
     if view not in VIEW_COLUMNS:
         raise UnknownRecord(f"no view {view!r}; the views are {', '.join(VIEWS)}")
     columns = ", ".join(name for name, _ in VIEW_COLUMNS[view])
-    where, params = ("WHERE run_id = ?", (run_id,)) if run_id is not None else ("", ())
+    where, params = (f"WHERE run_id = {placeholder}", (run_id,)) if run_id is not None else ("", ())
     return f"SELECT {columns} FROM {view} {where} ORDER BY {_ORDER[view]}", params
 
 

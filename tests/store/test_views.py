@@ -42,14 +42,16 @@ class ReviewingOperator:
 
 @pytest.fixture(scope="module")
 def lab(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, str]]:
-    """A store with simulated BBCOR runs: lab (PASS, rejected shots), faulty (lost shots,
-    interrupted), ideal with one valid shot overruled on review."""
+    """A store with simulated runs: BBCOR lab (PASS, rejected shots), faulty (lost shots,
+    interrupted), BESR ideal, BBCOR ideal with one valid shot overruled on review."""
     path = tmp_path_factory.mktemp("views") / "r.db"
     runs = {}
     with Store.open(path) as store:
         for name, scene in (("lab", "lab"), ("faulty", "faulty")):
             config = sim_config(scene, bat=SAMPLE_BAT)
             runs[name] = certify(store, Procedure.load("bbcor"), SAMPLE_BAT, config).run_id
+        besr = Procedure.load("besr")
+        runs["besr"] = certify(store, besr, SAMPLE_BAT, sim_config("ideal", bat=SAMPLE_BAT)).run_id
         runs["reviewed"] = certify(
             store,
             Procedure.load("bbcor"),
@@ -144,6 +146,7 @@ def test_every_summary_row_matches_the_record(lab: tuple[Path, dict[str, str]]) 
             summary = store.run(run_id)  # the store's own table agrees on status and verdict
             assert (rows[run_id]["status"], rows[run_id]["verdict"]) == (summary.status, summary.verdict)
     assert rows[runs["lab"]]["verdict"] == "PASS" and rows[runs["lab"]]["mean"] < 0.5
+    assert rows[runs["besr"]]["procedure"] == "besr" and rows[runs["besr"]]["k"] == 2.0
     assert rows[runs["faulty"]]["status"] == "running" and rows[runs["faulty"]]["finished_utc"] is None
 
 
