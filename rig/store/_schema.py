@@ -7,6 +7,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from rig.core.errors import StoreFileError
+from rig.store._views import SQLITE_VIEWS
 
 # Written into the SQLite header so that a rig store is recognisable without reading tables.
 APPLICATION_ID = 0x52494753  # "RIGS"
@@ -65,6 +66,9 @@ MIGRATIONS: tuple[tuple[str, ...], ...] = (
         "CREATE UNIQUE INDEX log_by_chain ON log (chain, chain_seq)",
         "CREATE TABLE store_meta (key TEXT PRIMARY KEY, value TEXT NOT NULL)",
     ),
+    # Version 4: the analysts' views `shots` and `runs_summary` (rig/store/_views.py). Schema,
+    # not data: nothing is hashed. Once released, change a view by a new version (DROP, CREATE).
+    SQLITE_VIEWS,
 )
 SCHEMA_VERSION = len(MIGRATIONS)
 APPEND_ONLY_TRIGGERS = ("log_no_update", "log_no_delete")

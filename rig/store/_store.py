@@ -15,7 +15,7 @@ from types import TracebackType
 from typing import Any, Self
 
 from rig.core.errors import RecordRefused, StoreError, StoreFileError, UnknownRecord
-from rig.store import _derive, _lock, _verify
+from rig.store import _derive, _lock, _verify, _views
 from rig.store._codec import GENESIS_HASH, check_kind, check_payload, decode_payload, entry_hash
 from rig.store._pg import connect_pg, db_error_text, is_db_error, is_url, safe_url
 from rig.store._records import (
@@ -318,6 +318,11 @@ class Store:
             return {
                 bat_id: decode_payload(spec) for bat_id, spec in conn.execute("SELECT id, spec FROM bats")
             }
+
+    def view_rows(self, view: str, run_id: str | None = None) -> list[dict[str, Any]]:
+        """Rows of an analysts' view (`shots`, `runs_summary`; docs/records.md), of one run or all."""
+        with self._read() as conn:
+            return _views.read_view(conn, view, run_id)
 
     def head(self) -> Anchor:
         """Seq and hash of the latest entry ((0, 64 zeros) when empty): print it as an anchor."""

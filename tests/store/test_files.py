@@ -71,7 +71,7 @@ def test_an_older_file_is_migrated_in_order(tmp_path: Path, monkeypatch: pytest.
     path = tmp_path / "rig.db"
     with Store.open(path) as store:
         store.append(None, "Note", {"n": 1})
-    later = ("CREATE TABLE shots (seq INTEGER PRIMARY KEY REFERENCES log (seq))",)
+    later = ("CREATE TABLE later_table (seq INTEGER PRIMARY KEY REFERENCES log (seq))",)
     monkeypatch.setattr(_schema, "MIGRATIONS", (*_schema.MIGRATIONS, later))
     monkeypatch.setattr(_schema, "SCHEMA_VERSION", SCHEMA_VERSION + 1)
     with Store.open(path) as store:
@@ -80,7 +80,7 @@ def test_an_older_file_is_migrated_in_order(tmp_path: Path, monkeypatch: pytest.
     try:
         versions = [v for (v,) in db.execute("SELECT version FROM schema_version ORDER BY version")]
         assert versions == list(range(1, SCHEMA_VERSION + 2))
-        assert db.execute("SELECT count(*) FROM shots").fetchone()[0] == 0
+        assert db.execute("SELECT count(*) FROM later_table").fetchone()[0] == 0
     finally:
         db.close()
 
