@@ -15,8 +15,9 @@ from datetime import UTC, datetime
 from typing import Any
 
 from rig.core.errors import StoreFileError
+from rig.store._views import POSTGRES_VIEWS
 
-SCHEMA_VERSION_PG = 3  # the SQLite schema version whose tables this one matches
+SCHEMA_VERSION_PG = 4  # the SQLite schema version whose tables and views this one matches
 _MARK = "rig-store"  # the database comment that says a database is a rig store
 
 DDL: tuple[str, ...] = (
@@ -60,6 +61,7 @@ DDL: tuple[str, ...] = (
         lease_s DOUBLE PRECISION NOT NULL CHECK (lease_s > 0))""",
     "CREATE TABLE store_meta (key TEXT PRIMARY KEY, value TEXT NOT NULL)",
     "INSERT INTO store_meta (key, value) VALUES ('chain_format', '2')",
+    *POSTGRES_VIEWS,
 )
 APPEND_ONLY_TRIGGERS_PG = ("log_no_update", "log_no_delete")
 
