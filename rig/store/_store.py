@@ -15,7 +15,7 @@ from types import TracebackType
 from typing import Any, Self
 
 from rig.core.errors import RecordRefused, StoreError, StoreFileError, UnknownRecord
-from rig.store import _derive, _lock, _verify, _views
+from rig.store import _derive, _lock, _sync, _verify, _views
 from rig.store._codec import GENESIS_HASH, check_kind, check_payload, decode_payload, entry_hash
 from rig.store._pg import connect_pg, db_error_text, is_db_error, is_url, safe_url
 from rig.store._records import (
@@ -28,6 +28,7 @@ from rig.store._records import (
     RUN_OPENED,
     RUN_SEALED,
     RUN_STATUS_CHANGED,
+    RUN_SYNCED,
     Anchor,
     LogEntry,
     RunSummary,
@@ -194,6 +195,73 @@ class Store:
                 anchor = {"run_id": run_id, "chain_seq": entry.chain_seq, "hash": entry.hash}
                 self._append(conn, None, RUN_SEALED, {**anchor, "status": status})
         return entry
+
+    def import_chain(self, run_id: str, entries: list[LogEntry], source: str) -> int:
+        """Add a run's entries copied verbatim from another store (chain format 2; rig sync).
+
+        Entries the store already holds must be the same (same hashes, same order); only the
+        missing tail is added, so importing twice adds nothing. Any difference, or a run another
+        runner holds here, is refused (RecordRefused) before anything is written. Returns how
+        many entries were added.
+        """
+        if self.chain_format != 2:
+            raise RecordRefused(f"{self._path}: chain format 1 cannot take runs from other stores")
+        with self._write() as conn:
+            if self.engine != "sqlite":
+                conn.lock_chain(run_id)
+            held = [
+                (n, h)
+                for n, h in conn.execute(
+                    "SELECT chain_seq, hash FROM log WHERE chain = ? ORDER BY chain_seq", (run_id,)
+                )
+            ]
+            conflict = _sync.conflict(run_id, held, entries)
+            if conflict:
+                raise RecordRefused(conflict)
+            new = entries[len(held) :]
+            if not new:
+                return 0
+            if held:
+                self._check_open(conn, run_id, new[0].kind)
+            for entry in new:
+                seq = self._insert_verbatim(conn, run_id, entry)
+                if entry.kind == RUN_CREATED:
+                    p = entry.payload
+                    conn.execute(
+                        f"INSERT INTO runs ({_RUN_COLUMNS}) VALUES (?, ?, ?, ?, 'running', NULL, ?)",
+                        (run_id, p["procedure"], p["bat_id"], entry.t_utc, seq),
+                    )
+                    self._append(conn, None, RUN_OPENED, {"run_id": run_id, "hash": entry.hash})
+                    continue
+                conn.execute("UPDATE runs SET last_seq = ? WHERE run_id = ?", (seq, run_id))
+                if entry.kind == RUN_STATUS_CHANGED:
+                    status, verdict = entry.payload.get("status"), entry.payload.get("verdict")
+                    conn.execute(
+                        "UPDATE runs SET status = ?, verdict = ? WHERE run_id = ?", (status, verdict, run_id)
+                    )
+                    anchor = {"run_id": run_id, "chain_seq": entry.chain_seq, "hash": entry.hash}
+                    self._append(conn, None, RUN_SEALED, {**anchor, "status": status})
+            last = new[-1]
+            synced = {"run_id": run_id, "source": source, "entries": len(new), "chain_seq": last.chain_seq}
+            self._append(conn, None, RUN_SYNCED, {**synced, "hash": last.hash})
+        return len(new)
+
+    def _insert_verbatim(self, conn: Any, run_id: str, e: LogEntry) -> int:
+        text = check_payload(e.payload)
+        row = (run_id, e.kind, text, e.t_utc, e.prev_hash, e.hash, run_id, e.chain_seq)
+        if entry_hash(e.prev_hash, e.chain_seq or 0, run_id, e.kind, e.t_utc, text) != e.hash:
+            raise RecordRefused(f"run {run_id} entry {e.chain_seq}: its hash does not match its content")
+        columns = "run_id, kind, payload, t_utc, prev_hash, hash, chain, chain_seq"
+        if self.engine == "sqlite":
+            last = conn.execute("SELECT seq FROM log ORDER BY seq DESC LIMIT 1").fetchone()
+            seq = last[0] + 1 if last else 1
+            conn.execute(f"INSERT INTO log (seq, {columns}) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)", (seq, *row))
+            return int(seq)
+        return int(
+            conn.execute(
+                f"INSERT INTO log ({columns}) VALUES (?, ?, ?, ?, ?, ?, ?, ?) RETURNING seq", row
+            ).fetchone()[0]
+        )
 
     # --- one runner per run ----------------------------------------------------------------
 

@@ -1,0 +1,104 @@
+"""rig sync: a rig's records pushed to the lab's store, run by run, verbatim.
+
+Chain format 2 makes this possible without rewriting anything: a run's chain verifies on its own,
+so its entries are copied as they are (same hashes, same times) and the target anchors the run in
+its own lab chain. The source is verified before and the target after; a run whose history in the
+target differs from the source's is a conflict and nothing of it is copied.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from rig.core.errors import RecordRefused, StoreError
+from rig.store._records import LogEntry
+
+
+@dataclass(frozen=True)
+class SyncReport:
+    """What one sync did."""
+
+    runs_copied: int  # runs with entries added
+    entries_copied: int
+    runs_up_to_date: int
+    bats_registered: int
+    source: str
+    target: str
+
+    def __str__(self) -> str:
+        return (
+            f"{self.source} -> {self.target}: {self.entries_copied} entries of {self.runs_copied} runs "
+            f"copied, {self.runs_up_to_date} runs already up to date, {self.bats_registered} bats registered"
+        )
+
+
+def conflict(run_id: str, held: Sequence[tuple[int, str]], entries: Sequence[LogEntry]) -> str | None:
+    """Why the target's entries of a run are not a prefix of the source's, or None."""
+    if len(held) > len(entries):
+        return (
+            f"run {run_id}: the target holds {len(held)} entries, the source only {len(entries)}: the run "
+            "went on in the target (resumed there?); refusing a conflicting history"
+        )
+    for (number, digest), entry in zip(held, entries, strict=False):
+        if number != entry.chain_seq or digest != entry.hash:
+            return (
+                f"run {run_id}: entry {number} differs between the source and the target: the two "
+                "histories diverged; refusing a conflicting history (nothing of this run copied)"
+            )
+    return None
+
+
+def sync(source: Any, target: Any) -> SyncReport:
+    """Copy every run of `source` missing from `target` (or its missing tail). Never rewrites either."""
+    where, to = source.location, target.location
+    if source.chain_format != 2:
+        raise StoreError(
+            f"{where}: chain format 1 (a file from before lab records): its runs cannot be copied "
+            "without rewriting their hashes; it stays verifiable where it is"
+        )
+    checked = source.verify()
+    if not checked.ok:
+        raise StoreError(f"{where}: does not verify, nothing copied: {checked.problems[0]}")
+    before = target.verify()
+    if not before.ok:
+        raise StoreError(f"{to}: does not verify, nothing copied: {before.problems[0]}")
+    runs = source.runs()
+    plans = []
+    for run in runs:  # every conflict is found before anything is written
+        entries = source.entries(run.run_id)
+        held = [(e.chain_seq, e.hash) for e in _target_entries(target, run.run_id)]
+        why = conflict(run.run_id, held, entries)
+        if why:
+            raise RecordRefused(why)
+        plans.append((run, entries, len(held)))
+    source_bats, target_bats = source.bats(), target.bats()
+    bats = 0
+    for bat_id in sorted({run.bat_id for run in runs}):
+        if bat_id not in target_bats:
+            target.register_bat(bat_id, source_bats[bat_id])
+            bats += 1
+        elif target_bats[bat_id] != source_bats[bat_id]:
+            raise RecordRefused(f"bat {bat_id} is registered in {to} with other properties; nothing copied")
+    copied = entries_copied = up_to_date = 0
+    for run, entries, held in plans:
+        if held == len(entries):
+            up_to_date += 1
+            continue
+        entries_copied += target.import_chain(run.run_id, entries, where)
+        copied += 1
+    after = target.verify()
+    if not after.ok:  # pragma: no cover - a bug: the copy broke what verified before
+        raise StoreError(f"{to}: does not verify after the copy: {after.problems[0]}")
+    return SyncReport(copied, entries_copied, up_to_date, bats, where, to)
+
+
+def _target_entries(target: Any, run_id: str) -> list[LogEntry]:
+    from rig.core.errors import UnknownRecord
+
+    try:
+        target.run(run_id)
+    except UnknownRecord:
+        return []
+    return target.entries(run_id)
