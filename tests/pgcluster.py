@@ -98,6 +98,7 @@ class PgCluster:
     as_postgres: bool = field(default_factory=lambda: os.geteuid() == 0)
     timings: dict[str, float] = field(default_factory=dict)  # seconds: initdb, start (the latest)
     create_times: list[float] = field(default_factory=list)  # seconds, one per create_db()
+    stopped: bool = True  # as this object left it: False after start(), True after stop()
     _databases: int = 0
     _watchdog: subprocess.Popen[str] | None = None
 
@@ -200,11 +201,13 @@ class PgCluster:
                 where = f"{self.host}:{self.port}"
                 raise ClusterError(f"server not ready on {where} after {timeout:.0f} s{self._log_tail()}")
             time.sleep(0.1)
+        self.stopped = False
         self.timings["start"] = time.perf_counter() - t0
 
     def stop(self, mode: str = "fast") -> None:
         """Stop the server: "fast" (clean) or "immediate" (as if it crashed; the data survives)."""
         self._run("pg_ctl", "stop", "-D", str(self.data_dir), "-m", mode, "-w")
+        self.stopped = True
 
     @property
     def running(self) -> bool:

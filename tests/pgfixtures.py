@@ -47,7 +47,7 @@ def pg_url(pg_cluster: PgCluster) -> Iterator[str]:
     """A fresh empty database for this test: postgresql://USER:PW@127.0.0.1:PORT/DB; dropped after."""
     name = pg_cluster.create_db()
     yield pg_cluster.url(name)
-    if not pg_cluster.running:  # the test stopped the server and did not bring it back
+    if pg_cluster.stopped:  # the test stopped the server and did not bring it back
         pg_cluster.start()
     pg_cluster.drop_db(name)
 

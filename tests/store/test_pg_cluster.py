@@ -99,7 +99,7 @@ def test_stop_refuses_connections_and_start_brings_the_same_data_back(
         conn.execute("INSERT INTO log VALUES (1, 'before the outage'), (2, 'committed')")
         pid_before = conn.info.backend_pid
         pg_cluster.stop(mode)
-        assert not pg_cluster.running
+        assert not pg_cluster.running and pg_cluster.stopped
         with pytest.raises(psycopg.OperationalError):  # the open connection is gone
             conn.execute("SELECT 1")
     with pytest.raises(psycopg.OperationalError, match=r"(?i)connection refused|connection failed"):
