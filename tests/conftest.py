@@ -16,6 +16,9 @@ from hypothesis import HealthCheck, settings
 
 from rig.physics.params import DEFAULT_PARAMS, CollisionParams
 from tests.load import cpu_load as _cpu_load
+from tests.pgfixtures import pg_cluster, pg_url, pytest_terminal_summary
+
+__all__ = ["pg_cluster", "pg_url", "pytest_terminal_summary"]  # PostgreSQL: tests/pgfixtures.py
 
 settings.register_profile(
     "ci",
@@ -58,7 +61,11 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Hardware tests are opt-in: skipped unless --hardware names a rig config."""
+    """Tests that use the PostgreSQL cluster are marked `postgres` (so `-m "not postgres"` leaves
+    them out); hardware tests are opt-in: skipped unless --hardware names a rig config."""
+    for item in items:
+        if "pg_cluster" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.postgres)
     if config.getoption("--hardware"):
         return
     skip = pytest.mark.skip(reason="needs the real rig: pytest --hardware RIG.toml")
