@@ -38,6 +38,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_certify.py
 	$(BIN)/python benchmarks/bench_serve.py --repeat 2
 	$(BIN)/python benchmarks/bench_crosscheck.py --populations 5
+	$(BIN)/python benchmarks/bench_lab_store.py
 
 accuracy: $(STAMP)
 	$(BIN)/python benchmarks/accuracy_doc.py

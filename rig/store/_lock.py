@@ -21,7 +21,7 @@ from datetime import datetime, timedelta
 
 from rig.core.errors import StoreError
 
-_COLUMNS = "run_id, owner, host, pid, since_utc, heartbeat_utc, lease_s"
+COLUMNS = "run_id, owner, host, pid, since_utc, heartbeat_utc, lease_s"
 
 
 class RunLocked(StoreError):
@@ -67,7 +67,7 @@ def this_host() -> str:
 
 def read(conn: sqlite3.Connection, run_id: str) -> RunLock | None:
     """The run's lock row, if any."""
-    row = conn.execute(f"SELECT {_COLUMNS} FROM run_locks WHERE run_id = ?", (run_id,)).fetchone()
+    row = conn.execute(f"SELECT {COLUMNS} FROM run_locks WHERE run_id = ?", (run_id,)).fetchone()
     return RunLock(*row) if row else None
 
 
@@ -93,7 +93,7 @@ def refusal(run_id: str, lock: RunLock) -> str:
 def insert(conn: sqlite3.Connection, lock: RunLock) -> None:
     """Write the lock row (caller holds the write transaction and has removed any stale one)."""
     conn.execute(
-        f"INSERT INTO run_locks ({_COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?)",
+        f"INSERT INTO run_locks ({COLUMNS}) VALUES (?, ?, ?, ?, ?, ?, ?)",
         (lock.run_id, lock.owner, lock.host, lock.pid, lock.since_utc, lock.heartbeat_utc, lock.lease_s),
     )
 

@@ -502,23 +502,35 @@ class Store:
         ).fetchone()
         number, prev_hash = (head[0] + 1, head[1]) if head else (1, GENESIS_HASH)
         digest = entry_hash(prev_hash, number, run_id, kind, t_utc, text)
-        seq = conn.execute(
+        insert = (
             "INSERT INTO log (run_id, kind, payload, t_utc, prev_hash, hash, chain, chain_seq) "
-            "VALUES (?, ?, ?, ?, ?, ?, ?, ?) RETURNING seq",
-            (run_id, kind, text, t_utc, prev_hash, digest, chain, number),
-        ).fetchone()[0]
-        if run_id is not None and not new_run:
-            conn.execute("UPDATE runs SET last_seq = ? WHERE run_id = ?", (seq, run_id))
+            "VALUES (?, ?, ?, ?, ?, ?, ?, ?) RETURNING seq"
+        )
+        row = (run_id, kind, text, t_utc, prev_hash, digest, chain, number)
+        if run_id is not None and not new_run:  # the entry and the run's last_seq in one round trip
+            update = "UPDATE runs SET last_seq = (SELECT seq FROM e) WHERE run_id = ? RETURNING last_seq"
+            sql = f"WITH e AS ({insert}) {update}"
+            seq = conn.execute(sql, (*row, run_id)).fetchone()[0]
+        else:
+            seq = conn.execute(insert, row).fetchone()[0]
         return LogEntry(seq, run_id, kind, decode_payload(text), t_utc, prev_hash, digest, number)
 
     def _check_open(self, conn: Any, run_id: str, kind: str) -> None:
-        """Refuse an entry for an unknown or sealed run, or one another runner holds."""
-        run = self._run(conn, run_id)  # refuses an unknown run with the known ids
-        if run.status != "running":
+        """Refuse an entry for an unknown or sealed run, or one another runner holds (one query)."""
+        columns = ", ".join(f"l.{c.strip()}" for c in _lock.COLUMNS.split(","))
+        row = conn.execute(
+            f"SELECT r.status, r.last_seq, {columns} FROM runs r "
+            "LEFT JOIN run_locks l ON l.run_id = r.run_id WHERE r.run_id = ?",
+            (run_id,),
+        ).fetchone()
+        if row is None:
+            self._run(conn, run_id)  # refuses an unknown run with the known ids
+        status, last_seq, lock_row = row[0], row[1], row[2:]
+        if status != "running":
             raise RecordRefused(
-                f"run {run_id} is {run.status} and sealed at seq {run.last_seq}: no {kind} may follow it"
+                f"run {run_id} is {status} and sealed at seq {last_seq}: no {kind} may follow it"
             )
-        held = _lock.read(conn, run_id)
+        held = _lock.RunLock(*lock_row) if lock_row[0] is not None else None
         mine = self._held.get(run_id)
         if held is not None and held.owner != mine:
             raise _lock.RunLocked(_lock.refusal(run_id, held))
