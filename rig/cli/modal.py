@@ -231,9 +231,7 @@ def cmd_study(args: argparse.Namespace) -> int:
     if cal is not None:
         metric = cal["metric"]
         points = ", ".join(
-            f"{h:.0f} Hz {v:.4f}"
-            for h, v in zip(cal["hoop_hz"], cal[metric], strict=True)
-            if h % 500 == 0
+            f"{h:.0f} Hz {v:.4f}" for h, v in zip(cal["hoop_hz"], cal[metric], strict=True) if h % 500 == 0
         )
         console.print(
             f"calibrated model ({cal['variant']}, {args.calibration}, LOO RMSE {cal['loo_rmse']:.4f}):"

@@ -221,7 +221,12 @@ def cmd_verify(args: argparse.Namespace) -> int:
 
     anchors = [Anchor.parse(args.anchor)] if args.anchor else []
     with open_db(args) as store:
-        report = store.verify(anchors)
+        if args.run:
+            if anchors:
+                raise ConfigError("--anchor checks the whole store; leave out --run", source="command line")
+            report = store.verify_run(resolve_run(store, args.run))
+        else:
+            report = store.verify(anchors)
     if report.ok:
         print(
             f"ok: {report.entries_checked} entries, chain intact; head {report.head.seq}:{report.head.hash}"
@@ -289,4 +294,5 @@ def add_parsers(sub: Any) -> None:
     p = sub.add_parser("verify", help="check the records' hash chain", description=cmd_verify.__doc__)
     p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
     p.add_argument("--anchor", metavar="SEQ:HASH", help="a head hash printed on a certificate")
+    p.add_argument("--run", metavar="RUN", help="only this run: its chain and its anchors in the lab chain")
     p.set_defaults(handler=cmd_verify)

@@ -266,6 +266,7 @@ class _Phases:
         # (capped at 20000 steps a flight: a creeping ball on a stiff ringing barrel can take
         # ~1e5 barrel periods to get out of reach; there a contact shorter than a step may be missed)
         max_step = max(min(period / 32.0, 50.0 * imp.time_scale()), horizon / 20000.0)
+
         def peak(t: float, y: np.ndarray) -> float:
             return relative_motion(imp, y)[1]  # d' falling through 0: a maximum of the overlap d
 

@@ -64,8 +64,9 @@ def check_chain(name: str, rows: list[Row]) -> tuple[list[tuple[int, str]], Anch
     return problems, (Anchor(last[0], last[5]) if last else None)
 
 
-def check_anchors(chains: dict[str, list[Row]]) -> list[str]:
-    """Every run chain is anchored in the lab chain where it opened and, once sealed, where it closed."""
+def check_anchors(chains: dict[str, list[Row]], only: str | None = None) -> list[str]:
+    """Every run chain is anchored in the lab chain where it opened and, once sealed, where it closed
+    (`only`: the one run whose chain was read, with the lab chain)."""
     opened: dict[str, str] = {}
     sealed: dict[str, tuple[int, str]] = {}
     for _, _, _, kind, payload, *_ in chains.get(LAB_CHAIN, []):
@@ -78,7 +79,7 @@ def check_anchors(chains: dict[str, list[Row]]) -> list[str]:
                 sealed[str(run_id)] = (int(data.get("chain_seq") or 0), str(data.get("hash")))
     problems = []
     for run_id, rows in chains.items():
-        if run_id == LAB_CHAIN:
+        if run_id == LAB_CHAIN or (only is not None and run_id != only):
             continue
         by_number = {r[1]: r for r in rows}
         first, last = by_number.get(1), max(rows, key=lambda r: r[1])
@@ -101,6 +102,8 @@ def check_anchors(chains: dict[str, list[Row]]) -> list[str]:
         elif closed:
             problems.append(f"run {run_id}: closed, but its seal is not anchored in the lab chain")
     for run_id in sorted(set(opened) - set(chains)):
+        if only is not None and run_id != only:
+            continue
         problems.append(f"run {run_id}: anchored in the lab chain but its entries are gone")
     return problems
 

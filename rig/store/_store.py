@@ -414,6 +414,20 @@ class Store:
                 if conn.in_transaction:
                     conn.execute("COMMIT")
 
+    def verify_run(self, run_id: str) -> VerifyReport:
+        """One run: its own chain and its anchors in the lab chain (chain format 2; format 1 has
+        one chain through every run, so the whole store is verified)."""
+        self.run(run_id)  # an unknown run: UnknownRecord naming the known ones
+        if self.chain_format == 1:
+            return self.verify()
+        with self._read() as conn:
+            conn.execute("BEGIN" if self.engine == "sqlite" else "BEGIN ISOLATION LEVEL REPEATABLE READ")
+            try:
+                return _verify.verify_run(conn, run_id, self.engine)
+            finally:
+                if conn.in_transaction:
+                    conn.execute("COMMIT")
+
     def pragmas(self) -> dict[str, Any]:
         """The connection's journal_mode, synchronous, foreign_keys and busy_timeout (diagnostics)."""
         names = ("journal_mode", "synchronous", "foreign_keys", "busy_timeout")

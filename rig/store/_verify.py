@@ -10,7 +10,7 @@ from rig.core import events as ev
 from rig.store._chains import Chains, check_anchors, check_chain
 from rig.store._codec import GENESIS_HASH, entry_hash
 from rig.store._derive import Deriver, compare_tables
-from rig.store._records import Anchor, VerifyReport
+from rig.store._records import LAB_CHAIN, Anchor, VerifyReport
 from rig.store._schema import APPEND_ONLY_TRIGGERS
 
 _TEXT_COLUMNS = ("run_id", "kind", "payload", "t_utc", "prev_hash", "hash")
@@ -206,3 +206,41 @@ def _check_triggers(conn: Any, engine: str) -> list[str]:
     present = {name for (name,) in conn.execute(query)}
     missing = [name for name in APPEND_ONLY_TRIGGERS if name not in present]
     return [f"append-only triggers removed: {', '.join(missing)}"] if missing else []
+
+
+def verify_run(conn: Any, run_id: str, engine: str = "sqlite") -> VerifyReport:
+    """Chain format 2: one run's chain and the lab chain's anchors of it (caller holds a snapshot)."""
+    select = (_SELECT if engine == "sqlite" else _SELECT_PG).replace(
+        "FROM log ORDER BY seq", "FROM log WHERE chain IN (?, ?) ORDER BY seq"
+    )
+    chains = Chains()
+    checked = 0
+    for row in conn.execute(select, (run_id, LAB_CHAIN)):
+        seq, raw, chain_name, chain_seq = row[0], row[1:-2], row[-2], row[-1]
+        checked += 1
+        fields, why = _decode(raw)
+        if why is not None:
+            chains.problems.append((seq, why))
+        else:
+            chains.feed(seq, chain_name, chain_seq, fields)
+    broken = list(chains.problems)
+    head = Anchor(0, GENESIS_HASH)
+    for name, rows in chains.rows.items():
+        found, last = check_chain(name, rows)
+        broken += found
+        if name == run_id and last is not None:
+            head = last
+    broken.sort()
+    problems = [f"seq {seq}: {reason}" for seq, reason in broken[:_MAX_LISTED]]
+    problems += check_anchors(chains.rows, only=run_id)
+    if run_id not in chains.rows:
+        problems.append(f"run {run_id}: no entries")
+    first = broken[0] if broken else (None, None)
+    return VerifyReport(
+        ok=not problems,
+        entries_checked=checked,
+        head=head,
+        first_broken_seq=first[0],
+        reason=first[1],
+        problems=tuple(problems),
+    )

@@ -173,3 +173,20 @@ def test_two_processes_appending_to_two_runs_keep_both_chains_whole(tmp_path: Pa
         assert store.verify().ok
         for run in runs:
             assert [e.chain_seq for e in store.entries(run)] == list(range(1, 62))
+
+
+def test_one_run_verifies_on_its_own_and_its_own_tampering_is_found(store2: Store) -> None:
+    run_a, run_b = _fill(store2)
+    assert store2.verify_run(run_a).ok and store2.verify_run(run_b).ok
+    assert store2.verify_run(run_a).entries_checked < len(store2.entries())  # its chain and the lab's
+    target = store2.entries(run_b)[-1]
+    with raw(store2.path) as db:
+        db.execute("UPDATE log SET payload = '{}' WHERE seq = ?", (target.seq,))
+    assert store2.verify_run(run_a).ok  # another run's damage is not this run's
+    broken = store2.verify_run(run_b)
+    assert not broken.ok and f"run {run_b} entry {target.chain_seq}: hash mismatch" in broken.problems[0]
+    with raw(store2.path) as db:
+        db.execute("DELETE FROM log WHERE run_id = ?", (run_a,))
+    assert "anchored in the lab chain but its entries are gone" in "\n".join(
+        store2.verify_run(run_a).problems
+    )
