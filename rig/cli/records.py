@@ -153,19 +153,32 @@ def cmd_runs(args: argparse.Namespace) -> int:
     with open_db(args) as store:
         runs = store.runs()
         stopped = {r.run_id for r in runs if _stopped(store, r)}
+        rigs = _rigs(store)
+    if args.rig is not None:
+        runs = [r for r in runs if (rigs.get(r.run_id) or {}).get("name") == args.rig]
     if args.json:
-        rows = [{**r.__dict__, "interrupted": r.run_id in stopped} for r in runs]
+        rows = [{**r.__dict__, "interrupted": r.run_id in stopped, "rig": rigs.get(r.run_id)} for r in runs]
         json.dump(rows, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
     table = Table(title=f"Runs in {args.db or 'rig-records.db'}")
-    for col in ("run", "procedure", "bat", "started (UTC)", "status", "verdict"):
+    for col in ("run", "procedure", "bat", "rig", "started (UTC)", "status", "verdict"):
         table.add_column(col)
     for r in runs:
         status = "interrupted" if r.run_id in stopped else r.status
-        table.add_row(r.run_id[:12], r.procedure, r.bat_id, r.started_utc[:19], status, r.verdict or "")
+        rig = (rigs.get(r.run_id) or {}).get("name") or "-"
+        table.add_row(r.run_id[:12], r.procedure, r.bat_id, rig, r.started_utc[:19], status, r.verdict or "")
     Console().print(table)
     return 0
+
+
+def _rigs(store: Any) -> dict[str, dict[str, Any] | None]:
+    """Each run's recorded rig identity {name, serial, software} (None: recorded before rigs had one)."""
+    rigs: dict[str, dict[str, Any] | None] = {}
+    for entry in store.entries(kinds=["RunCreated"]):
+        rig = entry.payload.get("meta", {}).get("rig")
+        rigs[entry.run_id] = rig if isinstance(rig, dict) else None
+    return rigs
 
 
 def _stopped(store: Any, run: Any) -> bool:
@@ -221,10 +234,15 @@ def cmd_verify(args: argparse.Namespace) -> int:
     anchors = [Anchor.parse(args.anchor)] if args.anchor else []
     with open_db(args) as store:
         report = store.verify(anchors)
+    signatures = (
+        f"{report.runs_signed} runs signed, {report.runs_unsigned} unsigned, "
+        f"{report.runs_bad_signature} bad"
+    )
     if report.ok:
         print(
             f"ok: {report.entries_checked} entries, chain intact; head {report.head.seq}:{report.head.hash}"
         )
+        print(signatures)
         return 0
     if report.first_broken_seq is not None:
         print(f"ALTERED: first broken entry {report.first_broken_seq}: {report.reason}")
@@ -232,6 +250,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
         print(f"ALTERED: the chain links, but {len(report.problems)} problem(s) were found:")
     for problem in report.problems:
         print(f"  {problem}")
+    print(signatures)
     return 1
 
 
@@ -264,6 +283,7 @@ def add_parsers(sub: Any) -> None:
 
     p = sub.add_parser("runs", help="list recorded runs", description=cmd_runs.__doc__)
     p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    p.add_argument("--rig", metavar="NAME", help="only the runs of this rig (its identity name)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(handler=cmd_runs)
 

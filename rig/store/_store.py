@@ -15,7 +15,7 @@ from types import TracebackType
 from typing import Any, Self
 
 from rig.core.errors import RecordRefused, StoreError, UnknownRecord
-from rig.store import _derive, _lock, _verify
+from rig.store import _derive, _lock, _signed, _verify
 from rig.store._codec import GENESIS_HASH, check_kind, check_payload, decode_payload, entry_hash
 from rig.store._records import (
     BAT_REGISTERED,
@@ -283,7 +283,7 @@ class Store:
         with self._read() as conn:
             conn.execute("BEGIN")  # one snapshot: a concurrent append must not look like a mismatch
             try:
-                return _verify.verify(conn, anchors)
+                return _signed.with_signatures(conn, _verify.verify(conn, anchors))
             finally:
                 if conn.in_transaction:
                     conn.execute("COMMIT")

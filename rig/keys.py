@@ -1,0 +1,162 @@
+"""A rig's signing key: create it, keep it private, list its public half in the store, sign runs.
+
+The private key is a PEM file NAME.key (mode 0600) in the key folder: --dir, else $RIG_KEY_DIR,
+else ~/.config/rig/keys/. It never enters the store; the store holds only public keys
+(RigKeyRegistered) and signatures (RunSigned), checked by `Store.verify` (rig.store._signed).
+"""
+
+from __future__ import annotations
+
+import base64
+import os
+import re
+import stat
+from dataclasses import dataclass
+from pathlib import Path
+
+from cryptography.hazmat.primitives import serialization
+from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
+
+from rig.core.config import RIG_NAME_PATTERN
+from rig.core.errors import ConfigError, RecordRefused
+from rig.store import LogEntry, Store
+from rig.store._records import RUN_CREATED
+from rig.store._signed import (
+    RIG_KEY_REGISTERED,
+    RUN_SIGNED,
+    RegisteredKey,
+    anchor_message,
+    fingerprint,
+    registered_keys,
+)
+
+KEY_DIR_ENV = "RIG_KEY_DIR"
+_NAME = re.compile(RIG_NAME_PATTERN)
+
+
+def key_dir(given: str | Path | None = None) -> Path:
+    """The key folder: `given`, else $RIG_KEY_DIR, else ~/.config/rig/keys."""
+    if given:
+        return Path(given).expanduser()
+    env = os.environ.get(KEY_DIR_ENV)
+    return Path(env).expanduser() if env else Path.home() / ".config" / "rig" / "keys"
+
+
+def check_name(rig: str) -> str:
+    """`rig` if it is a valid rig name (it names a file: letters, digits, '.', '_', '-')."""
+    if not isinstance(rig, str) or not _NAME.fullmatch(rig):
+        raise ConfigError(
+            f"rig name {rig!r}: 1-64 letters, digits, '.', '_' or '-', a letter or digit first", "--rig"
+        )
+    return rig
+
+
+def key_path(rig: str, directory: str | Path | None = None) -> Path:
+    """Where rig `rig`'s private key lives."""
+    return key_dir(directory) / f"{check_name(rig)}.key"
+
+
+@dataclass(frozen=True)
+class Signer:
+    """A rig's loaded private key."""
+
+    rig: str
+    key: Ed25519PrivateKey
+    fingerprint: str
+
+    @property
+    def public_b64(self) -> str:
+        """The public key, base64 of its raw 32 bytes."""
+        return base64.b64encode(_public_raw(self.key)).decode("ascii")
+
+
+def _public_raw(key: Ed25519PrivateKey) -> bytes:
+    return key.public_key().public_bytes(serialization.Encoding.Raw, serialization.PublicFormat.Raw)
+
+
+def create_key(rig: str, directory: str | Path | None = None) -> tuple[Path, str]:
+    """A new key pair for `rig`: the private key written 0600 (refused if one exists); (path, fingerprint)."""
+    path = key_path(rig, directory)
+    path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+    key = Ed25519PrivateKey.generate()
+    pem = key.private_bytes(
+        serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption()
+    )
+    try:  # O_EXCL: never overwrite a key, even one created a moment ago by another process
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    except FileExistsError:
+        raise ConfigError(f"{path}: rig {rig} has a key already; it is kept", "rig keys create") from None
+    with os.fdopen(fd, "wb") as out:
+        out.write(pem)
+    return path, fingerprint(_public_raw(key))
+
+
+def load_signer(rig: str | None, directory: str | Path | None = None) -> Signer | None:
+    """Rig `rig`'s key, or None if it has none; a key file open to group/others is refused."""
+    if rig is None:
+        return None
+    path = key_path(rig, directory)
+    try:
+        mode = path.stat().st_mode
+    except FileNotFoundError:
+        return None
+    if mode & (stat.S_IRWXG | stat.S_IRWXO):
+        raise ConfigError(
+            f"{path}: the key file is open to group/others (mode {stat.S_IMODE(mode):o}); "
+            f"make it private with: chmod 600 {path}",
+            "rig key",
+        )
+    try:
+        key = serialization.load_pem_private_key(path.read_bytes(), password=None)
+    except (ValueError, TypeError) as exc:
+        raise ConfigError(f"{path}: not a rig key file ({exc})", "rig key") from None
+    if not isinstance(key, Ed25519PrivateKey):
+        raise ConfigError(f"{path}: not an Ed25519 key", "rig key")
+    return Signer(rig, key, fingerprint(_public_raw(key)))
+
+
+def keys_in(store: Store) -> list[RegisteredKey]:
+    """Every key registration in the store, oldest first."""
+    return registered_keys(store.entries(None, kinds=[RIG_KEY_REGISTERED]))
+
+
+def register(store: Store, signer: Signer, *, replace: bool = False) -> LogEntry | None:
+    """List `signer`'s public key in the store (None if it is already the rig's current key).
+
+    A different key for a rig already registered is refused unless `replace`; the old key stays
+    in the log, so that what it signed can still be checked.
+    """
+    current = [k for k in keys_in(store) if k.rig == signer.rig]
+    if current and current[-1].fingerprint == signer.fingerprint:
+        return None
+    if current and not replace:
+        raise RecordRefused(
+            f"rig {signer.rig} already has key {current[-1].fingerprint} registered (seq {current[-1].seq}); "
+            f"give --replace to register {signer.fingerprint} in its place"
+        )
+    payload = {"rig": signer.rig, "public_key": signer.public_b64, "fingerprint": signer.fingerprint}
+    return store.append(None, RIG_KEY_REGISTERED, payload)
+
+
+def recorded_rig(store: Store, run_id: str) -> str | None:
+    """The rig name a run's RunCreated recorded (None for runs from before rigs were named)."""
+    created = store.entries(run_id, kinds=[RUN_CREATED])
+    rig = created[0].payload.get("meta", {}).get("rig") if created else None
+    name = rig.get("name") if isinstance(rig, dict) else None
+    return name if isinstance(name, str) else None
+
+
+def sign_run(store: Store, run_id: str, signer: Signer) -> LogEntry:
+    """Append RunSigned: `signer`'s signature over the anchor (seq, hash) of the run's last entry."""
+    last = store.entry(store.run(run_id).last_seq)
+    if last is None or last.run_id != run_id:
+        raise RecordRefused(f"run {run_id}: its last entry cannot be read; nothing signed")
+    signature = signer.key.sign(anchor_message(run_id, last.seq, last.hash))
+    payload = {
+        "run_id": run_id,
+        "rig": signer.rig,
+        "fingerprint": signer.fingerprint,
+        "anchor": {"seq": last.seq, "hash": last.hash},
+        "signature": base64.b64encode(signature).decode("ascii"),
+    }
+    return store.append(None, RUN_SIGNED, payload)
