@@ -207,14 +207,20 @@ class SignatureCheck:
 def check(conn: sqlite3.Connection) -> SignatureReport:
     """Check every signature in the log (caller holds a read transaction)."""
     marks = ", ".join("?" * len(_DECODED))
+    # As bytes: a tampered row may hold invalid UTF-8, which is the chain's finding, not a crash here.
     rows = conn.execute(
-        f"SELECT seq, run_id, kind, CASE WHEN kind IN ({marks}) THEN payload END, t_utc, hash "
+        "SELECT seq, CAST(run_id AS BLOB), CAST(kind AS BLOB), "
+        f"CASE WHEN kind IN ({marks}) THEN CAST(payload AS BLOB) END, "
+        "CAST(t_utc AS BLOB), CAST(hash AS BLOB) "
         "FROM log ORDER BY seq",
         _DECODED,
     )
     checker = SignatureCheck()
-    for seq, run_id, kind, payload, t_utc, hash_ in rows:
-        checker.feed(seq, run_id, str(kind), payload, str(t_utc), str(hash_))
+    for seq, *columns in rows:
+        run_id, kind, payload, t_utc, hash_ = (
+            None if c is None else bytes(c).decode("utf-8", errors="replace") for c in columns
+        )
+        checker.feed(seq, run_id, kind or "", payload, t_utc or "", hash_ or "")
     return checker.result()
 
 
