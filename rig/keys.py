@@ -141,7 +141,8 @@ def register(store: Store, signer: Signer, *, replace: bool = False) -> LogEntry
 def recorded_rig(store: Store, run_id: str) -> str | None:
     """The rig name a run's RunCreated recorded (None for runs from before rigs were named)."""
     created = store.entries(run_id, kinds=[RUN_CREATED])
-    rig = created[0].payload.get("meta", {}).get("rig") if created else None
+    meta = created[0].payload.get("meta") if created else None
+    rig = meta.get("rig") if isinstance(meta, dict) else None
     name = rig.get("name") if isinstance(rig, dict) else None
     return name if isinstance(name, str) else None
 

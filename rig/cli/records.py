@@ -176,7 +176,8 @@ def _rigs(store: Any) -> dict[str, dict[str, Any] | None]:
     """Each run's recorded rig identity {name, serial, software} (None: recorded before rigs had one)."""
     rigs: dict[str, dict[str, Any] | None] = {}
     for entry in store.entries(kinds=["RunCreated"]):
-        rig = entry.payload.get("meta", {}).get("rig")
+        meta = entry.payload.get("meta")
+        rig = meta.get("rig") if isinstance(meta, dict) else None
         rigs[entry.run_id] = rig if isinstance(rig, dict) else None
     return rigs
 
