@@ -161,3 +161,31 @@ def sign_run(store: Store, run_id: str, signer: Signer) -> LogEntry:
         "signature": base64.b64encode(signature).decode("ascii"),
     }
     return store.append(None, RUN_SIGNED, payload)
+
+
+def parse_trusted(texts: list[str]) -> dict[str, set[str]]:
+    """RIG:FINGERPRINT pins (kept by the lab outside the store) as {rig: {fingerprints}}."""
+    pins: dict[str, set[str]] = {}
+    for text in texts:
+        rig, _, fp = text.partition(":")
+        if not _NAME.fullmatch(rig) or not re.fullmatch(r"[0-9a-f]{16}", fp):
+            raise ConfigError(
+                f"{text!r}: expected RIG:FINGERPRINT (a rig name, a colon, 16 lowercase hex digits)",
+                "--trusted-key",
+            )
+        pins.setdefault(rig, set()).add(fp)
+    return pins
+
+
+def untrusted(keys: list[RegisteredKey], pins: dict[str, set[str]]) -> list[str]:
+    """Each registration of a pinned rig whose key is not pinned, and each pinned rig with no key."""
+    problems = [
+        f"seq {k.seq}: rig {k.rig}'s registered key {k.fingerprint} is not a trusted one "
+        f"({', '.join(sorted(pins[k.rig]))}): a key was replaced in the store?"
+        for k in keys
+        if k.rig in pins and k.fingerprint not in pins[k.rig]
+    ]
+    listed = {k.rig for k in keys}
+    missing = sorted(pins.keys() - listed)
+    problems += [f"rig {rig}: no key registered, though a trusted one was given" for rig in missing]
+    return problems

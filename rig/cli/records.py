@@ -230,11 +230,18 @@ def cmd_tui(args: argparse.Namespace) -> int:
 
 def cmd_verify(args: argparse.Namespace) -> int:
     """rig verify: recompute the hash chain, check each run and the anchor; exit 1 if anything is wrong."""
+    import dataclasses
+
+    from rig.keys import keys_in, parse_trusted, untrusted
     from rig.store import Anchor
 
     anchors = [Anchor.parse(args.anchor)] if args.anchor else []
+    pins = parse_trusted(args.trusted_key)
     with open_db(args) as store:
         report = store.verify(anchors)
+        distrusted = untrusted(keys_in(store), pins) if pins else []
+    if distrusted:
+        report = dataclasses.replace(report, ok=False, problems=report.problems + tuple(distrusted))
     signatures = (
         f"{report.runs_signed} runs signed, {report.runs_unsigned} unsigned, "
         f"{report.runs_bad_signature} bad"
@@ -309,4 +316,11 @@ def add_parsers(sub: Any) -> None:
     p = sub.add_parser("verify", help="check the records' hash chain", description=cmd_verify.__doc__)
     p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
     p.add_argument("--anchor", metavar="SEQ:HASH", help="a head hash printed on a certificate")
+    p.add_argument(
+        "--trusted-key",
+        action="append",
+        default=[],
+        metavar="RIG:FINGERPRINT",
+        help="a rig's key fingerprint kept outside the store: any other key registered for it is reported",
+    )
     p.set_defaults(handler=cmd_verify)

@@ -4,7 +4,9 @@ only where the rig signed (with no key, the same forgery goes unseen: the chain 
 from __future__ import annotations
 
 import base64
+import contextlib
 import hashlib
+import io
 import json
 import sqlite3
 from collections.abc import Callable
@@ -15,6 +17,7 @@ import pytest
 from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
+from rig.cli import main
 from rig.keys import Signer, create_key, load_signer, register, sign_run
 from rig.store import GENESIS_HASH, Store, canonical_json, entry_hash
 from tests.store.conftest import raw
@@ -256,3 +259,49 @@ def test_a_malformed_key_registration_is_reported(tmp_path: Path, change: Callab
         report = store.verify()
     assert not report.ok
     assert any("RigKeyRegistered refused" in p and needle in p for p in report.problems), report.problems
+
+
+def test_a_forger_who_replaces_the_registered_key_passes_the_file_alone_but_not_a_trusted_key(
+    tmp_path: Path,
+) -> None:
+    signer, forger = _signer(tmp_path), _signer(tmp_path, folder="forger")
+    path = tmp_path / "rig.db"
+    with Store.open(path) as store:
+        register(store, signer)
+        run = _run(store, signer)
+        last_seq = store.run(run).last_seq
+    better = _better_shot(run)
+
+    def edit(seq: int, run_id: str | None, kind: str, payload: dict[str, Any], done: Any) -> dict[str, Any]:
+        if kind == "RigKeyRegistered":
+            return {**payload, "public_key": forger.public_b64, "fingerprint": forger.fingerprint}
+        if kind == "RunSigned":
+            new_seq, new_hash = done[last_seq]
+            anchor = {"run_id": run, "seq": new_seq, "hash": new_hash}
+            message = json.dumps(anchor, sort_keys=True, separators=(",", ":")).encode()
+            signature = base64.b64encode(forger.key.sign(message)).decode()
+            anchor = {"seq": new_seq, "hash": new_hash}
+            return {**payload, "fingerprint": forger.fingerprint, "anchor": anchor, "signature": signature}
+        return better(seq, run_id, kind, payload, done)
+
+    forge(path, edit)
+    with Store.open(path) as store:
+        report = store.verify()
+    assert report.ok and report.runs_signed == 1, report  # the limit docs/records.md states
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(["verify", "--db", str(path), "--trusted-key", f"r1:{signer.fingerprint}"])
+    assert code == 1, err.getvalue()
+    assert f"rig r1's registered key {forger.fingerprint} is not a trusted one" in out.getvalue()
+    with contextlib.redirect_stdout(io.StringIO()):
+        assert main(["verify", "--db", str(path), "--trusted-key", f"r1:{forger.fingerprint}"]) == 0
+
+
+@pytest.mark.parametrize("pin", ["r1", "r1:XYZ", "../r1:0123456789abcdef", "r1:0123456789ABCDEF"])
+def test_a_malformed_trusted_key_is_one_line(tmp_path: Path, pin: str) -> None:
+    with Store.open(tmp_path / "rig.db"):
+        pass
+    err = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        code = main(["verify", "--db", str(tmp_path / "rig.db"), "--trusted-key", pin])
+    assert code == 2 and len(err.getvalue().strip().splitlines()) == 1 and "RIG:FINGERPRINT" in err.getvalue()
