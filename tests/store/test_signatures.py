@@ -305,3 +305,32 @@ def test_a_malformed_trusted_key_is_one_line(tmp_path: Path, pin: str) -> None:
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
         code = main(["verify", "--db", str(tmp_path / "rig.db"), "--trusted-key", pin])
     assert code == 2 and len(err.getvalue().strip().splitlines()) == 1 and "RIG:FINGERPRINT" in err.getvalue()
+
+
+@pytest.mark.parametrize(
+    ("change", "needle"),
+    [
+        (lambda p: {**p, "run_id": 5}, "malformed"),
+        (lambda p: {k: v for k, v in p.items() if k != "anchor"}, "malformed"),
+        (lambda p: {**p, "anchor": {"seq": True, "hash": p["anchor"]["hash"]}}, "malformed anchor"),
+        (lambda p: {**p, "run_id": "f" * 32}, "no such run"),
+        (lambda p: {**p, "rig": "r2"}, "recorded on rig r1"),
+        (lambda p: {**p, "signature": 123}, "not base64"),
+        (lambda p: {**p, "signature": base64.b64encode(b"\0" * 64).decode()}, "does not verify"),
+    ],
+)
+def test_a_malformed_signature_entry_is_reported_not_a_crash(
+    tmp_path: Path, change: Callable, needle: str
+) -> None:
+    signer = _signer(tmp_path)
+    with Store.open(tmp_path / "rig.db") as store:
+        register(store, signer)
+        run = _run(store, None)
+        sign_run(store, run, signer)
+        (good,) = store.entries(None, kinds=["RunSigned"])
+    path = tmp_path / "rig.db"
+    forge(path, lambda s, r, k, p, d: change(p) if k == "RunSigned" else p)
+    with Store.open(path) as store:
+        report = store.verify()
+    assert not report.ok and report.runs_signed == 0
+    assert any("RunSigned" in p and needle in p for p in report.problems), (good.payload, report.problems)
