@@ -189,3 +189,21 @@ def untrusted(keys: list[RegisteredKey], pins: dict[str, set[str]]) -> list[str]
     missing = sorted(pins.keys() - listed)
     problems += [f"rig {rig}: no key registered, though a trusted one was given" for rig in missing]
     return problems
+
+
+def sign_sealed(store: Store, run_id: str, signer: Signer) -> LogEntry:
+    """Sign a sealed run that has no signature (killed between seal and signature, or sealed before
+    the rig had a key); refused unless the rest of the store verifies, so nothing altered is signed."""
+    run = store.run(run_id)
+    if run.status == "running":
+        raise RecordRefused(f"run {run_id} is not sealed: it is signed when it is finished or ended")
+    recorded = recorded_rig(store, run_id)
+    if recorded is not None and recorded != signer.rig:
+        raise RecordRefused(f"run {run_id} was recorded on rig {recorded}, not {signer.rig}")
+    done = [e.seq for e in store.entries(None, kinds=[RUN_SIGNED]) if e.payload.get("run_id") == run_id]
+    if done:
+        raise RecordRefused(f"run {run_id} is signed already (seq {done[0]})")
+    others = [p for p in store.verify().problems if not (run_id in p and "not signed" in p)]
+    if others:
+        raise RecordRefused(f"the store does not verify ({others[0]}); nothing signed")
+    return sign_run(store, run_id, signer)

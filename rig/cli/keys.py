@@ -1,4 +1,4 @@
-"""`rig keys create|register|list`: a rig's signing key and the public keys the store lists."""
+"""`rig keys create|register|sign|list`: a rig's signing key and the public keys the store lists."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import json
 import sys
 from typing import Any
 
-from rig.cli.common import ConfigError, open_db
+from rig.cli.common import ConfigError, open_db, resolve_run
 
 
 def cmd_create(args: argparse.Namespace) -> int:
@@ -35,6 +35,23 @@ def cmd_register(args: argparse.Namespace) -> int:
         print(f"rig {args.rig}: key {signer.fingerprint} is registered already; nothing added")
     else:
         print(f"rig {args.rig}: key {signer.fingerprint} registered (seq {entry.seq})")
+    return 0
+
+
+def cmd_sign(args: argparse.Namespace) -> int:
+    """rig keys sign: sign a sealed run that has no signature, once the store verifies."""
+    from rig.keys import load_signer, recorded_rig, sign_sealed
+
+    with open_db(args) as store:
+        run_id = resolve_run(store, args.run)
+        rig = args.rig or recorded_rig(store, run_id)
+        if rig is None:
+            raise ConfigError(f"run {run_id} records no rig; give --rig NAME", "--rig")
+        signer = load_signer(rig, args.dir)
+        if signer is None:
+            raise ConfigError(f"no key for rig {rig} in the key folder (rig keys create)", "--rig")
+        entry = sign_sealed(store, run_id, signer)
+    print(f"run {run_id} signed by rig {rig} (key {signer.fingerprint}) at seq {entry.seq}")
     return 0
 
 
@@ -69,7 +86,7 @@ def cmd_list(args: argparse.Namespace) -> int:
 
 
 def add_parsers(sub: Any) -> None:
-    """`rig keys create|register|list`."""
+    """`rig keys create|register|sign|list`."""
     p = sub.add_parser("keys", help="a rig's signing key (Ed25519) and the registered public keys")
     keys = p.add_subparsers(dest="keys_command", required=True, metavar="ACTION")
     dir_help = "key folder (default: $RIG_KEY_DIR, else ~/.config/rig/keys)"
@@ -87,6 +104,13 @@ def add_parsers(sub: Any) -> None:
     q.add_argument("--dir", metavar="DIR", help=dir_help)
     q.add_argument("--replace", action="store_true", help="register a new key for a rig that has one")
     q.set_defaults(handler=cmd_register)
+
+    q = keys.add_parser("sign", help="sign a sealed run that has no signature", description=cmd_sign.__doc__)
+    q.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    q.add_argument("--run", required=True, metavar="RUN", help="run id (a unique prefix will do), or 'last'")
+    q.add_argument("--rig", metavar="NAME", help="the signing rig (default: the one the run recorded)")
+    q.add_argument("--dir", metavar="DIR", help=dir_help)
+    q.set_defaults(handler=cmd_sign)
 
     q = keys.add_parser("list", help="the registered public keys", description=cmd_list.__doc__)
     q.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")

@@ -12,6 +12,7 @@ import os
 import re
 import shutil
 import socket
+import sqlite3
 import stat
 from pathlib import Path
 
@@ -200,3 +201,45 @@ def test_old_runs_show_no_rig(tmp_path: Path) -> None:
     assert code == 0 and "0 runs signed, 3 unsigned, 0 bad" in out  # all sealed, their rig unknown
     table = cli("runs", "--db", str(db))[1]
     assert table.count("│ -") == 3, table
+
+
+def _sealed_unsigned(db: Path, rig_meta: dict | None = None) -> str:
+    """A sealed run of rig cannon-2 (registered key) whose signature never came (killed in between)."""
+    assert cli("keys", "create", "--rig", "cannon-2")[0] == 0
+    assert cli("keys", "register", "--db", str(db), "--rig", "cannon-2")[0] == 0
+    with Store.open(db) as store:
+        store.register_bat("B1", {"id": "B1"})
+        meta = {} if rig_meta is None else {"rig": rig_meta}
+        run_id = store.create_run("bbcor", "B1", meta)
+        store.append(run_id, "ShotMeasured", {"shot": 0})
+        store.set_run_status(run_id, "finished", "PASS")
+    return run_id
+
+
+def test_keys_sign_signs_a_sealed_run_whose_signature_never_came(tmp_path: Path) -> None:
+    db = tmp_path / "r.db"
+    run_id = _sealed_unsigned(db, {"name": "cannon-2", "serial": None, "software": "x"})
+    code, out, _ = cli("verify", "--db", str(db))
+    assert code == 1 and "not signed" in out and "0 runs signed, 1 unsigned, 0 bad" in out
+    refused(cli("keys", "sign", "--db", str(db), "--run", run_id, "--rig", "other"), "no key")
+    code, _, err = cli("keys", "sign", "--db", str(db), "--run", run_id[:8])
+    assert code == 0, err
+    code, out, _ = cli("verify", "--db", str(db))
+    assert code == 0 and "1 runs signed, 0 unsigned, 0 bad" in out
+    refused(cli("keys", "sign", "--db", str(db), "--run", run_id), "signed already")
+
+
+def test_keys_sign_refuses_a_running_run_a_run_of_no_rig_and_an_altered_store(tmp_path: Path) -> None:
+    db = tmp_path / "r.db"
+    old = _sealed_unsigned(db)  # from before identities: no rig recorded
+    refused(cli("keys", "sign", "--db", str(db), "--run", old), "records no rig", "--rig")
+    with Store.open(db) as store:
+        running = store.create_run("bbcor", "B1", {})
+    refused(cli("keys", "sign", "--db", str(db), "--run", running, "--rig", "cannon-2"), "not sealed")
+    conn = sqlite3.connect(db, isolation_level=None)
+    conn.execute("DROP TRIGGER log_no_update")
+    conn.execute("UPDATE log SET payload = '{\"shot\":1}' WHERE kind = 'ShotMeasured'")
+    conn.close()
+    refused(cli("keys", "sign", "--db", str(db), "--run", old, "--rig", "cannon-2"), "does not verify")
+    with Store.open(db) as store:
+        assert store.entries(None, kinds=["RunSigned"]) == []
