@@ -22,11 +22,13 @@ from protocols.plan import PlanFactory
 from protocols.procedure import Procedure
 from protocols.runner import BudgetExceeded, Operator, RunControl, Runner
 from protocols.steps import certification
+from rig import __version__
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RigError
 from rig.core.events import RunEvent, Subscriber
+from rig.keys import Signer, load_signer, recorded_rig, sign_run
 from rig.modal.link import with_measured_hoop
 from rig.session import RigSession
 from rig.store import Store
@@ -94,14 +96,22 @@ def _running(store: Store, run_id: str, source: str) -> None:
         raise ConfigError(f"run {run_id} was ended without a verdict; start a new one", source=source)
 
 
+def _seal(store: Store, run_id: str, status: str, verdict: str | None, signer: Signer | None) -> None:
+    """Seal the run; with the rig's key, sign the anchor of its last entry (RunSigned)."""
+    store.set_run_status(run_id, status, verdict)
+    if signer is not None:
+        sign_run(store, run_id, signer)
+
+
 def end_run(store: Store, run_id: str, signoff: Signoff) -> Outcome:
     """End an unfinished run with no verdict, on the operator's recorded word (store status aborted)."""
     _running(store, run_id, "--end")
+    signer = load_signer(recorded_rig(store, run_id))  # a key file open to others stops us here
     with store.run_lock(run_id):  # never while a runner is still working on the run
         shots = len(store.entries(run_id, kinds=[ev.SHOT_REQUESTED]))
         ended = ev.RunEnded(**signoff.as_dict(), shots_so_far=shots)
         store.append(run_id, ended.kind, ended.data)
-        store.set_run_status(run_id, "aborted", None)
+        _seal(store, run_id, "aborted", None, signer)
     return Outcome(run_id, "ended", None, f"ended without a verdict by {signoff.who}: {signoff.why}")
 
 
@@ -148,6 +158,8 @@ def certify(
     problems = rehearse(procedure, bat, config, plan, past).problems
     if problems:
         raise ConfigError("; ".join(problems), source="dry run")
+    identity = config.identity_record(__version__)
+    signer = load_signer((recorded_rig(store, run_id) if run_id else None) or identity["name"])
     if run_id is None:
         run_calibration(procedure, config)  # a named calibration that will not load stops us here
         bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
@@ -157,7 +169,8 @@ def certify(
             raise ConfigError(
                 f"bat {bat.id} is registered with other properties; give it a new id", source="bat file"
             )
-        run_id = store.create_run(procedure.standard.value, bat.id, {"procedure": procedure.name})
+        meta = {"procedure": procedure.name, "rig": identity}
+        run_id = store.create_run(procedure.standard.value, bat.id, meta)
 
     def emit(event: RunEvent) -> None:
         if event.persisted:
@@ -203,7 +216,7 @@ def certify(
                 if not isinstance(exc, Exception | KeyboardInterrupt):
                     raise  # SystemExit and the like: not an interruption of the run
                 if runner.state.finished:  # e.g. a failed ring check ends the run with FAIL
-                    store.set_run_status(run_id, "finished", runner.state.verdict.get("verdict"))
+                    _seal(store, run_id, "finished", runner.state.verdict.get("verdict"), signer)
                     return Outcome(run_id, "finished", runner.state.verdict, str(exc))
                 reason, budget = _reason(exc), isinstance(exc, BudgetExceeded)
                 detail: dict[str, Any] = {"reason": reason, "budget_exceeded": budget}
@@ -217,7 +230,7 @@ def certify(
                 except KeyboardInterrupt:  # forced while recording: the record stays whole, resumable
                     pass
                 return Outcome(run_id, "interrupted", None, reason, budget)
-            store.set_run_status(run_id, "finished", verdict["verdict"])  # sealed under the lock
+            _seal(store, run_id, "finished", verdict["verdict"], signer)  # sealed under the lock
     return Outcome(run_id, "finished", verdict)
 
 

@@ -43,6 +43,12 @@ def paper_params() -> CollisionParams:
     return DEFAULT_PARAMS
 
 
+@pytest.fixture(autouse=True)
+def _private_key_dir(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Rig keys (rig.keys) go to an empty folder of each test's own, never the user's."""
+    monkeypatch.setenv("RIG_KEY_DIR", str(tmp_path_factory.mktemp("rig-keys")))
+
+
 @pytest.fixture
 def cpu_load() -> Iterator[None]:
     """Two CPU-bound processes beside the test (tests/load.py): for tests that cross a process boundary."""

@@ -9,7 +9,7 @@ import argparse
 import sys
 from collections.abc import Callable, Sequence
 
-from rig.cli import export, modal, model, records, rig_cmds, sync
+from rig.cli import export, keys, modal, model, records, rig_cmds, sync
 from rig.core.errors import ParameterError, RigError
 
 Handler = Callable[[argparse.Namespace], int]
@@ -19,7 +19,7 @@ def build_parser() -> argparse.ArgumentParser:
     """The whole command tree."""
     parser = argparse.ArgumentParser(prog="rig", description="Bat-certification rig controller.")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for part in (model, rig_cmds, records, export, sync, modal):
+    for part in (model, rig_cmds, records, export, sync, modal, keys):
         part.add_parsers(sub)
     return parser
 

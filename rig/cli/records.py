@@ -154,19 +154,33 @@ def cmd_runs(args: argparse.Namespace) -> int:
     with open_db(args) as store:
         runs = store.runs()
         stopped = {r.run_id for r in runs if _stopped(store, r)}
+        rigs = _rigs(store)
+    if args.rig is not None:
+        runs = [r for r in runs if (rigs.get(r.run_id) or {}).get("name") == args.rig]
     if args.json:
-        rows = [{**r.__dict__, "interrupted": r.run_id in stopped} for r in runs]
+        rows = [{**r.__dict__, "interrupted": r.run_id in stopped, "rig": rigs.get(r.run_id)} for r in runs]
         json.dump(rows, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
     table = Table(title=f"Runs in {shown_db(args.db) if args.db else 'rig-records.db'}")
-    for col in ("run", "procedure", "bat", "started (UTC)", "status", "verdict"):
+    for col in ("run", "procedure", "bat", "rig", "started (UTC)", "status", "verdict"):
         table.add_column(col)
     for r in runs:
         status = "interrupted" if r.run_id in stopped else r.status
-        table.add_row(r.run_id[:12], r.procedure, r.bat_id, r.started_utc[:19], status, r.verdict or "")
+        rig = (rigs.get(r.run_id) or {}).get("name") or "-"
+        table.add_row(r.run_id[:12], r.procedure, r.bat_id, rig, r.started_utc[:19], status, r.verdict or "")
     Console().print(table)
     return 0
+
+
+def _rigs(store: Any) -> dict[str, dict[str, Any] | None]:
+    """Each run's recorded rig identity {name, serial, software} (None: recorded before rigs had one)."""
+    rigs: dict[str, dict[str, Any] | None] = {}
+    for entry in store.entries(kinds=["RunCreated"]):
+        meta = entry.payload.get("meta")
+        rig = meta.get("rig") if isinstance(meta, dict) else None
+        rigs[entry.run_id] = rig if isinstance(rig, dict) else None
+    return rigs
 
 
 def _stopped(store: Any, run: Any) -> bool:
@@ -217,9 +231,13 @@ def cmd_tui(args: argparse.Namespace) -> int:
 
 def cmd_verify(args: argparse.Namespace) -> int:
     """rig verify: recompute the hash chain, check each run and the anchor; exit 1 if anything is wrong."""
+    import dataclasses
+
+    from rig.keys import keys_in, parse_trusted, untrusted
     from rig.store import Anchor
 
     anchors = [Anchor.parse(args.anchor)] if args.anchor else []
+    pins = parse_trusted(args.trusted_key)
     with open_db(args) as store:
         if args.run:
             if anchors:
@@ -227,10 +245,18 @@ def cmd_verify(args: argparse.Namespace) -> int:
             report = store.verify_run(resolve_run(store, args.run))
         else:
             report = store.verify(anchors)
+        distrusted = untrusted(keys_in(store), pins) if pins else []
+    if distrusted:
+        report = dataclasses.replace(report, ok=False, problems=report.problems + tuple(distrusted))
+    signatures = (
+        f"{report.runs_signed} runs signed, {report.runs_unsigned} unsigned, "
+        f"{report.runs_bad_signature} bad"
+    )
     if report.ok:
         print(
             f"ok: {report.entries_checked} entries, chain intact; head {report.head.seq}:{report.head.hash}"
         )
+        print(signatures)
         return 0
     if report.first_broken_seq is not None:
         print(f"ALTERED: first broken entry {report.first_broken_seq}: {report.reason}")
@@ -238,6 +264,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
         print(f"ALTERED: the chain links, but {len(report.problems)} problem(s) were found:")
     for problem in report.problems:
         print(f"  {problem}")
+    print(signatures)
     return 1
 
 
@@ -270,6 +297,7 @@ def add_parsers(sub: Any) -> None:
 
     p = sub.add_parser("runs", help="list recorded runs", description=cmd_runs.__doc__)
     p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    p.add_argument("--rig", metavar="NAME", help="only the runs of this rig (its identity name)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(handler=cmd_runs)
 
@@ -295,4 +323,11 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
     p.add_argument("--anchor", metavar="SEQ:HASH", help="a head hash printed on a certificate")
     p.add_argument("--run", metavar="RUN", help="only this run: its chain and its anchors in the lab chain")
+    p.add_argument(
+        "--trusted-key",
+        action="append",
+        default=[],
+        metavar="RIG:FINGERPRINT",
+        help="a rig's key fingerprint kept outside the store: any other key registered for it is reported",
+    )
     p.set_defaults(handler=cmd_verify)

@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import re
+import socket
 from pathlib import Path
 from typing import Annotated, Literal
+from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -138,6 +141,34 @@ class Model(_Model):
     named_by: Literal["rig config", "command line", "script"] = "rig config"
 
 
+RIG_NAME_PATTERN = r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}"  # also a key file's name: no path separators
+_NOT_NAME = re.compile(r"[^A-Za-z0-9._-]+")
+
+
+class Identity(_Model):
+    """Which rig this is, as each run records it: name (default sim-SCENE or the host name), serial."""
+
+    name: Annotated[str, Field(pattern=f"^{RIG_NAME_PATTERN}$")] | None = None
+    serial: Annotated[str, Field(min_length=1, max_length=64)] | None = None
+
+
+def rig_name(text: str) -> str:
+    """`text` made a valid rig name (other characters become '-'); 'rig' if nothing is left."""
+    cleaned = _NOT_NAME.sub("-", text).strip("-._")[:64]
+    return cleaned or "rig"
+
+
+def _sim_scene(ports: Ports) -> str | None:
+    """The scene of a fully simulated rig (sim:// on every port), else None."""
+    scenes = set()
+    for url in ports.model_dump().values():
+        if not url.startswith("sim://"):
+            return None
+        scenes.add(parse_qs(urlsplit(url).query).get("scene", ["ideal"])[0])
+    scene = scenes.pop() if len(scenes) == 1 else "mixed"
+    return Path(scene).stem if scene.endswith(".toml") else scene
+
+
 class RigConfig(_Model):
     """Everything the controller must know about one rig."""
 
@@ -152,6 +183,18 @@ class RigConfig(_Model):
     air: Air = Air()
     pendulum: Pendulum = Pendulum()
     model: Model = Model()
+    identity: Identity = Identity()
+
+    def identity_name(self) -> str:
+        """The rig's name: [identity] name, else sim-SCENE for a simulated rig, else the host name."""
+        if self.identity.name is not None:
+            return self.identity.name
+        scene = _sim_scene(self.ports)
+        return rig_name(f"sim-{scene}" if scene is not None else socket.gethostname())
+
+    def identity_record(self, software: str) -> dict[str, str | None]:
+        """What a run records of the rig: name, serial, software version."""
+        return {"name": self.identity_name(), "serial": self.identity.serial, "software": software}
 
     @classmethod
     def load(cls, path: str | Path) -> RigConfig:

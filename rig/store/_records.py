@@ -95,6 +95,9 @@ class VerifyReport:
     first_broken_seq: int | None = None
     reason: str | None = None
     problems: tuple[str, ...] = field(default=())
+    runs_signed: int = 0  # sealed runs whose RunSigned holds (rig.store._signed)
+    runs_unsigned: int = 0
+    runs_bad_signature: int = 0
 
     def __str__(self) -> str:
         if self.ok:

@@ -15,7 +15,7 @@ from types import TracebackType
 from typing import Any, Self
 
 from rig.core.errors import RecordRefused, StoreError, StoreFileError, UnknownRecord
-from rig.store import _derive, _lock, _sync, _verify, _views
+from rig.store import _derive, _lock, _signed, _sync, _verify, _views
 from rig.store._codec import GENESIS_HASH, check_kind, check_payload, decode_payload, entry_hash
 from rig.store._pg import connect_pg, db_error_text, is_db_error, is_url, safe_url
 from rig.store._records import (
@@ -409,7 +409,8 @@ class Store:
             # one snapshot: a concurrent append must not look like a mismatch
             conn.execute("BEGIN" if self.engine == "sqlite" else "BEGIN ISOLATION LEVEL REPEATABLE READ")
             try:
-                return _verify.verify(conn, anchors, self.chain_format, self.engine)
+                report = _verify.verify(conn, anchors, self.chain_format, self.engine)
+                return _signed.with_signatures(conn, report, self.engine)
             finally:
                 if conn.in_transaction:
                     conn.execute("COMMIT")
