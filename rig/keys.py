@@ -148,16 +148,20 @@ def recorded_rig(store: Store, run_id: str) -> str | None:
 
 
 def sign_run(store: Store, run_id: str, signer: Signer) -> LogEntry:
-    """Append RunSigned: `signer`'s signature over the anchor (seq, hash) of the run's last entry."""
+    """Append RunSigned: `signer`'s signature over the anchor of the run's last entry: its
+    (chain_seq, hash) in chain format 2, its (seq, hash) in format 1."""
     last = store.entry(store.run(run_id).last_seq)
     if last is None or last.run_id != run_id:
         raise RecordRefused(f"run {run_id}: its last entry cannot be read; nothing signed")
-    signature = signer.key.sign(anchor_message(run_id, last.seq, last.hash))
+    # chain format 2: the run's own chain position, which a copy to the lab's store keeps
+    field, at = ("chain_seq", last.chain_seq) if store.chain_format == 2 else ("seq", last.seq)
+    assert at is not None
+    signature = signer.key.sign(anchor_message(run_id, at, last.hash, field))
     payload = {
         "run_id": run_id,
         "rig": signer.rig,
         "fingerprint": signer.fingerprint,
-        "anchor": {"seq": last.seq, "hash": last.hash},
+        "anchor": {field: at, "hash": last.hash},
         "signature": base64.b64encode(signature).decode("ascii"),
     }
     return store.append(None, RUN_SIGNED, payload)

@@ -249,8 +249,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
     if distrusted:
         report = dataclasses.replace(report, ok=False, problems=report.problems + tuple(distrusted))
     signatures = (
-        f"{report.runs_signed} runs signed, {report.runs_unsigned} unsigned, "
-        f"{report.runs_bad_signature} bad"
+        f"{report.runs_signed} runs signed, {report.runs_unsigned} unsigned, {report.runs_bad_signature} bad"
     )
     if report.ok:
         print(

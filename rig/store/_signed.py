@@ -33,9 +33,11 @@ def fingerprint(public_raw: bytes) -> str:
     return hashlib.sha256(public_raw).hexdigest()[:16]
 
 
-def anchor_message(run_id: str, seq: int, hash_: str) -> bytes:
-    """The bytes a rig signs: canonical JSON of {"run_id", "seq", "hash"}."""
-    return canonical_json({"run_id": run_id, "seq": seq, "hash": hash_}).encode("ascii")
+def anchor_message(run_id: str, seq: int, hash_: str, field: str = "seq") -> bytes:
+    """The bytes a rig signs: canonical JSON of {"run_id", "seq", "hash"}; in chain format 2 the
+    anchor is the run's own chain position, {"run_id", "chain_seq", "hash"}, so that it holds
+    wherever the run's records are copied (rig sync)."""
+    return canonical_json({"run_id": run_id, field: seq, "hash": hash_}).encode("ascii")
 
 
 @dataclass(frozen=True)
@@ -87,6 +89,7 @@ class SignatureReport:
 class _Run:
     rig: str | None = None  # the rig name RunCreated recorded (None: an old run)
     last: tuple[int, str] = (0, "")  # seq and hash of its last entry
+    last_in_chain: tuple[int | None, str] = (None, "")  # chain_seq and hash of it (chain format 2)
     sealed_at: int | None = None
 
 
@@ -100,12 +103,20 @@ class SignatureCheck:
         self.problems: list[str] = []
 
     def feed(
-        self, seq: int, run_id: str | None, kind: str, payload: str | None, t_utc: str, hash_: str
+        self,
+        seq: int,
+        run_id: str | None,
+        kind: str,
+        payload: str | None,
+        t_utc: str,
+        hash_: str,
+        chain_seq: int | None = None,
     ) -> None:
         """One entry; `payload` is needed only for RunCreated, RunStatusChanged and the two kinds here."""
         if run_id is not None:
             run = self.runs.setdefault(run_id, _Run())
             run.last = (seq, hash_)
+            run.last_in_chain = (chain_seq, hash_)
         if kind not in _DECODED:
             return
         try:
@@ -176,7 +187,8 @@ class SignatureCheck:
         fp = data.get("fingerprint")
         if not (isinstance(run_id, str) and isinstance(rig, str) and isinstance(anchor, dict)):
             return "malformed (run_id, rig or anchor missing)"
-        a_seq, a_hash = anchor.get("seq"), anchor.get("hash")
+        field = "chain_seq" if "chain_seq" in anchor else "seq"
+        a_seq, a_hash = anchor.get(field), anchor.get("hash")
         if not isinstance(a_seq, int) or isinstance(a_seq, bool) or not isinstance(a_hash, str):
             return "malformed anchor"
         run = self.runs.get(run_id)
@@ -193,11 +205,12 @@ class SignatureCheck:
             signature = base64.b64decode(str(data.get("signature", "")).encode("ascii"), validate=True)
         except (binascii.Error, UnicodeEncodeError):
             return "signature is not base64"
-        if not key.verifies(signature, anchor_message(run_id, a_seq, a_hash)):
+        if not key.verifies(signature, anchor_message(run_id, a_seq, a_hash, field)):
             return f"the signature does not verify with key {key.fingerprint} (the anchor was changed)"
-        if (a_seq, a_hash) != run.last:
+        actual = run.last if field == "seq" else run.last_in_chain
+        if (a_seq, a_hash) != actual:
             return (
-                f"signed anchor {a_seq}:{a_hash} is not the run's last entry {run.last[0]}:{run.last[1]} "
+                f"signed anchor {a_seq}:{a_hash} is not the run's last entry {actual[0]}:{actual[1]} "
                 "(the run was changed after it was signed)"
             )
         return None
@@ -213,16 +226,16 @@ def check(conn: Any, engine: str = "sqlite") -> SignatureReport:
     rows = conn.execute(
         f"SELECT seq, {raw('run_id')}, {raw('kind')}, "
         f"CASE WHEN kind IN ({marks}) THEN {raw('payload')} END, "
-        f"{raw('t_utc')}, {raw('hash')} "
+        f"{raw('t_utc')}, {raw('hash')}, chain_seq "
         "FROM log ORDER BY seq",
         _DECODED,
     )
     checker = SignatureCheck()
-    for seq, *columns in rows:
+    for seq, *columns, chain_seq in rows:
         run_id, kind, payload, t_utc, hash_ = (
             None if c is None else bytes(c).decode("utf-8", errors="replace") for c in columns
         )
-        checker.feed(seq, run_id, kind or "", payload, t_utc or "", hash_ or "")
+        checker.feed(seq, run_id, kind or "", payload, t_utc or "", hash_ or "", chain_seq)
     return checker.result()
 
 

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from rig.core.errors import RecordRefused, StoreError
+from rig.store._codec import canonical_json
 from rig.store._records import LogEntry
 
 
@@ -26,11 +27,13 @@ class SyncReport:
     bats_registered: int
     source: str
     target: str
+    signatures_copied: int = 0  # RunSigned entries (and the rigs' key registrations they need)
 
     def __str__(self) -> str:
         return (
             f"{self.source} -> {self.target}: {self.entries_copied} entries of {self.runs_copied} runs "
-            f"copied, {self.runs_up_to_date} runs already up to date, {self.bats_registered} bats registered"
+            f"copied, {self.runs_up_to_date} runs already up to date, {self.bats_registered} bats "
+            f"registered, {self.signatures_copied} signatures copied"
         )
 
 
@@ -88,10 +91,34 @@ def sync(source: Any, target: Any) -> SyncReport:
             continue
         entries_copied += target.import_chain(run.run_id, entries, where)
         copied += 1
+    signatures = _copy_signatures(source, target, {run.run_id for run in runs})
     after = target.verify()
     if not after.ok:  # pragma: no cover - a bug: the copy broke what verified before
         raise StoreError(f"{to}: does not verify after the copy: {after.problems[0]}")
-    return SyncReport(copied, entries_copied, up_to_date, bats, where, to)
+    return SyncReport(copied, entries_copied, up_to_date, bats, where, to, signatures)
+
+
+def _copy_signatures(source: Any, target: Any, run_ids: set[str]) -> int:
+    """The source's rig keys and run signatures the target lacks, in the source's order (a key's
+    registration before the signatures it checks). Chain format 2 signs a run's own chain position,
+    so a signature holds in the target as it did in the source."""
+    from rig.store._signed import RIG_KEY_REGISTERED, RUN_SIGNED
+
+    have = {
+        (e.kind, canonical_json(e.payload))
+        for e in target.entries(None, kinds=[RIG_KEY_REGISTERED, RUN_SIGNED])
+    }
+    wanted = [
+        e
+        for e in source.entries(None, kinds=[RIG_KEY_REGISTERED, RUN_SIGNED])
+        if e.run_id is None and (e.kind == RIG_KEY_REGISTERED or e.payload.get("run_id") in run_ids)
+    ]
+    copied = 0
+    for e in wanted:
+        if (e.kind, canonical_json(e.payload)) not in have:
+            target.append(None, e.kind, e.payload)
+            copied += e.kind == RUN_SIGNED
+    return copied
 
 
 def _target_entries(target: Any, run_id: str) -> list[LogEntry]:

@@ -144,7 +144,34 @@ def test_the_command_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
     report = json.loads(capsys.readouterr().out)
     assert report["runs_copied"] == 1 and report["entries_copied"] > 10
     assert main(["sync", "--from", str(rig), "--to", str(lab)]) == 0
-    assert "0 entries of 0 runs copied, 1 runs already up to date" in capsys.readouterr().out
+    assert (
+        "0 entries of 0 runs copied, 1 runs already up to date, 0 bats registered, 0 signatures copied"
+        in capsys.readouterr().out
+    )
     assert main(["sync", "--from", str(tmp_path / "none.db"), "--to", str(lab)]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "none.db: no such store" in err
+
+
+def test_a_signed_run_stays_signed_in_the_lab_store(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The rig signs its run's own chain position; the copy carries the key and the signature."""
+    monkeypatch.setenv("RIG_KEY_DIR", str(tmp_path / "keys"))
+    rig, lab = tmp_path / "rig.db", tmp_path / "lab.db"
+    assert main(["keys", "create", "--rig", "sim-ideal"]) == 0
+    assert main(["keys", "register", "--db", str(rig), "--rig", "sim-ideal"]) == 0
+    run = _certify(rig)
+    with Store.open(rig) as s, Store.open(lab) as t:
+        assert s.verify().runs_signed == 1
+        report = sync(s, t)
+        assert report.signatures_copied == 1
+        checked = t.verify()
+        assert checked.ok and (checked.runs_signed, checked.runs_unsigned, checked.runs_bad_signature) == (
+            1,
+            0,
+            0,
+        )
+        assert sync(s, t).signatures_copied == 0  # idempotent
+        (signed,) = t.entries(None, kinds=["RunSigned"])
+        last = t.entries(run)[-1]
+        assert signed.payload["anchor"] == {"chain_seq": last.chain_seq, "hash": last.hash}
+        assert last.seq != s.entries(run)[-1].seq  # another position in the lab's log, same anchor

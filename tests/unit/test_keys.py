@@ -154,7 +154,7 @@ def test_a_run_records_its_rig_is_signed_when_sealed_and_listed_by_rig(tmp_path:
     assert recorded == {"name": "sim-ideal", "serial": None, "software": rig.__version__}
     assert sealed.kind == "RunStatusChanged" and sealed.payload["status"] == "finished"
     assert [(s.payload["run_id"], s.payload["anchor"]) for s in signed] == [
-        (run.run_id, {"seq": sealed.seq, "hash": sealed.hash})
+        (run.run_id, {"chain_seq": sealed.chain_seq, "hash": sealed.hash})
     ]
     # right after the seal: only the lab chain's seal anchor (format 2) comes between
     assert [e.kind for e in entries if sealed.seq < e.seq <= signed[0].seq] == ["RunSealed", "RunSigned"]
@@ -189,7 +189,7 @@ def test_ending_a_run_signs_it(tmp_path: Path) -> None:
         (signed,) = store.entries(None, kinds=["RunSigned"])
         last = store.entries(run_id)[-1]
         assert last.payload["status"] == "aborted"
-        assert signed.payload["anchor"] == {"seq": last.seq, "hash": last.hash}
+        assert signed.payload["anchor"] == {"chain_seq": last.chain_seq, "hash": last.hash}
         assert store.verify().runs_signed == 1
 
 
