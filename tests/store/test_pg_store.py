@@ -219,3 +219,19 @@ def test_sqlite_stays_the_default(tmp_path: Path, monkeypatch: pytest.MonkeyPatc
     with Store.open(tmp_path / "rig-records.db") as store:
         assert store.engine == "sqlite" and store.chain_format == 2
     assert sqlite3.connect(tmp_path / "rig-records.db").execute("SELECT count(*) FROM log").fetchone() == (0,)
+
+
+def test_export_and_one_run_verification_work_on_postgresql(
+    pg_url: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    csvs = {}
+    for name, where in (("pg", pg_url), ("sqlite", str(tmp_path / "r.db"))):
+        with Store.open(where) as store:
+            run = certify(store, Procedure.load(QUICK), BAT, sim_config("ideal", bat=BAT)).run_id
+            fired = len(store.entries(run, kinds=["ShotFired"]))
+        assert main(["verify", "--db", where, "--run", run]) == 0
+        assert main(["export", "--db", where, "--view", "shots", "--format", "csv", "--output", "-"]) == 0
+        out = capsys.readouterr().out
+        assert "chain intact" in out.splitlines()[0]
+        csvs[name] = _VOLATILE.sub("*", out[out.index("run_id,") :])
+    assert csvs["pg"] == csvs["sqlite"] and csvs["pg"].count("\n") == 1 + fired  # the header, a row per shot
