@@ -153,22 +153,20 @@ def test_a_newer_schema_is_refused(pg_url: str) -> None:
 
 _CHILD = """
 import json, subprocess, sys
-from protocols.procedure import Procedure
-from rig.certification import certify
-from rig.core.bat import BatSpec
-from rig.session import sim_config
-from rig.store import Store
+from rig.cli import main
+from rig.report import live
 url, bat, quick, stop = sys.argv[1], sys.argv[2], sys.argv[3], json.loads(sys.argv[4])
+shown = live.LiveConsole.__call__
 measured = 0
-def stop_the_server(event):
+def stop_the_server(self, event):  # the rig's console sees each event: stop the database at the third shot
     global measured
+    shown(self, event)
     if event.kind == "ShotMeasured":
         measured += 1
         if measured == 3:
             subprocess.run(stop, check=True, capture_output=True, cwd="/")
-spec = BatSpec.load(bat)
-with Store.open(url) as store:
-    certify(store, Procedure.load(quick), spec, sim_config("ideal", bat=spec), subscribers=[stop_the_server])
+live.LiveConsole.__call__ = stop_the_server
+sys.exit(main(["certify", "--procedure", quick, "--bat", bat, "--sim", "ideal", "--db", url]))
 """
 
 
@@ -176,9 +174,9 @@ with Store.open(url) as store:
 def test_the_server_going_away_mid_run_loses_nothing_and_the_run_resumes(
     pg_url: str, pg_cluster: Any
 ) -> None:
-    """The database stops during a rig's certification (another process): the rig stops with one
-    line naming the lost connection, every entry committed before stays whole, and once the server is
-    back the run resumes to its verdict."""
+    """The database stops during `rig certify` (another process): it exits 2 with one line naming the
+    lost connection (password masked), every entry committed before stays whole, and once the server
+    is back the run resumes to its verdict."""
     stop = pg_cluster._command("pg_ctl", "stop", "-D", str(pg_cluster.data_dir), "-m", "immediate", "-w")
     child = subprocess.run(
         [
@@ -196,11 +194,11 @@ def test_the_server_going_away_mid_run_loses_nothing_and_the_run_resumes(
         cwd=ROOT,
     )
     pg_cluster.stopped = True
-    assert child.returncode != 0
-    last = child.stderr.strip().splitlines()[-1]
-    assert (
-        "StoreError" in last and "the database connection failed" in last and pg_cluster.password not in last
-    )
+    assert child.returncode == 2, child.stderr
+    errors = [line for line in child.stderr.splitlines() if line.startswith("rig: ")]
+    assert len(errors) == 1 and "Traceback" not in child.stderr
+    assert "the database connection failed" in errors[0] and "resumable once it is back" in errors[0]
+    assert pg_cluster.password not in child.stderr
     pg_cluster.start()
     with Store.open(pg_url) as store:
         assert store.verify().ok  # nothing half-written
