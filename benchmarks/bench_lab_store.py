@@ -29,6 +29,9 @@ BAT = ROOT / "protocols" / "examples" / "sample-bat.toml"
 def _one_rig(where: str, name: str, out: Any) -> None:
     """A rig process: one certification, every append timed; reports its run, latencies, seqs."""
     sys.path.insert(0, str(ROOT))
+    import faulthandler
+
+    faulthandler.dump_traceback_later(90, exit=True)  # a rig stuck for 90 s shows where, then ends
     from protocols.procedure import Procedure
     from rig.certification import certify
     from rig.core.bat import BatSpec
@@ -64,6 +67,12 @@ def _one_rig(where: str, name: str, out: Any) -> None:
     )
 
 
+def _burn() -> None:
+    """A CPU-bound process (the machine busy, as CI machines are)."""
+    while True:
+        sum(i * i for i in range(100_000))
+
+
 def concurrent(where: str, rigs: int) -> dict[str, Any]:
     """`rigs` processes certifying into `where` at once."""
     from rig.store import Store
@@ -75,10 +84,13 @@ def concurrent(where: str, rigs: int) -> dict[str, Any]:
     t0 = time.perf_counter()
     for p in procs:
         p.start()
-    results = [queue.get(timeout=600) for _ in procs]
+    results = [queue.get(timeout=150) for _ in procs]
     for p in procs:
         p.join(60)
     wall = time.perf_counter() - t0
+    failed = [f"{r['rig']}: {r['error']}" for r in results if "error" in r]
+    if failed:
+        raise SystemExit(f"bench_lab_store: a rig failed: {'; '.join(failed)}")
     with Store.open(where, create=False) as store:
         report = store.verify()
         held = {e.seq for e in store.entries()}
@@ -106,8 +118,10 @@ def alone(where: str) -> float:
     queue = ctx.Queue()
     p = ctx.Process(target=_one_rig, args=(where, "alone", queue))
     p.start()
-    got = queue.get(timeout=600)
+    got = queue.get(timeout=150)
     p.join(60)
+    if "error" in got:
+        raise SystemExit(f"bench_lab_store: {got['error']}")
     return float(got["wall"])
 
 
@@ -115,6 +129,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__)
     parser.add_argument("--rigs", type=int, default=4)
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--load", type=int, default=0, help="CPU-bound processes to run beside it")
     args = parser.parse_args(argv)
     sys.path.insert(0, str(ROOT))
     from tests.pgcluster import find_bin_dir, throwaway_cluster
@@ -123,6 +138,11 @@ def main(argv: list[str] | None = None) -> int:
         print("bench_lab_store: no PostgreSQL server binaries (apt-get install postgresql): skipped")
         return 0
     rows: dict[str, dict[str, Any]] = {}
+    burners = [
+        multiprocessing.get_context("spawn").Process(target=_burn, daemon=True) for _ in range(args.load)
+    ]
+    for b in burners:
+        b.start()
     with throwaway_cluster() as cluster, tempfile.TemporaryDirectory() as tmp:
         rows["postgresql"] = concurrent(cluster.url(cluster.create_db()), args.rigs)
         rows["sqlite"] = concurrent(str(Path(tmp) / "lab.db"), args.rigs)
@@ -134,6 +154,10 @@ def main(argv: list[str] | None = None) -> int:
             Store.open(where).close()
         t_pg = min(alone(pg_url) for _ in range(2))
         t_sqlite = min(alone(sqlite_path) for _ in range(2))
+    for b in burners:
+        b.terminate()
+    if args.load:
+        print(f"with {args.load} CPU-bound processes beside it")
     if args.json:
         print(json.dumps({"concurrent": rows, "alone_s": {"postgresql": t_pg, "sqlite": t_sqlite}}, indent=2))
     for engine, r in rows.items():

@@ -26,7 +26,7 @@ from rig import __version__
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
-from rig.core.errors import ConfigError, RigError
+from rig.core.errors import ConfigError, RecordRefused, RigError
 from rig.core.events import RunEvent, Subscriber
 from rig.keys import Signer, load_signer, recorded_rig, sign_run
 from rig.modal.link import with_measured_hoop
@@ -163,9 +163,15 @@ def certify(
     if run_id is None:
         run_calibration(procedure, config)  # a named calibration that will not load stops us here
         bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
-        if bat.id not in store.bats():
-            store.register_bat(bat.id, bat.model_dump(mode="json"))
-        elif store.bats()[bat.id] != bat.model_dump(mode="json"):
+        spec = bat.model_dump(mode="json")
+        registered = store.bats().get(bat.id)
+        if registered is None:
+            try:
+                store.register_bat(bat.id, spec)
+                registered = spec
+            except RecordRefused:  # another rig registered it meanwhile (one lab database)
+                registered = store.bats().get(bat.id)
+        if registered != spec:
             raise ConfigError(
                 f"bat {bat.id} is registered with other properties; give it a new id", source="bat file"
             )

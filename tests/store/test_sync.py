@@ -175,3 +175,28 @@ def test_a_signed_run_stays_signed_in_the_lab_store(tmp_path: Path, monkeypatch:
         last = t.entries(run)[-1]
         assert signed.payload["anchor"] == {"chain_seq": last.chain_seq, "hash": last.hash}
         assert last.seq != s.entries(run)[-1].seq  # another position in the lab's log, same anchor
+
+
+def test_two_rigs_registering_the_same_bat_at_once_both_certify(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Found by bench_lab_store under load: rig B read the bats before rig A's registration landed,
+    then its own registration was refused and its run never started. The race, made certain: the
+    bat is registered between B's read and B's registration."""
+    lab = tmp_path / "lab.db"
+    with Store.open(lab) as store:
+        real_bats = Store.bats
+        calls = {"n": 0}
+
+        def stale_then_real(self: Store) -> dict[str, object]:
+            calls["n"] += 1
+            if calls["n"] == 1:  # B's first read: before A registered the bat...
+                self.register_bat(BAT.id, BAT.model_dump(mode="json"))  # ...which A does now
+                return {}
+            return real_bats(self)
+
+        monkeypatch.setattr(Store, "bats", stale_then_real)
+        out = certify(store, Procedure.load(QUICK), BAT, sim_config("ideal", bat=BAT))
+        monkeypatch.undo()
+        assert out.status == "finished" and store.verify().ok
+        assert [e.kind for e in store.entries(None, kinds=["BatRegistered"])] == ["BatRegistered"]
