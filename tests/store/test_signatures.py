@@ -337,3 +337,61 @@ def test_a_malformed_signature_entry_is_reported_not_a_crash(
         report = store.verify()
     assert not report.ok and report.runs_signed == 0
     assert any("RunSigned" in p and needle in p for p in report.problems), (good.payload, report.problems)
+
+
+def forge2(path: Path, run: str) -> None:
+    """Chain format 2: a forger who read the code makes shot 1 of `run` a better bat, re-hashes the
+    run's chain, points the lab chain's anchors of it at the new hashes and re-hashes the lab chain."""
+    with raw(path) as db:
+        rows = db.execute(
+            "SELECT seq, run_id, kind, payload, t_utc, chain, chain_seq FROM log ORDER BY chain, chain_seq"
+        ).fetchall()
+        new_hash: dict[str, str] = {}  # old hash -> new hash, for the run's entries
+        heads: dict[str, str] = {}
+        db.execute("BEGIN")
+        for seq, run_id, kind, payload, t_utc, chain, number in sorted(
+            rows, key=lambda r: (r[5] == "lab", r[5], r[6])
+        ):
+            data = json.loads(payload)
+            if run_id == run and kind == "ShotMeasured" and data["shot"] == 1:
+                data = {**data, "bbcor": 0.43}
+            if chain == "lab" and data.get("run_id") == run and "hash" in data:  # RunOpened, RunSealed
+                old = data["hash"]
+                data = {**data, "hash": new_hash.get(old, old)}
+            text = canonical_json(data)
+            prev = heads.get(chain, GENESIS_HASH)
+            digest = entry_hash(prev, number, run_id, kind, t_utc, text)
+            (old_hash,) = db.execute("SELECT hash FROM log WHERE seq = ?", (seq,)).fetchone()
+            new_hash[old_hash] = digest
+            db.execute(
+                "UPDATE log SET payload = ?, prev_hash = ?, hash = ? WHERE seq = ?", (text, prev, digest, seq)
+            )
+            heads[chain] = digest
+        db.execute("COMMIT")
+
+
+@pytest.mark.parametrize("signed", [True, False])
+def test_format_2_a_rewritten_run_with_rewritten_lab_anchors_is_caught_only_by_its_signature(
+    tmp_path: Path, signed: bool
+) -> None:
+    path = tmp_path / "rig.db"
+    signer = _signer(tmp_path) if signed else None
+    with Store.open(path) as store:
+        assert store.chain_format == 2
+        if signer is not None:
+            register(store, signer)
+        run = _run(store, signer)
+        _run(store, signer)  # another run, untouched
+        assert store.verify().ok
+    forge2(path, run)
+    with Store.open(path) as store:
+        report = store.verify()
+        assert [e.payload["bbcor"] for e in store.entries(run, kinds=["ShotMeasured"])][1] == 0.43
+    assert report.first_broken_seq is None  # every chain and every anchor holds
+    if signed:
+        assert not report.ok and report.runs_bad_signature == 1 and report.runs_signed == 1
+        assert any(
+            f"RunSigned for run {run}" in p and "not the run's last entry" in p for p in report.problems
+        )
+    else:
+        assert report.ok  # without keys the forgery is not seen: the documented limit
