@@ -1,11 +1,13 @@
 """The `rig` command line: a thin client over the controller's functions.
 
-Every command has --help. Errors print one line naming the cause and exit with status 2.
+Every command has --help. Errors print one line naming the cause and exit with status 2; with
+--json, a JSON error object ({"error": {"message", "exit_status"}}) goes to stdout as well.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 from collections.abc import Callable, Sequence
 
@@ -32,13 +34,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return handler(args)
     except ParameterError as exc:
-        print(f"rig: invalid parameter: {exc}", file=sys.stderr)
+        message = f"invalid parameter: {exc}"
     except RigError as exc:
-        print(f"rig: {exc}", file=sys.stderr)
+        message = str(exc)
     except KeyboardInterrupt:
         return 130
     except OSError as exc:
-        print(f"rig: {exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), file=sys.stderr)
+        message = f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": ")
+    print(f"rig: {message}", file=sys.stderr)
+    if getattr(args, "json", False):  # a program reading the JSON learns of the error too
+        json.dump({"error": {"message": message, "exit_status": 2}}, sys.stdout)
+        sys.stdout.write("\n")
     return 2
 
 

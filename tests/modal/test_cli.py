@@ -75,7 +75,8 @@ def test_bad_recordings_give_one_line(
     path = tmp_path / "bad.csv"
     assert run(capsys, "modal", "simulate", str(path), "--hits", "3", "--interval", "0.15", *extra)[0] == 0
     code, out, err = run(capsys, "modal", "analyze", str(path), "--json")
-    assert code == 2 and out == ""
+    # with --json the error is also a JSON object on stdout (issue 13, finding 7), the same line
+    assert code == 2 and json.loads(out)["error"]["message"] == err.strip().removeprefix("rig: ")
     assert err.startswith("rig: ") and needle in err and err.count("\n") == 1
 
 

@@ -150,3 +150,27 @@ def test_an_unwritable_output_is_one_line_and_an_old_file_survives(
     result = run_cli([*base, str(old), "--run", "nope"])  # refused after the output was checked
     assert result.code == 2 and old.read_text() == "yesterday's export\n"
     assert not [p for p in tmp_path.iterdir() if p.name.endswith(".part")]
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["modal", "analyze", "missing-recording.csv", "--json"],
+        ["runs", "--db", "missing-store.db", "--json"],
+        ["sync", "--from", "missing-store.db", "--to", "lab.db", "--json"],
+    ],
+)
+def test_with_json_an_error_is_a_json_object_too(
+    argv: list[str], tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Issue 13, finding 7: with --json, errors printed nothing on stdout."""
+    import json
+
+    from rig.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(argv) == 2
+    out, err = capsys.readouterr()
+    line = err.strip()
+    assert line.startswith("rig: ") and "\n" not in line
+    assert json.loads(out) == {"error": {"message": line.removeprefix("rig: "), "exit_status": 2}}
