@@ -1,9 +1,11 @@
 """A modal-test recording (hammer force and two accelerations) and its CSV format.
 
 CSV format (docs/modal.md): optional comment lines starting with '#', then the header exactly
-`time_s,force_N,accel1_ms2,accel2_ms2`, then one row per sample: time in s (strictly increasing,
-evenly spaced), hammer force in N, accelerations in m/s^2. Accelerometer 1 sits in line with the
-hammer, accelerometer 2 at 90 degrees to it around the barrel.
+`time_s,force_N,accel1_ms2,accel2_ms2` (the time column may be `time_ms` or `time_us` instead),
+then one row per sample: time in that unit (strictly increasing, evenly spaced), hammer force in
+N, accelerations in m/s^2. Accelerometer 1 sits in line with the hammer, accelerometer 2 at 90
+degrees to it around the barrel. A time column slower than an impact test can be (its unit not
+the one its name says) is refused, naming the likely unit.
 """
 
 from __future__ import annotations
@@ -21,6 +23,11 @@ CSV_HEADER = ",".join(CSV_COLUMNS)
 CHANNELS = ("force", "accel1", "accel2")
 MIN_SAMPLES = 16
 UNIFORM_TOLERANCE = 1e-3  # a step may differ from the median step by this fraction (text rounding)
+# A time column may name its unit: time_s (the documented one), time_ms or time_us.
+TIME_UNITS = {"time_s": 1.0, "time_ms": 1e-3, "time_us": 1e-6}
+# Slower than this is no impact test of a bat (its modes lie from about 100 Hz to a few kHz): a time
+# column that gives it is most likely written in another unit than its name says.
+MIN_SAMPLE_RATE_HZ = 200.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,6 +129,9 @@ def read_csv(path: str | Path) -> Recording:
     if i == len(lines):
         raise RecordingFormatError(f"{path}: empty: expected the header {CSV_HEADER!r}")
     header = [c.strip() for c in lines[i].split(",")]
+    scale = TIME_UNITS.get(header[0], 1.0) if header else 1.0
+    if header and header[0] in TIME_UNITS:
+        header = ["time_s", *header[1:]]
     if header != list(CSV_COLUMNS):
         missing = [c for c in CSV_COLUMNS if c not in header]
         extra = [c for c in header if c not in CSV_COLUMNS]
@@ -147,7 +157,23 @@ def read_csv(path: str | Path) -> Recording:
         raise  # pragma: no cover - _raise_bad_row always raises
     if data.shape[1] != len(CSV_COLUMNS):
         _raise_bad_row(path, body)
+    data[:, 0] *= scale
+    _check_time_unit(data[:, 0], path, first_line - 1)
     return Recording.build(*data.T, source=str(path), first_line=first_line)
+
+
+def _check_time_unit(t: np.ndarray, path: Path, header_line: int) -> None:
+    """Refuse a time column whose sample rate no impact test has: most likely the wrong unit."""
+    if t.size < 2:
+        return
+    step = float(np.median(np.diff(t)))
+    if step > 0 and 1.0 / step < MIN_SAMPLE_RATE_HZ:
+        guess = " (in milliseconds, as the steps suggest? name the column time_ms)" if step >= 1e-2 else ""
+        raise RecordingFormatError(
+            f"{path}: line {header_line}: the time column steps {step:.6g} s, a sample rate of "
+            f"{1.0 / step:.4g} Hz, too slow for an impact test (at least {MIN_SAMPLE_RATE_HZ:g} Hz): "
+            f"is the time in another unit than its name says{guess}?"
+        )
 
 
 def _raise_bad_row(path: Path, body: list[tuple[int, str]]) -> None:

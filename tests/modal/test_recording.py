@@ -163,3 +163,19 @@ def test_uff_needs_one_force_and_two_accelerations(recording: Recording, tmp_pat
 def test_write_csv_then_analyze_gives_the_same_result(recording: Recording, tmp_path: Path) -> None:
     path = write_csv(recording, tmp_path / "x.csv")
     assert analyze(read_csv(path)).hoop_hz == pytest.approx(analyze(recording).hoop_hz, abs=1e-3)
+
+
+def test_time_written_in_milliseconds_is_named_not_analysed(recording: Recording, tmp_path: Path) -> None:
+    """Issue 13, finding 1: a time column in ms under the name time_s was read as a 25.6 Hz record."""
+    good = write_csv(recording, tmp_path / "s.csv")
+    lines = good.read_text().splitlines()
+    at = next(i for i, line in enumerate(lines) if line.startswith("time_s,"))
+    rows = [line.split(",") for line in lines[at + 1 :]]
+    as_ms = [",".join([repr(float(r[0]) * 1000.0), *r[1:]]) for r in rows]
+    mislabelled = write(tmp_path, "\n".join([lines[at], *as_ms]) + "\n", "ms.csv")
+    with pytest.raises(RecordingFormatError, match=r"too slow for an impact test.*milliseconds.*time_ms"):
+        read_csv(mislabelled)
+    named = write(tmp_path, "\n".join([lines[at].replace("time_s,", "time_ms,"), *as_ms]) + "\n", "named.csv")
+    again = read_csv(named)  # the unit named in the header is honoured
+    assert again.fs == pytest.approx(recording.fs, rel=1e-6)
+    assert analyze(again).hoop_hz == pytest.approx(analyze(recording).hoop_hz, abs=1e-3)
