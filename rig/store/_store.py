@@ -1,4 +1,13 @@
-"""The Store: one SQLite file, an append-only hash-chained log and tables derived from it."""
+"""The Store: an append-only hash-chained log and the tables derived from it, in one SQLite file
+or a lab's PostgreSQL database.
+
+Why one module of ~560 lines: every write to the record goes through this class, in one
+transaction on one connection under one lock: appends on both engines and both chain formats,
+the run lock that refuses a second runner, the seal and its lab-chain anchor, and the verbatim
+import of `rig sync`. Their invariants (what a transaction holds, which chain is locked, when a
+run is sealed) are read together; the parts that stand alone live beside it (_chains, _verify,
+_lock, _pg, _sync, _views, _signed).
+"""
 
 from __future__ import annotations
 
