@@ -90,19 +90,24 @@ class Runner:
         """Record device traffic not yet attached to a shot (e.g. before an interruption)."""
         self.executor.flush_traffic()
 
-    def run(self) -> dict[str, Any]:
+    def run(self, rehearse_first: bool = True) -> dict[str, Any]:
         """Run (or resume) to the verdict; returns the RunFinished payload.
 
         The plan is first rehearsed against checking fakes: every problem is named before anything
-        is armed (ConfigError listing them all).
+        is armed (ConfigError listing them all). A caller that has just rehearsed the same plan from
+        the same record (rig.certification, before it takes the run lock) passes False.
         """
         if self.state.finished:
             return dict(self.state.verdict or {})
         if self.state.ended is not None:
             raise ConfigError("the run was ended without a verdict; start a new one", source="resume")
-        problems = rehearse(
-            self.p, self.bat, self.config, self.plan, self.history, options=dict(self.ctx.options)
-        ).problems
+        problems = (
+            rehearse(
+                self.p, self.bat, self.config, self.plan, self.history, options=dict(self.ctx.options)
+            ).problems
+            if rehearse_first
+            else []
+        )
         if problems:
             raise ConfigError("; ".join(problems), source="dry run")
         return self.executor.run(self.plan)

@@ -215,7 +215,7 @@ def certify(
                 plan=plan,
             )
             try:
-                verdict = runner.run()
+                verdict = runner.run(rehearse_first=False)  # rehearsed above, before the lock
                 runner.control.settled = True
             except BaseException as exc:
                 runner.control.settled = True  # stop signals from now on would only tear the record up

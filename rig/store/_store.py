@@ -18,6 +18,7 @@ import threading
 import uuid
 from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 from datetime import UTC, datetime
 from pathlib import Path
 from types import TracebackType
@@ -165,12 +166,7 @@ class Store:
                 raise UnknownRecord(f"no bat {bat_id!r}; {known_ids('bats', known)}")
             payload = {"procedure": procedure, "bat_id": bat_id, "meta": meta}
             entry = self._append(conn, run_id, RUN_CREATED, payload, new_run=True)
-            conn.execute(
-                f"INSERT INTO runs ({_RUN_COLUMNS}) VALUES (?, ?, ?, ?, 'running', NULL, ?)",
-                (run_id, procedure, bat_id, entry.t_utc, entry.seq),
-            )
-            if self.chain_format == 2:  # the lab chain anchors the run's first entry
-                self._append(conn, None, RUN_OPENED, {"run_id": run_id, "hash": entry.hash})
+            self._opened(conn, run_id, entry)
         return run_id
 
     def append(self, run_id: str | None, kind: str, payload: dict[str, Any]) -> LogEntry:
@@ -197,13 +193,26 @@ class Store:
             if current != "running":
                 raise RecordRefused(f"run {run_id} is already {current}")
             entry = self._append(conn, run_id, RUN_STATUS_CHANGED, {"status": status, "verdict": verdict})
-            conn.execute(
-                "UPDATE runs SET status = ?, verdict = ? WHERE run_id = ?", (status, verdict, run_id)
-            )
-            if self.chain_format == 2:  # the lab chain anchors the sealed run's last entry
-                anchor = {"run_id": run_id, "chain_seq": entry.chain_seq, "hash": entry.hash}
-                self._append(conn, None, RUN_SEALED, {**anchor, "status": status})
+            self._sealed(conn, run_id, entry)
         return entry
+
+    def _opened(self, conn: Any, run_id: str, created: LogEntry) -> None:
+        """The runs row of a new run from its RunCreated, and (format 2) its RunOpened anchor."""
+        p = created.payload
+        conn.execute(
+            f"INSERT INTO runs ({_RUN_COLUMNS}) VALUES (?, ?, ?, ?, 'running', NULL, ?)",
+            (run_id, p["procedure"], p["bat_id"], created.t_utc, created.seq),
+        )
+        if self.chain_format == 2:  # the lab chain anchors the run's first entry
+            self._append(conn, None, RUN_OPENED, {"run_id": run_id, "hash": created.hash})
+
+    def _sealed(self, conn: Any, run_id: str, closing: LogEntry) -> None:
+        """The runs row closed by a RunStatusChanged, and (format 2) its RunSealed anchor."""
+        status, verdict = closing.payload.get("status"), closing.payload.get("verdict")
+        conn.execute("UPDATE runs SET status = ?, verdict = ? WHERE run_id = ?", (status, verdict, run_id))
+        if self.chain_format == 2:  # the lab chain anchors the sealed run's last entry
+            anchor = {"run_id": run_id, "chain_seq": closing.chain_seq, "hash": closing.hash}
+            self._append(conn, None, RUN_SEALED, {**anchor, "status": status})
 
     def import_chain(self, run_id: str, entries: list[LogEntry], source: str) -> int:
         """Add a run's entries copied verbatim from another store (chain format 2; rig sync).
@@ -233,23 +242,13 @@ class Store:
             if held:
                 self._check_open(conn, run_id, new[0].kind)
             for entry in new:
-                seq = self._insert_verbatim(conn, run_id, entry)
-                if entry.kind == RUN_CREATED:
-                    p = entry.payload
-                    conn.execute(
-                        f"INSERT INTO runs ({_RUN_COLUMNS}) VALUES (?, ?, ?, ?, 'running', NULL, ?)",
-                        (run_id, p["procedure"], p["bat_id"], entry.t_utc, seq),
-                    )
-                    self._append(conn, None, RUN_OPENED, {"run_id": run_id, "hash": entry.hash})
+                here = replace(entry, seq=self._insert_verbatim(conn, run_id, entry))  # its seq in this store
+                if here.kind == RUN_CREATED:
+                    self._opened(conn, run_id, here)
                     continue
-                conn.execute("UPDATE runs SET last_seq = ? WHERE run_id = ?", (seq, run_id))
-                if entry.kind == RUN_STATUS_CHANGED:
-                    status, verdict = entry.payload.get("status"), entry.payload.get("verdict")
-                    conn.execute(
-                        "UPDATE runs SET status = ?, verdict = ? WHERE run_id = ?", (status, verdict, run_id)
-                    )
-                    anchor = {"run_id": run_id, "chain_seq": entry.chain_seq, "hash": entry.hash}
-                    self._append(conn, None, RUN_SEALED, {**anchor, "status": status})
+                conn.execute("UPDATE runs SET last_seq = ? WHERE run_id = ?", (here.seq, run_id))
+                if here.kind == RUN_STATUS_CHANGED:
+                    self._sealed(conn, run_id, here)
             last = new[-1]
             synced = {"run_id": run_id, "source": source, "entries": len(new), "chain_seq": last.chain_seq}
             self._append(conn, None, RUN_SYNCED, {**synced, "hash": last.hash})
@@ -414,15 +413,9 @@ class Store:
     def verify(self, anchors: Iterable[Anchor] = ()) -> VerifyReport:
         """Walk the chain from genesis, cross-check the tables and any outside anchors."""
         anchors = list(anchors)
-        with self._read() as conn:
-            # one snapshot: a concurrent append must not look like a mismatch
-            conn.execute("BEGIN" if self.engine == "sqlite" else "BEGIN ISOLATION LEVEL REPEATABLE READ")
-            try:
-                report = _verify.verify(conn, anchors, self.chain_format, self.engine)
-                return _signed.with_signatures(conn, report, self.engine)
-            finally:
-                if conn.in_transaction:
-                    conn.execute("COMMIT")
+        with self._snapshot() as conn:
+            report = _verify.verify(conn, anchors, self.chain_format, self.engine)
+            return _signed.with_signatures(conn, report, self.engine)
 
     def verify_run(self, run_id: str) -> VerifyReport:
         """One run: its own chain and its anchors in the lab chain (chain format 2; format 1 has
@@ -430,13 +423,8 @@ class Store:
         self.run(run_id)  # an unknown run: UnknownRecord naming the known ones
         if self.chain_format == 1:
             return self.verify()
-        with self._read() as conn:
-            conn.execute("BEGIN" if self.engine == "sqlite" else "BEGIN ISOLATION LEVEL REPEATABLE READ")
-            try:
-                return _verify.verify_run(conn, run_id, self.engine)
-            finally:
-                if conn.in_transaction:
-                    conn.execute("COMMIT")
+        with self._snapshot() as conn:
+            return _verify.verify_run(conn, run_id, self.engine)
 
     def pragmas(self) -> dict[str, Any]:
         """The connection's journal_mode, synchronous, foreign_keys and busy_timeout (diagnostics)."""
@@ -459,6 +447,17 @@ class Store:
                 if self.engine == "sqlite" or not is_db_error(exc):
                     raise
                 raise StoreError(f"{self._path}: {db_error_text(exc)}") from exc
+
+    @contextmanager
+    def _snapshot(self) -> Iterator[Any]:
+        """One read snapshot: a concurrent append must not look like a mismatch to a verifier."""
+        with self._read() as conn:
+            conn.execute("BEGIN" if self.engine == "sqlite" else "BEGIN ISOLATION LEVEL REPEATABLE READ")
+            try:
+                yield conn
+            finally:
+                if conn.in_transaction:
+                    conn.execute("COMMIT")
 
     @contextmanager
     def _write(self) -> Iterator[Any]:
