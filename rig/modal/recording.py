@@ -2,7 +2,8 @@
 
 CSV format (docs/modal.md): optional comment lines starting with '#', then the header exactly
 `time_s,force_N,accel1_ms2,accel2_ms2` (the time column may be `time_ms` or `time_us` instead),
-then one row per sample: time in that unit (strictly increasing, evenly spaced), hammer force in
+then one row per sample: time in that unit (strictly increasing, evenly spaced up to the rounding
+of its printed digits or of float32; the rate is a least-squares fit), hammer force in
 N, accelerations in m/s^2. Accelerometer 1 sits in line with the hammer, accelerometer 2 at 90
 degrees to it around the barrel. A time column slower than an impact test can be (its unit not
 the one its name says) is refused, naming the likely unit.
@@ -39,6 +40,7 @@ class Recording:
     accel1: np.ndarray
     accel2: np.ndarray
     source: str = ""
+    step_s: float | None = None  # the sampling interval fitted by Recording.build
 
     @classmethod
     def build(
@@ -49,8 +51,13 @@ class Recording:
         accel2: Iterable[float],
         source: str = "",
         first_line: int = 1,
+        time_quantum: np.ndarray | float = 0.0,
     ) -> Recording:
-        """Check and freeze the arrays; `first_line` numbers the samples in error messages."""
+        """Check and freeze the arrays; `first_line` numbers the samples in error messages.
+
+        `time_quantum` is the last printed digit of each time (s): rounding that the time axis
+        may carry without being uneven (a float32 column's spacing is allowed for by itself).
+        """
         arrays = [np.asarray(a, dtype=float).ravel() for a in (time_s, force, accel1, accel2)]
         where = f"{source}: " if source else ""
         n = arrays[0].size
@@ -66,10 +73,10 @@ class Recording:
                     f"{where}{name} is {a[bad[0]]} at sample {bad[0] + first_line}"
                     f" ({bad.size} non-finite value(s) in that column)"
                 )
-        _check_time(arrays[0], where, first_line)
+        step = _check_time(arrays[0], time_quantum, where, first_line)
         for a in arrays:
             a.setflags(write=False)
-        return cls(*arrays, source=source)
+        return cls(*arrays, source=source, step_s=step)
 
     @property
     def n(self) -> int:
@@ -78,7 +85,9 @@ class Recording:
 
     @property
     def dt(self) -> float:
-        """Sampling interval, s (mean step, robust to text rounding)."""
+        """Sampling interval, s: a least-squares line through the times (robust to their rounding)."""
+        if self.step_s is not None:
+            return self.step_s
         return float((self.time_s[-1] - self.time_s[0]) / (self.n - 1))
 
     @property
@@ -96,23 +105,114 @@ class Recording:
         return {"force": self.force, "accel1": self.accel1, "accel2": self.accel2}[name]
 
 
-def _check_time(t: np.ndarray, where: str, first_line: int) -> None:
+def time_quantum(cells: Iterable[str]) -> np.ndarray:
+    """How finely each printed time was rounded, s: the place value of its last kept digit.
+
+    A cell's own last digit overstates it where an export drops trailing zeros ('%.7g' prints
+    1.0000000 as '1'), so each cell is also bounded by the export's digit budget: the most
+    significant digits any cell shows, at that cell's magnitude, but never finer than the most
+    decimals any cell shows (a fixed-decimals export keeps its zeros and its last digit is right).
+    """
+    own, digits, magnitude = [], [], []
+    for cell in cells:
+        text = cell.strip().lower().lstrip("+-")
+        exponent = 0
+        if "e" in text:
+            text, _, exp = text.partition("e")
+            exponent = int(exp)
+        whole, _, frac = text.partition(".")
+        own.append(exponent - len(frac))
+        mantissa = (whole + frac).lstrip("0")
+        digits.append(len(mantissa))
+        # the place of the first significant digit ('12.5' -> 1, '0.0019' -> -3)
+        integer = whole.lstrip("0")
+        lead = len(integer) - 1 if integer else -1 - (len(frac) - len(frac.lstrip("0")))
+        magnitude.append(exponent + lead)
+    own_a = np.asarray(own, dtype=float)
+    budget = max(digits, default=1)
+    finest = float(own_a.min(initial=0.0))
+    by_digits = np.maximum(np.asarray(magnitude, dtype=float) - budget + 1, finest)
+    return 10.0 ** np.minimum(own_a, by_digits)
+
+
+def _float32_ulp(t: np.ndarray) -> np.ndarray | float:
+    """The float32 spacing at each time if every time is a float32 value (a float32 export), else 0."""
+    t32 = t.astype(np.float32)
+    if not np.array_equal(t32.astype(float), t):
+        return 0.0
+    return np.spacing(np.abs(t32)).astype(float)
+
+
+def _check_time(t: np.ndarray, quantum: np.ndarray | float, where: str, first_line: int) -> float:
+    """Check the time axis and return its step: a least-squares line through the times.
+
+    Each time may carry rounding up to half its `quantum` (the last printed digit), plus half the
+    float32 spacing for a float32 column. A step that differs from the first steps' median by more
+    than its two times' rounding (plus UNIFORM_TOLERANCE) is a gap (a whole number of steps, the
+    rate the same after it), a changed sample rate (the steps after it keep a new length) or an
+    uneven step, each named with its sample; then no time may lie further from the fitted line
+    than its own rounding allows.
+    """
+    q = np.broadcast_to(np.asarray(quantum, dtype=float) + _float32_ulp(t), t.shape)
+    n = t.size
+    overall = float((t[-1] - t[0]) / (n - 1))
     steps = np.diff(t)
     bad = np.flatnonzero(steps <= 0.0)
     if bad.size:
         i = int(bad[0]) + 1
+        if overall > 0 and steps[i - 1] >= overall - 0.5 * (q[i - 1] + q[i]):
+            # rounding to the printed digits alone can give this step: the digits are too few
+            raise RecordingFormatError(
+                f"{where}the time column is printed to {float(np.median(q)):.3g} s, too coarse for its"
+                f" step of {overall:.3g} s: it cannot tell the samples apart (sample {i + first_line});"
+                f" export the time with more digits"
+            )
         raise RecordingFormatError(
             f"{where}time is not strictly increasing at sample {i + first_line}"
             f" ({t[i - 1]:.9g} s then {t[i]:.9g} s)"
         )
-    step = float(np.median(steps))
-    off = np.flatnonzero(np.abs(steps - step) > UNIFORM_TOLERANCE * step)
+    step = float(np.median(steps[: min(64, steps.size)]))
+    tol = q[:-1] + q[1:] + UNIFORM_TOLERANCE * step
+    off = np.flatnonzero(np.abs(steps - step) > tol)
     if off.size:
-        i = int(off[0]) + 1
+        _raise_uneven(t, steps, int(off[0]), step, tol, where, first_line)
+    idx = np.arange(n, dtype=float) - 0.5 * (n - 1)
+    fitted = float(np.dot(idx, t - t.mean()) / np.dot(idx, idx))
+    residual = np.abs(t - t.mean() - fitted * idx)
+    off = np.flatnonzero(residual > 0.5 * q + UNIFORM_TOLERANCE * fitted)
+    if off.size:
+        i = int(off[0])
         raise RecordingFormatError(
-            f"{where}sampling is not even at sample {i + first_line}: step {steps[i - 1]:.6g} s,"
-            f" the rest {step:.6g} s (gaps or a changed sample rate)"
+            f"{where}sampling is not even at sample {i + first_line}: {t[i]:.9g} s lies"
+            f" {residual[i]:.3g} s off the even time axis (step {fitted:.6g} s), more than its printed"
+            f" precision allows"
         )
+    return fitted
+
+
+def _raise_uneven(
+    t: np.ndarray, steps: np.ndarray, i: int, step: float, tol: np.ndarray, where: str, first_line: int
+) -> None:
+    """Name what happened at step i (from sample i to i + 1): a gap, a new sample rate, or one odd step."""
+    at = f"at sample {i + 1 + first_line}"
+    after = steps[i + 1 : i + 17]
+    new = float(np.median(after)) if after.size else step
+    same_after = abs(new - step) <= float(np.max(tol[i + 1 : i + 17], initial=tol[i]))
+    ratio = steps[i] / step
+    if same_after and ratio > 1.5 and abs(steps[i] - round(ratio) * step) <= tol[i] * round(ratio):
+        raise RecordingFormatError(
+            f"{where}a gap {at}: {round(ratio) - 1} samples missing ({t[i]:.9g} s then {t[i + 1]:.9g} s,"
+            f" the step is {step:.6g} s)"
+        )
+    if not same_after and after.size >= 4:
+        raise RecordingFormatError(
+            f"{where}the sample rate changes {at} from {1 / step:.6g} Hz to {1 / new:.6g} Hz"
+            f" (step {step:.6g} s, then {new:.6g} s): export one rate per file"
+        )
+    raise RecordingFormatError(
+        f"{where}sampling is not even {at}: step {steps[i]:.6g} s, the rest {step:.6g} s"
+        f" (more than the time's printed precision allows)"
+    )
 
 
 def read_csv(path: str | Path) -> Recording:
@@ -159,7 +259,8 @@ def read_csv(path: str | Path) -> Recording:
         _raise_bad_row(path, body)
     data[:, 0] *= scale
     _check_time_unit(data[:, 0], path, first_line - 1)
-    return Recording.build(*data.T, source=str(path), first_line=first_line)
+    quantum = scale * time_quantum(line.partition(",")[0] for _, line in body)
+    return Recording.build(*data.T, source=str(path), first_line=first_line, time_quantum=quantum)
 
 
 def _check_time_unit(t: np.ndarray, path: Path, header_line: int) -> None:

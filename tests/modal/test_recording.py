@@ -179,3 +179,52 @@ def test_time_written_in_milliseconds_is_named_not_analysed(recording: Recording
     again = read_csv(named)  # the unit named in the header is honoured
     assert again.fs == pytest.approx(recording.fs, rel=1e-6)
     assert analyze(again).hoop_hz == pytest.approx(analyze(recording).hoop_hz, abs=1e-3)
+
+
+def _rewrite_time(recording: Recording, tmp_path: Path, name: str, fmt: object) -> Path:
+    """The good recording with its time column re-exported by `fmt` (a callable on each time)."""
+    good = write_csv(recording, tmp_path / f"{name}-src.csv")
+    lines = good.read_text().splitlines()
+    at = next(i for i, line in enumerate(lines) if line.startswith("time_s,"))
+    rows = [line.split(",", 1) for line in lines[at + 1 :]]
+    body = [f"{fmt(float(t))},{rest}" for t, rest in rows]  # type: ignore[operator]
+    return write(tmp_path, "\n".join([lines[at], *body]) + "\n", f"{name}.csv")
+
+
+@pytest.mark.parametrize(
+    ("name", "fmt"),
+    [
+        ("seven-digits", lambda t: f"{t:.7g}"),  # a spreadsheet's export: 7 significant digits
+        ("float32", lambda t: repr(float(np.float32(t)))),  # a float32 time column, printed in full
+        ("six-decimals", lambda t: f"{t:.6f}"),  # a fixed number of decimals (1 us, 5 % of a step)
+    ],
+)
+def test_time_rounded_by_an_export_is_read_at_its_true_rate(
+    recording: Recording, tmp_path: Path, name: str, fmt: object
+) -> None:
+    """Issue 13, finding 2: rounded time was refused as 'gaps or a changed sample rate'."""
+    rounded = read_csv(_rewrite_time(recording, tmp_path, name, fmt))
+    # the rate from a least-squares line through the rounded times: within the rounding / record length
+    assert rounded.fs == pytest.approx(recording.fs, rel=2e-6)
+    assert analyze(rounded).hoop_hz == pytest.approx(analyze(recording).hoop_hz, abs=1e-3)
+
+
+def test_time_too_coarse_to_tell_samples_apart_is_named(recording: Recording, tmp_path: Path) -> None:
+    coarse = _rewrite_time(recording, tmp_path, "coarse", lambda t: f"{t:.4f}")  # 0.1 ms > the 20 us step
+    with pytest.raises(RecordingFormatError, match=r"printed to 0\.0001 s.*cannot tell the samples apart"):
+        read_csv(coarse)
+
+
+def test_a_real_gap_and_a_rate_change_are_told_apart(tmp_path: Path) -> None:
+    t = np.arange(400) / 25600.0
+    rows = [f"{x:.7g},0,0,0" for x in t]
+    gap = rows[:150] + rows[153:]  # three samples lost
+    with pytest.raises(RecordingFormatError, match=r"gap at sample 152: 3 samples missing") as err:
+        read_csv(write(tmp_path, "\n".join([CSV_HEADER, *gap]), "gap.csv"))
+    assert "changed" not in str(err.value)
+    t2 = np.concatenate([t[:200], t[199] + np.arange(1, 201) / 12800.0])
+    changed = [f"{x:.7g},0,0,0" for x in t2]
+    with pytest.raises(
+        RecordingFormatError, match=r"sample rate changes at sample 202 from 25600 Hz to 12800 Hz"
+    ):
+        read_csv(write(tmp_path, "\n".join([CSV_HEADER, *changed]), "rate.csv"))
