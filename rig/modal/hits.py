@@ -23,6 +23,7 @@ from rig.modal.recording import CHANNELS, Recording
 
 MERGE_S = 1e-4
 CLIP_RUN = 3  # consecutive samples stuck at an extreme
+CLIP_COUNT = 4  # ... or this many samples at it, in two places or more
 
 
 @dataclass(frozen=True)
@@ -64,8 +65,14 @@ def longest_run(mask: np.ndarray) -> int:
     return int(np.max(edges[1::2] - edges[::2]))
 
 
+def runs(mask: np.ndarray) -> int:
+    """Number of separate runs of True in a boolean array."""
+    return int(np.count_nonzero(np.diff(np.concatenate(([0], mask.astype(np.int8)))) == 1))
+
+
 def check_channels(rec: Recording, clip_run: int = CLIP_RUN) -> None:
-    """Refuse a dead channel or one with flat tops at its extremes (saturation)."""
+    """Refuse a dead channel or one with flat tops at its extremes (saturation): a run of `clip_run`
+    samples at an extreme, or CLIP_COUNT samples at it in two places or more (short runs)."""
     for name in CHANNELS:
         x = rec.channel(name)
         lo, hi = float(x.min()), float(x.max())
@@ -81,12 +88,21 @@ def check_channels(rec: Recording, clip_run: int = CLIP_RUN) -> None:
             if abs(extreme - centre) < 0.5 * reach:
                 continue  # the baseline side of a one-sided signal, not an extreme
             run = longest_run(stuck)
+            count, places = int(np.count_nonzero(stuck)), runs(stuck)
+            where = int(np.flatnonzero(stuck)[0])
+            fix = "lower the gain or the hammer force and record again"
             if run >= clip_run:
-                where = int(np.flatnonzero(stuck)[0])
                 raise ClippedSignal(
                     f"{rec.source or 'recording'}: {name} is clipped: {run} consecutive samples stuck at its"
-                    f" {label} value {extreme:.6g} (first at {rec.time_s[where]:.6g} s); lower the gain"
-                    f" or the hammer force and record again"
+                    f" {label} value {extreme:.6g} (first at {rec.time_s[where]:.6g} s); {fix}"
+                )
+            if count >= CLIP_COUNT and places >= 2:
+                # a ringing bat passes its largest value once; sitting on it again and again, if only
+                # for a sample or two each time (a fast mode, a slow sample rate), is saturation
+                raise ClippedSignal(
+                    f"{rec.source or 'recording'}: {name} is clipped: {count} samples in {places} places"
+                    f" stuck at its {label} value {extreme:.6g} (runs of up to {run}; first at"
+                    f" {rec.time_s[where]:.6g} s); {fix}"
                 )
 
 

@@ -1,0 +1,57 @@
+"""Issue 13: recordings that once gave a silent wrong answer or a misleading warning.
+
+Clipping with short stuck runs (finding 3), the band's lower edge (5), the noise test without a
+quiet lead-in (6) and the 'still rang' warning on noisy records (8).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rig.modal import ClippedSignal, Recording, SimSettings, analyze, bat_modes, simulate
+from rig.modal.hits import check_channels
+
+
+def _clipped_at(rec: Recording, channel: str, fraction: float) -> Recording:
+    """`rec` with one channel saturating at `fraction` of its largest excursion, both signs."""
+    chans = {c: rec.channel(c) for c in ("force", "accel1", "accel2")}
+    level = fraction * float(np.max(np.abs(chans[channel])))
+    chans[channel] = np.clip(chans[channel], -level, level)
+    return Recording.build(rec.time_s, chans["force"], chans["accel1"], chans["accel2"], source="clipped")
+
+
+@pytest.mark.parametrize("channel", ["accel1", "accel2"])
+def test_clipping_with_short_stuck_runs_is_found_on_either_accelerometer(channel: str) -> None:
+    """At 25.6 kHz a 2800 Hz hoop clipped at 60 % sits at the clip level for 1-2 samples a cycle:
+    no run reached 3, and the clipped accelerometer gave made-up modes at 7.7 and 8.5 kHz."""
+    rec = simulate(
+        SimSettings(fs=25600.0, hits=5, hit_interval_s=0.2, seed=1, modes=bat_modes(2800.0, 175.0))
+    )
+    clipped = _clipped_at(rec, channel, 0.6)
+    stuck = np.isclose(np.abs(clipped.channel(channel)), np.max(np.abs(clipped.channel(channel))), rtol=1e-12)
+    runs = np.diff(np.concatenate(([0], stuck.astype(int), [0])))
+    assert (
+        np.max(np.flatnonzero(runs == -1) - np.flatnonzero(runs == 1)) <= 2
+    )  # the short runs of the finding
+    with pytest.raises(ClippedSignal, match=rf"{channel} is clipped: \d+ samples in \d+ places stuck at its"):
+        analyze(clipped)
+
+
+@pytest.mark.parametrize("bits", [None, 16, 12])
+@pytest.mark.parametrize("hoop", [1400.0, 2800.0])
+@pytest.mark.parametrize("fs", [25600.0, 51200.0])
+def test_clean_recordings_are_not_called_clipped(bits: int | None, hoop: float, fs: float) -> None:
+    """No false alarm: clean records, raw or quantized as an ADC would (the peak at 80 % of full scale)."""
+    for seed in range(3):
+        rec = simulate(
+            SimSettings(fs=fs, hits=4, hit_interval_s=0.15, seed=seed, modes=bat_modes(hoop, 175.0))
+        )
+        if bits is not None:
+            chans = []
+            for c in ("force", "accel1", "accel2"):
+                x = rec.channel(c)
+                lsb = float(np.max(np.abs(x))) / 0.8 / 2 ** (bits - 1)
+                chans.append(np.round(x / lsb) * lsb)
+            rec = Recording.build(rec.time_s, *chans)
+        check_channels(rec)  # raises ClippedSignal on a false alarm
