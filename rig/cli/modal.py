@@ -25,6 +25,8 @@ BOUNDS: Bounds = {
     "window": ("window", 0.01, 10.0, "s"),
     "max_resolution": ("max_resolution", 0.1, 1000.0, "Hz"),
     "min_coherence": ("min_coherence", 0.0, 1.0, ""),
+    "band_min": ("band_min", 1.0, 50000.0, "Hz"),
+    "band_max": ("band_max", 1.0, 50000.0, "Hz"),
     "hoop": ("hoop", 200.0, 10000.0, "Hz"),
     "bending": ("bending", 20.0, 5000.0, "Hz"),
     "hits": ("hits", 1, 100, ""),
@@ -43,6 +45,8 @@ def _modal_settings(args: argparse.Namespace) -> Any:
         "window_s": args.window,
         "max_resolution_hz": args.max_resolution,
         "min_coherence": args.min_coherence,
+        "f_min_hz": args.band_min,
+        "f_max_hz": args.band_max,
     }
     return ModalSettings(**{k: v for k, v in given.items() if v is not None})
 
@@ -263,6 +267,18 @@ def add_parsers(sub: Any) -> None:
         "--max-resolution", type=float, metavar="HZ", help="refuse windows coarser than this (20 Hz)"
     )
     p.add_argument("--min-coherence", type=float, metavar="X", help="least coherence at the hoop mode (0.9)")
+    p.add_argument(
+        "--band-min",
+        type=float,
+        metavar="HZ",
+        help="lowest frequency searched for modes (5/T, at least 10 Hz)",
+    )
+    p.add_argument(
+        "--band-max",
+        type=float,
+        metavar="HZ",
+        help="highest frequency searched (where the hammer's spectrum drops)",
+    )
     p.set_defaults(handler=cmd_modal_analyze)
 
     p = msub.add_parser(

@@ -41,6 +41,10 @@ from rig.modal.recording import Recording
 RESOLUTION_SHARE = 0.1
 COVERAGE_K = 2.0
 RATIO_CAP = 1e6
+# The band's default lower edge: a mode needs a few resolution bins below it to be fitted (and a few
+# cycles in the window); the floor keeps the suspension's bounce (a few Hz on bungee cords) out.
+BAND_MIN_BINS = 5.0
+BAND_FLOOR_HZ = 10.0
 
 
 @dataclass(frozen=True)
@@ -55,7 +59,8 @@ class ModalSettings:
     min_spacing_s: float = 0.05  # with automatic windows: a second pulse sooner is a double hit
     exp_end: float = 0.01  # exponential window's value at the end of the window
     max_resolution_hz: float = 20.0  # refuse windows giving a coarser resolution 1/T
-    f_min_hz: float = 40.0
+    f_min_hz: float | None = None  # band's lower edge; None: BAND_MIN_BINS / T, at least BAND_FLOOR_HZ
+    f_max_hz: float | None = None  # band's upper edge; None: where the hammer's spectrum has dropped
     force_drop_db: float = 20.0  # analysis band ends where the hammer spectrum has dropped this much
     prominence_decades: float = 0.5  # peaks of |H1|^2 + |H2|^2: prominence, log10 units
     height_decades: float = 4.0  # ... and within this of the highest peak
@@ -68,11 +73,20 @@ class ModalSettings:
     ringing_fraction: float = 0.02  # warn if a hit comes while the last one still rings this much
 
     def __post_init__(self) -> None:
-        positive = ("threshold_sigma", "pretrigger_s", "min_spacing_s", "max_resolution_hz", "f_min_hz")
+        positive = (
+            "threshold_sigma",
+            "pretrigger_s",
+            "min_spacing_s",
+            "max_resolution_hz",
+            "f_min_hz",
+            "f_max_hz",
+        )
         for name in positive:
             value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
+            if value is not None and not (math.isfinite(value) and value > 0):
                 raise ParameterError(name, value, "must be finite and > 0")
+        if self.f_min_hz is not None and self.f_max_hz is not None and self.f_max_hz <= self.f_min_hz:
+            raise ParameterError("f_max_hz", self.f_max_hz, f"must be above f_min_hz ({self.f_min_hz:g})")
         if self.window_s is not None and not self.window_s > 0:
             raise ParameterError("window_s", self.window_s, "must be > 0")
         if not 0 < self.exp_end <= 1:
@@ -247,8 +261,7 @@ def analyze_hits(rec: Recording, hits: Hits, settings: ModalSettings) -> ModalRe
             f" {1e3 / s.max_resolution_hz:.0f} ms after each hit (and leave that long between hits)"
         )
     frf = frf_mod.estimate(rec, hits, s.exp_end)
-    f_hi = min(frf_mod.force_band(frf, s.force_drop_db), 0.45 * rec.fs)
-    band = (max(s.f_min_hz, 2.0 * df), f_hi)
+    band = analysis_band(frf, s, rec.fs)
     warnings = list(hits.dropped) + _still_ringing(rec, hits, s.ringing_fraction)
     peaks = find_mode_peaks(frf, band, s.prominence_decades, s.height_decades)
     modes, noise_peaks, buried = [], [], []
@@ -308,6 +321,15 @@ def analyze_hits(rec: Recording, hits: Hits, settings: ModalSettings) -> ModalRe
         frf=frf,
         source=rec.source,
     )
+
+
+def analysis_band(frf: frf_mod.FrfEstimate, s: ModalSettings, fs: float) -> tuple[float, float]:
+    """The band searched for modes: from f_min_hz (default BAND_MIN_BINS resolutions, at least
+    BAND_FLOOR_HZ) to f_max_hz (default where the hammer's spectrum has dropped force_drop_db),
+    never below two resolutions nor above 0.45 fs."""
+    lo = s.f_min_hz if s.f_min_hz is not None else max(BAND_MIN_BINS * frf.df, BAND_FLOOR_HZ)
+    hi = s.f_max_hz if s.f_max_hz is not None else frf_mod.force_band(frf, s.force_drop_db)
+    return max(lo, 2.0 * frf.df), min(hi, 0.45 * fs)
 
 
 def _still_ringing(rec: Recording, hits: Hits, fraction: float) -> list[str]:

@@ -116,3 +116,16 @@ def test_study_table_and_errors(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert code == 2 and "no bats" in err
     code, _, err = run(capsys, "study", "--db", str(tmp_path / "absent.db"))
     assert code == 2 and err.startswith("rig: ")
+
+
+def test_band_flags(csv_file: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run(
+        capsys, "modal", "analyze", str(csv_file), "--json", "--band-min", "300", "--band-max", "3000"
+    )
+    d = json.loads(out)
+    assert code == 0 and d["band_hz"] == [300.0, 3000.0] and d["settings"]["f_min_hz"] == 300.0
+    assert min(d["bending_hz"]) > 300.0  # the 175 Hz bending mode is outside the band asked for
+    code, out, err = run(
+        capsys, "modal", "analyze", str(csv_file), "--json", "--band-min", "3000", "--band-max", "300"
+    )
+    assert code == 2 and "f_max_hz" in err and json.loads(out)["error"]["exit_status"] == 2
