@@ -34,7 +34,7 @@ import numpy as np
 from rig.core.errors import ParameterError
 from rig.modal import frf as frf_mod
 from rig.modal.errors import LowCoherence, RecordTooShort
-from rig.modal.hits import Hits, check_channels, segment
+from rig.modal.hits import QUIET_MIN, Hits, check_channels, segment
 from rig.modal.modes import Peak, PoleFit, find_mode_peaks, fit_band, fit_mode
 from rig.modal.recording import Recording
 
@@ -152,6 +152,8 @@ class ModalResult:
     settings: ModalSettings
     frf: frf_mod.FrfEstimate = field(repr=False)
     source: str = ""
+    accel_noise: tuple[float, float] | None = None  # noise std of each accelerometer, m/s^2
+    noise_source: str | None = None  # "before the first hit", "tail" or None
 
     @property
     def hoop(self) -> Mode | None:
@@ -187,6 +189,8 @@ class ModalResult:
             "exponential_window_tau_s": self.tau_s,
             "force_noise_n": self.noise_n,
             "force_threshold_n": self.threshold_n,
+            "accel_noise_ms2": None if self.accel_noise is None else list(self.accel_noise),
+            "accel_noise_from": self.noise_source,
             "warnings": list(self.warnings),
             "settings": asdict(self.settings),
         }
@@ -286,7 +290,10 @@ def analyze_hits(rec: Recording, hits: Hits, settings: ModalSettings) -> ModalRe
             f" (rise < {s.min_snr:g} x noise std) ignored: " + ", ".join(f"{f:.0f}" for f in buried) + " Hz"
         )
     elif frf.noise_h is None:
-        warnings.append("no quiet samples before the first hit: peaks not tested against the noise level")
+        warnings.append(
+            f"no noise level: fewer than {QUIET_MIN} quiet samples before the first hit and a window too"
+            f" short for its tail: peaks not tested against the noise level"
+        )
     hoop = next((m for m in modes if m.kind == "hoop"), None)
     if hoop is None:
         listed = ", ".join(f"{m.frequency_hz:.0f} Hz (|H1|/|H2| {m.magnitude_ratio:.3g})" for m in modes)
@@ -320,6 +327,8 @@ def analyze_hits(rec: Recording, hits: Hits, settings: ModalSettings) -> ModalRe
         settings=s,
         frf=frf,
         source=rec.source,
+        accel_noise=hits.accel_noise,
+        noise_source=hits.noise_source,
     )
 
 

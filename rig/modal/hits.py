@@ -48,7 +48,8 @@ class Hits:
     threshold_n: float
     polarity: float
     dropped: tuple[str, ...] = ()  # hits left out, with the reason
-    accel_noise: tuple[float, float] | None = None  # std of each accelerometer before the first hit
+    accel_noise: tuple[float, float] | None = None  # noise std of each accelerometer
+    noise_source: str | None = None  # "before the first hit", "tail", or None (not measurable)
 
     @property
     def count(self) -> int:
@@ -138,6 +139,7 @@ def find_pulses(
 
 
 QUIET_MIN = 32  # samples before the first hit needed to measure the accelerometers' noise
+TAIL_SHARE = 0.25  # else the noise comes from the last quarter of the last hit's window
 
 
 def quiet_noise(rec: Recording, first: Pulse) -> tuple[float, float] | None:
@@ -148,6 +150,30 @@ def quiet_noise(rec: Recording, first: Pulse) -> tuple[float, float] | None:
     out = []
     for x in (rec.accel1[:end], rec.accel2[:end]):
         out.append(1.4826 * float(np.median(np.abs(x - np.median(x)))))
+    return out[0], out[1]
+
+
+def tail_noise(rec: Recording, start: int, window_n: int) -> tuple[float, float] | None:
+    """Noise std of each accelerometer from the decayed tail of a hit's window (None: too short).
+
+    The bat may still ring there (a bending mode decays slowly), so the level is not the tail's
+    std but its spectrum's floor: under a Blackman-Harris window (sidelobes 92 dB down) a few modes
+    leave most bins to the noise, and for white noise of std sigma each bin's power is exponential
+    with median ln(2) sigma^2 sum(w^2).
+    """
+    from scipy.signal.windows import blackmanharris
+
+    m = max(QUIET_MIN, int(TAIL_SHARE * window_n))
+    end = min(start + window_n, rec.n)
+    if end - m < start or m < QUIET_MIN:
+        return None
+    w = blackmanharris(m)
+    t = np.arange(m, dtype=float)
+    out = []
+    for x in (rec.accel1[end - m : end], rec.accel2[end - m : end]):
+        y = x - np.polyval(np.polyfit(t, x, 1), t)
+        power = np.abs(np.fft.rfft(y * w)[1:-1]) ** 2
+        out.append(float(np.sqrt(np.median(power) / (np.log(2.0) * np.sum(w * w)))))
     return out[0], out[1]
 
 
@@ -219,6 +245,9 @@ def segment(
             hits.pop()
             room.pop()
         window = min(room)
+    noise, source = quiet_noise(rec, hits[0]), "before the first hit"
+    if noise is None:
+        noise, source = tail_noise(rec, starts[-1], int(window)), "tail"
     return Hits(
         starts=tuple(starts),
         pulses=tuple(hits),
@@ -228,5 +257,6 @@ def segment(
         threshold_n=threshold,
         polarity=polarity,
         dropped=tuple(dropped),
-        accel_noise=quiet_noise(rec, hits[0]),
+        accel_noise=noise,
+        noise_source=None if noise is None else source,
     )

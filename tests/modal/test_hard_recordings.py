@@ -85,3 +85,42 @@ def test_the_band_is_a_setting() -> None:
     assert short.band_hz[0] == pytest.approx(5.0 / short.window_s)  # a short window cannot resolve low modes
     with pytest.raises(ParameterError, match="f_max_hz"):
         ModalSettings(f_min_hz=500.0, f_max_hz=400.0)
+
+
+def _true_noise(s: SimSettings) -> tuple[float, float]:
+    """The simulator's noise std per accelerometer: `noise` times the noise-free channel's peak."""
+    clean = simulate(s.but(noise=0.0))
+    return s.noise * float(np.max(np.abs(clean.accel1))), s.noise * float(np.max(np.abs(clean.accel2)))
+
+
+@pytest.mark.parametrize("noise", [1e-3, 1e-2])
+def test_without_a_quiet_lead_in_the_noise_comes_from_the_decayed_tail(noise: float) -> None:
+    """Issue 13, finding 6: fewer than 32 samples before the first hit turned the noise test off."""
+    s = SimSettings(hits=3, hit_interval_s=0.2, first_hit_s=2e-4, noise=noise, seed=5)  # 10 samples
+    res = analyze(simulate(s))
+    assert not any("no quiet samples" in w for w in res.warnings)
+    assert res.noise_source == "tail"
+    for got, true in zip(res.accel_noise, _true_noise(s), strict=True):
+        assert got == pytest.approx(true, rel=0.15)  # an estimate of the real noise, not a stand-in
+    lead = analyze(simulate(s.but(first_hit_s=0.01)))  # the same test with a quiet lead-in
+    assert lead.noise_source == "before the first hit"
+    assert [m.kind for m in res.modes] == [m.kind for m in lead.modes]  # the same modes pass the noise test
+    for a, b in zip(res.modes, lead.modes, strict=True):
+        assert abs(a.frequency_hz - b.frequency_hz) <= a.expanded_uncertainty_hz + b.expanded_uncertainty_hz
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_tail_noise_sees_the_noise_under_a_ringing_mode(seed: int) -> None:
+    """The tail's spectrum floor against a known white noise, under modes 300x louder than it."""
+    from rig.modal.hits import tail_noise
+
+    rng = np.random.default_rng(seed)
+    fs, n, sigma = 51200.0, 8192, 0.01
+    t = np.arange(n) / fs
+    ring = sum(3.0 * np.sin(2 * np.pi * f * t + rng.uniform(0, 6)) for f in rng.uniform(100, 5000, 3))
+    a1 = ring + sigma * rng.standard_normal(n)
+    a2 = 0.5 * ring + 2 * sigma * rng.standard_normal(n)
+    rec = Recording.build(t, np.zeros(n) + rng.standard_normal(n), a1, a2)
+    got = tail_noise(rec, 0, n)
+    assert got is not None
+    assert got[0] == pytest.approx(sigma, rel=0.1) and got[1] == pytest.approx(2 * sigma, rel=0.1)
