@@ -34,7 +34,7 @@ import numpy as np
 from rig.core.errors import ParameterError
 from rig.modal import frf as frf_mod
 from rig.modal.errors import LowCoherence, RecordTooShort
-from rig.modal.hits import QUIET_MIN, Hits, check_channels, segment
+from rig.modal.hits import QUIET_MIN, Hits, check_channels, pulse_guard, segment
 from rig.modal.modes import Peak, PoleFit, find_mode_peaks, fit_band, fit_mode
 from rig.modal.recording import Recording
 
@@ -342,14 +342,25 @@ def analysis_band(frf: frf_mod.FrfEstimate, s: ModalSettings, fs: float) -> tupl
 
 
 def _still_ringing(rec: Recording, hits: Hits, fraction: float) -> list[str]:
-    """Hits that came while the bat still rang from the one before (it lowers the coherence)."""
+    """Hits that came while the bat still rang from the one before (it lowers the coherence).
+
+    The ringing is what the samples just before a hit hold beyond the accelerometer's noise: their
+    mean square less sigma^2, counted only where it exceeds sigma^2 by more than chance does (four
+    standard deviations of a mean of m squared Gaussian samples, 4 sqrt(2/m) sigma^2).
+    """
+    sigma = 0.0 if hits.accel_noise is None else hits.accel_noise[0]
+    guard = pulse_guard(rec.fs)
     worst, which = 0.0, 0
     for k in range(1, hits.count):
         a, p = hits.starts[k], hits.pulses[k]
-        before = rec.accel1[a : p.start] - np.median(rec.accel1)
+        # stop short of the threshold crossing: the pulse (and the response) rose before it
+        before = rec.accel1[a : p.start - guard] - np.median(rec.accel1)
         peak = float(np.max(np.abs(rec.accel1[a : a + hits.window_n])))
         if before.size and peak > 0:
-            level = float(np.sqrt(np.mean(before**2))) / peak
+            power = float(np.mean(before**2))
+            if power <= sigma**2 * (1.0 + 4.0 * math.sqrt(2.0 / before.size)):
+                continue  # noise, not ringing
+            level = math.sqrt(power - sigma**2) / peak
             if level > worst:
                 worst, which = level, k
     if worst <= fraction:

@@ -142,9 +142,14 @@ QUIET_MIN = 32  # samples before the first hit needed to measure the acceleromet
 TAIL_SHARE = 0.25  # else the noise comes from the last quarter of the last hit's window
 
 
+def pulse_guard(fs: float) -> int:
+    """Samples kept clear before a pulse's threshold crossing: its foot (and the response) rose earlier."""
+    return max(3, round(2e-4 * fs))
+
+
 def quiet_noise(rec: Recording, first: Pulse) -> tuple[float, float] | None:
     """Robust std of each accelerometer before the first pulse (None: too few quiet samples)."""
-    end = first.start - max(3, round(2e-4 * rec.fs))
+    end = first.start - pulse_guard(rec.fs)
     if end < QUIET_MIN:
         return None
     out = []
