@@ -26,6 +26,9 @@ from pathlib import Path
 import numpy as np
 import scipy
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks.modal_cases
+from benchmarks.modal_cases import cases, run_case
+from benchmarks.modal_cases import table as case_table
 from rig.modal import ModalError, ModalSettings, SimSettings, analyze, bat_modes, simulate
 from rig.modal.analysis import RESOLUTION_SHARE
 
@@ -186,6 +189,7 @@ def main(argv: list[str] | None = None) -> int:
     noises = (0.0, 1e-3, 3e-3, 1e-2, 2e-2) if not args.quick else (0.0, 1e-2)
     noise_cells = [run_cell(0.2, 4, z, bats, 500 + i) for i, z in enumerate(noises)]
     bias_cells = [run_cell(w, 1, 0.0, bats, 900 + i) for i, w in enumerate(windows)]
+    hard = [run_case(c, bats, 700) for c in cases()]  # the same bats in every case
     took = time.perf_counter() - started
 
     by = {(c.window_s, c.hits): c for c in cells}
@@ -209,6 +213,10 @@ def main(argv: list[str] | None = None) -> int:
     lines.append("#### Noise-free error against the resolution (one hit)")
     lines.append("")
     lines += bias_table(bias_cells)
+    lines.append("")
+    lines.append("#### Hard cases: exports and faults (the same bats in every case)")
+    lines.append("")
+    lines += case_table(hard, bats)
     lines.append("")
     lines.append(
         f"Machine: Python {platform.python_version()}, NumPy {np.__version__}, SciPy {scipy.__version__};"

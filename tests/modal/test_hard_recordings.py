@@ -138,3 +138,15 @@ def test_noise_alone_is_not_called_ringing() -> None:
     )
     close = analyze(simulate(ringing), ModalSettings(max_resolution_hz=50))
     assert any("still rang" in w for w in close.warnings), close.warnings
+
+
+def test_the_accuracy_study_scores_its_hard_cases() -> None:
+    """benchmarks/bench_modal.py's hard-case table: a rounded export is answered, a clip diagnosed."""
+    from benchmarks.modal_cases import cases, run_case, table
+
+    picked = [c for c in cases() if c.name.startswith(("time rounded", "accelerometer 1 clipped"))]
+    results = [run_case(c, 2, 700) for c in picked]
+    assert [r.met(2) for r in results] == [True, True]
+    assert results[1].diagnoses["CLIPPED"] == 2 and len(results[0].errors) == 2
+    rows = table(results, 2)
+    assert len(rows) == 4 and rows[3].endswith("| yes |")
