@@ -1,7 +1,8 @@
 """The `rig` command line: a thin client over the controller's functions.
 
 Every command has --help. Errors print one line naming the cause and exit with status 2; with
---json, a JSON error object ({"error": {"message", "exit_status"}}) goes to stdout as well.
+--json, a JSON error object ({"error": {"message", "exit_status", "kind"[, "code"]}}) goes to
+stdout as well.
 """
 
 from __future__ import annotations
@@ -34,18 +35,28 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return handler(args)
     except ParameterError as exc:
-        message = f"invalid parameter: {exc}"
+        message, error = f"invalid parameter: {exc}", exc
     except RigError as exc:
-        message = str(exc)
+        message, error = str(exc), exc
     except KeyboardInterrupt:
         return 130
     except OSError as exc:
-        message = f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": ")
+        message, error = f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), exc
     print(f"rig: {message}", file=sys.stderr)
     if getattr(args, "json", False):  # a program reading the JSON learns of the error too
-        json.dump({"error": {"message": message, "exit_status": 2}}, sys.stdout)
+        json.dump({"error": _error_object(message, error)}, sys.stdout)
         sys.stdout.write("\n")
     return 2
+
+
+def _error_object(message: str, error: Exception) -> dict[str, object]:
+    """The JSON error: the message, the exit status, the error's kind and, for a modal
+    diagnosis, its stable code (docs/modal.md)."""
+    out: dict[str, object] = {"message": message, "exit_status": 2, "kind": type(error).__name__}
+    code = getattr(type(error), "code", None)
+    if isinstance(code, str):
+        out["code"] = code
+    return out
 
 
 __all__ = ["build_parser", "main"]

@@ -129,3 +129,34 @@ def test_band_flags(csv_file: Path, capsys: pytest.CaptureFixture[str]) -> None:
         capsys, "modal", "analyze", str(csv_file), "--json", "--band-min", "3000", "--band-max", "300"
     )
     assert code == 2 and "f_max_hz" in err and json.loads(out)["error"]["exit_status"] == 2
+
+
+@pytest.mark.parametrize(
+    ("rows", "code", "needle"),
+    [
+        ([f"{i / 25600:.7g},0,0,0" for i in range(100) if not 40 <= i < 43], "FORMAT", "a gap at sample"),
+        ([f"{i / 51200:.4f},0,0,0" for i in range(100)], "FORMAT", "cannot tell the samples apart"),
+    ],
+)
+def test_a_diagnosis_is_one_line_and_a_json_error_with_its_code(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], rows: list[str], code: str, needle: str
+) -> None:
+    path = tmp_path / "r.csv"
+    path.write_text("\n".join(["time_s,force_N,accel1_ms2,accel2_ms2", *rows]) + "\n")
+    status, out, err = run(capsys, "modal", "analyze", str(path), "--json")
+    assert status == 2 and err.count("\n") == 1 and needle in err
+    error = json.loads(out)["error"]
+    assert error["code"] == code and error["kind"] == "RecordingFormatError" and needle in error["message"]
+
+
+def test_a_clipped_recording_through_the_cli(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from rig.modal import Recording, SimSettings, bat_modes, simulate, write_csv
+
+    rec = simulate(
+        SimSettings(fs=25600.0, hits=3, hit_interval_s=0.2, seed=1, modes=bat_modes(2800.0, 175.0))
+    )
+    level = 0.6 * float(abs(rec.accel2).max())
+    clipped = Recording.build(rec.time_s, rec.force, rec.accel1, rec.accel2.clip(-level, level))
+    path = write_csv(clipped, tmp_path / "clipped.csv")
+    status, out, err = run(capsys, "modal", "analyze", str(path), "--json")
+    assert status == 2 and "accel2 is clipped" in err and json.loads(out)["error"]["code"] == "CLIPPED"

@@ -173,4 +173,6 @@ def test_with_json_an_error_is_a_json_object_too(
     out, err = capsys.readouterr()
     line = err.strip()
     assert line.startswith("rig: ") and "\n" not in line
-    assert json.loads(out) == {"error": {"message": line.removeprefix("rig: "), "exit_status": 2}}
+    error = json.loads(out)["error"]
+    assert error["message"] == line.removeprefix("rig: ") and error["exit_status"] == 2
+    assert error["kind"].isidentifier()
