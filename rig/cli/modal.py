@@ -111,7 +111,8 @@ def cmd_modal_analyze(args: argparse.Namespace) -> int:
             else f"{hoop.frequency_hz:.1f} ± {hoop.expanded_uncertainty_hz:.2g} Hz (k=2)"
         )
     )
-    console.print("bending: " + (", ".join(f"{f:.1f}" for f in result.bending_hz) or "none") + " Hz")
+    bending = ", ".join(f"{f:.1f}" for f in result.bending_hz)
+    console.print(f"bending: {bending} Hz" if bending else "bending: none found")
     for w in result.warnings:
         console.print(f"note: {w}")
     return 0

@@ -127,10 +127,15 @@ def test_which_warnings_and_why(result: ModalResult) -> None:
     force = _columns(DATA)["force_N"]
     first = int(np.argmax(force > 0.02 * force.max()))
     assert first < 32  # the record starts 0.8 ms before the first hit: too few quiet samples
-    quiet = "no quiet samples before the first hit: peaks not tested against the noise level"
-    assert quiet in result.warnings
+    # so the noise comes from the floor of the last window's tail's spectrum (issue 13, finding 6),
+    # though the tail still rings at ~11 % of the peak; against the 15 quiet samples the file does
+    # have before its first hit (a std of 15 samples is good to about +-20 %):
+    accel = _columns(DATA)["accel1_ms2"]
+    lead = float(np.std(accel[:15]))
+    assert result.noise_source == "tail" and result.accel_noise is not None
+    assert 0.67 * lead <= result.accel_noise[0] <= 1.5 * lead
     ringing = [w for w in result.warnings if w.startswith("the bat still rang when hit")]
-    assert len(ringing) == 1 and len(result.warnings) == 2
+    assert len(ringing) == 1 and len(result.warnings) == 1
     # Its cause is the joins: each record starts 0.8 ms before its hit and the window 1 ms before,
     # so it takes a few samples of the previous record's end, still ringing at ~10 % of its peak.
     # Starting the window 0.5 ms before the hit keeps it inside the hit's own record.
