@@ -160,3 +160,9 @@ def test_a_clipped_recording_through_the_cli(tmp_path: Path, capsys: pytest.Capt
     path = write_csv(clipped, tmp_path / "clipped.csv")
     status, out, err = run(capsys, "modal", "analyze", str(path), "--json")
     assert status == 2 and "accel2 is clipped" in err and json.loads(out)["error"]["code"] == "CLIPPED"
+
+
+def test_no_bending_mode_reads_as_such(capsys: pytest.CaptureFixture[str]) -> None:
+    data = Path(__file__).resolve().parents[1] / "data" / "modal" / "pyfrf_impact_5hits.csv"
+    code, out, _ = run(capsys, "modal", "analyze", str(data))
+    assert code == 0 and "bending: none found" in out and "none Hz" not in out
