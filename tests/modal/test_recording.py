@@ -228,3 +228,15 @@ def test_a_real_gap_and_a_rate_change_are_told_apart(tmp_path: Path) -> None:
         RecordingFormatError, match=r"sample rate changes at sample 202 from 25600 Hz to 12800 Hz"
     ):
         read_csv(write(tmp_path, "\n".join([CSV_HEADER, *changed]), "rate.csv"))
+
+
+def test_a_time_column_that_wanders_is_refused_saying_how_far(recording: Recording) -> None:
+    """A logger that adds a float32 step to a float32 clock: every step is within its rounding, but
+    the rounding is biased and the clock wanders steps away from an even axis (a rate error of
+    about 1e-4, 0.2 Hz at 2 kHz): refused, naming how far, not read at a wrong rate."""
+    t = np.cumsum(np.full(recording.n, np.float32(recording.dt), dtype=np.float32), dtype=np.float32)
+    t -= t[0]
+    with pytest.raises(
+        RecordingFormatError, match=r"wanders off an even axis .* by up to .* steps, at sample"
+    ):
+        Recording.build(t, recording.force, recording.accel1, recording.accel2)
