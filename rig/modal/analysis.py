@@ -35,7 +35,8 @@ from rig.core.errors import ParameterError
 from rig.modal import frf as frf_mod
 from rig.modal.errors import LowCoherence, RecordTooShort
 from rig.modal.hits import Hits, check_channels, segment
-from rig.modal.modes import Peak, PoleFit, find_mode_peaks, fit_band, fit_mode
+from rig.modal.modes import PoleFit, find_mode_peaks
+from rig.modal.multipole import ModeFit, fit_modes
 from rig.modal.recording import Recording
 
 RESOLUTION_SHARE = 0.1
@@ -195,21 +196,14 @@ def _classify(ratio: float, s: ModalSettings) -> tuple[str, tuple[str, ...]]:
     return "unclassified", ("accel1", "accel2") if ratio >= 1.0 / s.bending_ratio else ("accel2",)
 
 
-def _mode(
-    frf: frf_mod.FrfEstimate, peak: Peak, fit: PoleFit, bins: tuple[int, int], s: ModalSettings
-) -> Mode:
+def _mode(frf: frf_mod.FrfEstimate, mf: ModeFit, s: ModalSettings) -> Mode:
+    fit, peak, per_hit = mf.fit, mf.peak, list(mf.per_hit_hz)
     r1, r2 = fit.residues
     ratio = min(abs(r1) / abs(r2), RATIO_CAP) if abs(r2) * RATIO_CAP > abs(r1) else RATIO_CAP
     kind, accels = _classify(ratio, s)
     phase = math.degrees(np.angle(r2 / r1)) if abs(r1) > 0 else 0.0
     c1, c2 = _coherence(frf, fit.frequency_hz, 0.5 * peak.bandwidth_hz)
     coh = min(c for c, name in ((c1, "accel1"), (c2, "accel2")) if name in accels)
-    per_hit: list[float] = []
-    if frf.n_hits >= 2:
-        for k in range(frf.n_hits):
-            one = fit_mode(frf, peak, bins, frf.per_hit[k])
-            if one.method == "pole fit":
-                per_hit.append(one.frequency_hz)
     u_spread = float(np.std(per_hit, ddof=1) / math.sqrt(len(per_hit))) if len(per_hit) >= 2 else 0.0
     u_res = RESOLUTION_SHARE * frf.df / math.sqrt(12.0)
     if fit.method != "pole fit":
@@ -251,20 +245,20 @@ def analyze_hits(rec: Recording, hits: Hits, settings: ModalSettings) -> ModalRe
     band = (max(s.f_min_hz, 2.0 * df), f_hi)
     warnings = list(hits.dropped) + _still_ringing(rec, hits, s.ringing_fraction)
     peaks = find_mode_peaks(frf, band, s.prominence_decades, s.height_decades)
-    modes, noise_peaks, buried = [], [], []
-    for i, peak in enumerate(peaks):
-        bins = fit_band(frf, peaks, i)
+    modes, noise_peaks, buried, clear = [], [], [], []
+    for peak in peaks:
         if frf.noise_h is not None:
             noise = math.sqrt(float(np.sum(frf.noise_h[:, peak.index] ** 2)))
             if peak.rise < s.min_snr * noise:
                 buried.append(peak.frequency_hz)
                 continue
-        fit = fit_mode(frf, peak, bins)
-        c1, c2 = _coherence(frf, fit.frequency_hz, 0.5 * peak.bandwidth_hz)
+        clear.append(peak)
+    for mf in fit_modes(frf, clear):
+        c1, c2 = _coherence(frf, mf.fit.frequency_hz, 0.5 * mf.peak.bandwidth_hz)
         if hits.count >= 2 and max(c1, c2) < s.mode_coherence:
-            noise_peaks.append((fit, max(c1, c2)))  # a peak of the noise, not of the bat
+            noise_peaks.append((mf.fit, max(c1, c2)))  # a peak of the noise, not of the bat
             continue
-        modes.append(_mode(frf, peak, fit, bins, s))
+        modes.append(_mode(frf, mf, s))
     modes.sort(key=lambda m: m.frequency_hz)
     _check_noise_peaks(name, noise_peaks, modes, s, warnings)
     if buried:
