@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import scipy
 
-from rig.modal import ModalError, ModalSettings, SimSettings, analyze, bat_modes, simulate
+from rig.modal import ModalError, ModalSettings, SimMode, SimSettings, analyze, bat_modes, simulate
 from rig.modal.analysis import RESOLUTION_SHARE
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "modal.md"
@@ -100,6 +100,97 @@ def run_cell(window_s: float, hits: int, noise: float, bats: int, seed0: int) ->
         if res.bending_hz:
             cell.bending_errors.append(res.bending_hz[0] - BENDING_HZ)
     return cell
+
+
+CLOSE_OFFSETS_HZ = (-50.0, -30.0, -20.0, 20.0, 30.0, 50.0)
+CLOSE_WINDOWS_S = (0.2, 0.5, 2.0)
+CLOSE_HITS = 3
+
+
+@dataclass
+class CloseCell:
+    """Hoop frequency with a bending mode `offset_hz` from it, one record length, many bats."""
+
+    offset_hz: float
+    window_s: float
+    errors: list[float]
+    u_expanded: list[float]
+    seconds: list[float]
+    neighbour_found: int  # the neighbour reported as its own bending mode
+    warned: int  # a warning names the hoop as too close to a neighbour to separate
+    diagnoses: Counter[str]
+
+    @property
+    def ok(self) -> int:
+        return len(self.errors)
+
+    def rms(self) -> float:
+        return float(np.sqrt(np.mean(np.square(self.errors)))) if self.errors else float("nan")
+
+    def worst(self) -> float:
+        return float(np.max(np.abs(self.errors))) if self.errors else float("nan")
+
+    def covered(self) -> int:
+        return sum(abs(e) <= u for e, u in zip(self.errors, self.u_expanded, strict=True))
+
+
+def close_mode_cell(offset_hz: float, window_s: float, bats: int, seed0: int) -> CloseCell:
+    """Analyse `bats` simulated bats whose hoop mode has a bending mode `offset_hz` away."""
+    cell = CloseCell(offset_hz, window_s, [], [], [], 0, 0, Counter())
+    rng = np.random.default_rng(seed0)
+    modal = ModalSettings(window_s=window_s, min_spacing_s=window_s / 2)
+    for k in range(bats):
+        hoop = float(rng.uniform(1400.0, 2800.0))
+        damping = float(rng.uniform(0.003, 0.015))
+        neighbour = SimMode(hoop + offset_hz, 0.006, 0.22, 1.0, 0.08, "bending")
+        sim = SimSettings(
+            hits=CLOSE_HITS,
+            hit_interval_s=window_s + QUIET_S,
+            first_hit_s=QUIET_S,
+            settle=True,
+            noise=NOISE,
+            seed=seed0 * 1000 + k,
+            modes=(*bat_modes(hoop, BENDING_HZ, hoop_damping=damping), neighbour),
+        )
+        rec = simulate(sim)
+        t0 = time.perf_counter()
+        try:
+            res = analyze(rec, modal)
+        except ModalError as exc:
+            cell.diagnoses[type(exc).__name__] += 1
+            continue
+        cell.seconds.append(time.perf_counter() - t0)
+        if any("too close" in w for w in res.warnings):
+            cell.warned += 1
+        if res.hoop is None:
+            cell.diagnoses["no hoop mode"] += 1
+            continue
+        cell.errors.append(res.hoop_hz - hoop)
+        cell.u_expanded.append(res.hoop.expanded_uncertainty_hz)
+        near = abs(offset_hz) / 4
+        if any(
+            m.kind == "bending" and abs(m.frequency_hz - neighbour.frequency_hz) < near for m in res.modes
+        ):
+            cell.neighbour_found += 1
+    return cell
+
+
+def close_table(cells: list[CloseCell]) -> list[str]:
+    rows = [
+        "| neighbour (Hz from hoop) | T per hit (s) | RMS error (Hz) | largest error (Hz) "
+        "| median U (Hz, k=2) | U covers | neighbour found | warned too close | analysis (ms, median) "
+        "| diagnosed |",
+        "| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |",
+    ]
+    for c in cells:
+        diag = ", ".join(f"{v} {k}" for k, v in sorted(c.diagnoses.items())) or "-"
+        u_med = statistics.median(c.u_expanded) if c.ok else float("nan")
+        rows.append(
+            f"| {c.offset_hz:+g} | {c.window_s:g} | {c.rms():.3g} | {c.worst():.3g} | {u_med:.3g} "
+            f"| {c.covered()} of {c.ok} | {c.neighbour_found} of {c.ok} | {c.warned} "
+            f"| {fmt_ms(c.seconds)} | {diag} |"
+        )
+    return rows
 
 
 def fmt_ms(seconds: list[float]) -> str:

@@ -105,6 +105,7 @@ class Mode:
     u_spread_hz: float
     per_hit_hz: tuple[float, ...]
     method: str  # "pole fit" or "half-power"
+    u_model_hz: float = 0.0  # close modes: how far the joint fit's frequency moves between two bands
 
     @property
     def expanded_uncertainty_hz(self) -> float:
@@ -208,7 +209,7 @@ def _mode(frf: frf_mod.FrfEstimate, mf: ModeFit, s: ModalSettings) -> Mode:
     u_res = RESOLUTION_SHARE * frf.df / math.sqrt(12.0)
     if fit.method != "pole fit":
         u_res = frf.df / math.sqrt(12.0)
-    u = math.sqrt(u_res**2 + fit.u_frequency_hz**2 + u_spread**2)
+    u = math.sqrt(u_res**2 + fit.u_frequency_hz**2 + u_spread**2 + mf.u_model_hz**2)
     return Mode(
         frequency_hz=fit.frequency_hz,
         damping_ratio=fit.damping_ratio,
@@ -225,6 +226,7 @@ def _mode(frf: frf_mod.FrfEstimate, mf: ModeFit, s: ModalSettings) -> Mode:
         u_spread_hz=u_spread,
         per_hit_hz=tuple(per_hit),
         method=fit.method,
+        u_model_hz=mf.u_model_hz,
     )
 
 
@@ -254,6 +256,8 @@ def analyze_hits(rec: Recording, hits: Hits, settings: ModalSettings) -> ModalRe
                 continue
         clear.append(peak)
     for mf in fit_modes(frf, clear):
+        if mf.note:
+            warnings.append(mf.note)
         c1, c2 = _coherence(frf, mf.fit.frequency_hz, 0.5 * mf.peak.bandwidth_hz)
         if hits.count >= 2 and max(c1, c2) < s.mode_coherence:
             noise_peaks.append((mf.fit, max(c1, c2)))  # a peak of the noise, not of the bat

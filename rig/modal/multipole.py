@@ -16,8 +16,9 @@ lies inside the band, apart from the others, and carries a visible share of the 
 
 from __future__ import annotations
 
+import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -29,6 +30,8 @@ from rig.modal.modes import MIN_FIT_BINS, Peak, PoleFit, fit_band, fit_mode
 N_LINE = 4  # per FRF: C and D, complex
 F_TEST_P = 1e-6  # an extra pole is kept only if this unlikely under the smaller model
 MIN_SHARE = 0.03  # ... and its peak reaches this fraction of the band's largest |H|
+MAX_DAMPING = 0.1  # ... and it is a mode, not a broad term standing in for the far modes:
+DAMPING_FACTOR = 5.0  # damping at most this times the largest of the other poles' and MAX_DAMPING
 
 
 @dataclass(frozen=True)
@@ -161,41 +164,44 @@ def extra_pole(
     base: MultiFit,
     enbw: float,
     min_separation_hz: float,
-) -> MultiFit | None:
-    """`base` with one more pole, if the data demand it (see the module's docstring); else None."""
+) -> tuple[MultiFit | None, MultiFit | None]:
+    """`base` with one more pole if the data demand it (see the module's docstring), else None; and
+    the trial with one more pole where the residual shows a mode-like pole closer than
+    `min_separation_hz` to another (it cannot be separated), else None."""
     k = s.size
     power = np.sum(np.abs(base.residual) ** 2, axis=0)
     smooth = np.convolve(power, np.ones(3) / 3.0, mode="same")
     omega = s.imag
     edge = max(2, k // 10)
     if k <= 2 * edge + 1:
-        return None
+        return None, None
     j = edge + int(np.argmax(smooth[edge : k - edge]))
     sigma0 = float(np.median([-p.real for p in base.poles]))
     guess = complex(-sigma0, omega[j])
     trial = fit_poles(h, s, dt, [*base.poles, guess], enbw, base.bins)
     if trial is None or not trial.cost < base.cost:
-        return None
+        return None, None
     dof2 = (trial.n_residuals - trial.n_params) / enbw
     f_stat = ((base.cost - trial.cost) / (trial.n_params - base.n_params)) / (
         trial.cost / (trial.n_residuals - trial.n_params)
     )
-    f_stat /= (
-        enbw  # correlated bins: the extra columns take up about enbw times the noise they would if white
-    )
+    f_stat /= enbw  # correlated bins: the extra columns take up about enbw times the noise if white
     if f_stat < f_dist.isf(F_TEST_P, trial.n_params - base.n_params, max(dof2, 1.0)):
-        return None
+        return None, None
+    zetas = trial.damping_ratios
+    if max(zetas) > min(MAX_DAMPING, DAMPING_FACTOR * max(base.damping_ratios)):
+        return None, None
     freqs = trial.frequencies_hz
     if min(np.diff(freqs), default=math.inf) < min_separation_hz:
-        return None
+        return None, trial
     span = (omega.min() / (2 * math.pi), omega.max() / (2 * math.pi))
     margin = 0.05 * (span[1] - span[0])
     if not all(span[0] + margin < f < span[1] - margin for f in freqs):
-        return None
+        return None, None
     top = float(np.max(np.abs(h)))
     if min(peak_height(trial, i, dt, tau) for i in range(len(freqs))) < MIN_SHARE * top:
-        return None
-    return trial
+        return None, None
+    return trial, None
 
 
 GROUP_BANDWIDTHS = 5.0  # peaks closer than this many half-power bandwidths are fitted together
@@ -211,6 +217,8 @@ class ModeFit:
     peak: Peak
     per_hit_hz: tuple[float, ...]
     hidden: bool  # found by the model-order test, not by the peak finder
+    u_model_hz: float = 0.0  # model-error term (close modes), see _narrowed and _unresolved
+    note: str = ""  # a warning for the result
 
 
 def group_peaks(peaks: list[Peak]) -> list[list[int]]:
@@ -285,16 +293,21 @@ def fit_modes(frf: FrfEstimate, peaks: list[Peak], check_order: bool = True) -> 
         guesses = [_guess(peaks[i]) for i in members]
         bins = fit_band(frf, peaks, members[0]) if len(members) == 1 else _span(frf, peaks, members, 2.5)
         joint = _fit(frf, guesses, bins)
+        hint = None
         if check_order and len(members) < MAX_POLES:
             wide_bins = _span(frf, peaks, members, WIDE_BANDWIDTHS)
             wide = _fit(frf, list(joint.poles) if joint else guesses, wide_bins)
             if wide is not None:
                 lo, hi = wide_bins
-                sep = max(frf.df, 0.5 * min(peaks[i].bandwidth_hz for i in members))
-                more = extra_pole(frf.h[:, lo:hi], frf.s[lo:hi], frf.dt, frf.tau_s, wide, frf.enbw_bins, sep)
+                more, hint = extra_pole(
+                    frf.h[:, lo:hi], frf.s[lo:hi], frf.dt, frf.tau_s, wide, frf.enbw_bins, frf.df
+                )
                 if more is not None:
-                    out += _modes_of(frf, peaks, members, more)
+                    out += _modes_of(frf, peaks, members, *_narrowed(frf, more))
                     continue
+        if joint is not None and hint is not None:
+            out += _unresolved(frf, peaks, members, joint, hint)
+            continue
         if joint is None:
             for i in members:
                 fit = fit_mode(frf, peaks[i], fit_band(frf, peaks, i))
@@ -310,7 +323,50 @@ def fit_modes(frf: FrfEstimate, peaks: list[Peak], check_order: bool = True) -> 
     return out
 
 
-def _modes_of(frf: FrfEstimate, peaks: list[Peak], members: list[int], fit: MultiFit) -> list[ModeFit]:
+def _narrowed(frf: FrfEstimate, wide: MultiFit) -> tuple[MultiFit, tuple[float, ...]]:
+    """The poles found over the wide band, refitted over +-2.5 of their bandwidths (inside it), and
+    per pole how far the frequency moved: the straight line stands in for the far modes less well
+    over a wider band, so the move measures what the model leaves (a model-error term)."""
+    bw = [
+        2 * z * f + 1.0 / (math.pi * frf.tau_s)
+        for f, z in zip(wide.frequencies_hz, wide.damping_ratios, strict=True)
+    ]
+    f_lo = min(f - max(2.5 * b, 4.0 * frf.df) for f, b in zip(wide.frequencies_hz, bw, strict=True))
+    f_hi = max(f + max(2.5 * b, 4.0 * frf.df) for f, b in zip(wide.frequencies_hz, bw, strict=True))
+    lo = max(wide.bins[0], math.floor(f_lo / frf.df))
+    hi = min(wide.bins[1], math.ceil(f_hi / frf.df) + 1)
+    narrow = _fit(frf, list(wide.poles), (lo, hi)) if (lo, hi) != wide.bins else None
+    if narrow is None or len(narrow.poles) != len(wide.poles):
+        return wide, tuple(0.0 for _ in wide.poles)
+    moved = tuple(abs(a - b) for a, b in zip(narrow.frequencies_hz, wide.frequencies_hz, strict=True))
+    return narrow, moved
+
+
+def _unresolved(
+    frf: FrfEstimate, peaks: list[Peak], members: list[int], joint: MultiFit, hint: MultiFit
+) -> list[ModeFit]:
+    """The fit's residual shows another pole that cannot be separated: each frequency gets as a
+    model-error term how far the extra pole moves it, and a warning names the frequencies."""
+    moved = tuple(min(abs(f - g) for g in hint.frequencies_hz) for f in joint.frequencies_hz)
+    extra = [g for g in hint.frequencies_hz if min(abs(g - f) for f in joint.frequencies_hz) > 0.5 * frf.df]
+    shown = ", ".join(f"{f:.1f}" for f in sorted([*joint.frequencies_hz, *extra]))
+    note = (
+        f"the peak at {joint.frequencies_hz[0]:.1f} Hz looks like close modes ({shown} Hz"
+        f"{'' if extra else ' and one within 1/T of it'}) that this record cannot separate"
+        f" (resolution 1/T = {frf.df:.3g} Hz): its uncertainty includes the difference;"
+        f" record longer per hit to separate them"
+    )
+    fits = _modes_of(frf, peaks, members, joint, moved)
+    return [replace(m, note=note) if i == 0 else m for i, m in enumerate(fits)]
+
+
+def _modes_of(
+    frf: FrfEstimate,
+    peaks: list[Peak],
+    members: list[int],
+    fit: MultiFit,
+    u_model: tuple[float, ...] | None = None,
+) -> list[ModeFit]:
     """One ModeFit per pole; each found peak goes with its nearest pole, the others are hidden poles."""
     per_hit = _per_hit(frf, fit)
     freqs = fit.frequencies_hz
@@ -323,8 +379,15 @@ def _modes_of(frf: FrfEstimate, peaks: list[Peak], members: list[int], fit: Mult
         )
         owner[j] = i
     out = []
+    close = [(a, b) for a, b in itertools.pairwise(freqs) if b - a < 2.0 * frf.df]
+    note = "; ".join(
+        f"modes at {a:.1f} and {b:.1f} Hz are closer than 2/T = {2 * frf.df:.3g} Hz: too close to"
+        f" separate reliably at this record length; record longer per hit"
+        for a, b in close
+    )
     for r, (f, z) in enumerate(zip(freqs, fit.damping_ratios, strict=True)):
         pole_fit = PoleFit(f, z, fit.residues[r], fit.u_frequency_hz[r], fit.bins, "pole fit")
         peak = peaks[owner[r]] if r in owner else _made_up_peak(frf, f, z)
-        out.append(ModeFit(pole_fit, peak, tuple(per_hit[r]), r not in owner))
+        u_m = 0.0 if u_model is None else u_model[r]
+        out.append(ModeFit(pole_fit, peak, tuple(per_hit[r]), r not in owner, u_m, note if r == 0 else ""))
     return out
