@@ -11,7 +11,8 @@ A pole hidden in a neighbour's peak (the two merge in the mode indicator, so the
 one) shows as structure in the fit's residual. `extra_pole` adds a pole where the residual is
 largest and keeps it only if it explains much more than noise would (an F test between the two
 model orders, its degrees of freedom divided by the ENBW since neighbouring bins are correlated),
-lies inside the band, apart from the others, and carries a visible share of the FRF.
+lies inside the band, apart from the others (their k = 2 intervals do not overlap), is mode-like
+(damping not far above the others') and carries a visible share of the FRF.
 """
 
 from __future__ import annotations
@@ -194,6 +195,9 @@ def extra_pole(
     freqs = trial.frequencies_hz
     if min(np.diff(freqs), default=math.inf) < min_separation_hz:
         return None, trial
+    u = trial.u_frequency_hz
+    if any(2.0 * (u[i] + u[i + 1]) >= freqs[i + 1] - freqs[i] for i in range(len(freqs) - 1)):
+        return None, None  # the poles' intervals (k = 2) overlap: a pole the data do not pin down
     span = (omega.min() / (2 * math.pi), omega.max() / (2 * math.pi))
     margin = 0.05 * (span[1] - span[0])
     if not all(span[0] + margin < f < span[1] - margin for f in freqs):
