@@ -1,7 +1,8 @@
 """From a recording to the bat's modes and its first hoop frequency, with uncertainty.
 
 Steps: channel checks (dead, clipped) -> hits (hits.py) -> resolution check -> H1 and coherence
-(frf.py) -> peaks and single-mode fits (modes.py) -> classification -> per-hit spread -> result.
+(frf.py) -> peaks and mode fits, close ones jointly (modes.py, multipole.py) -> classification
+-> per-hit spread -> result.
 
 A peak is a mode only if it stands clear of the noise: its |H| rises above its bases by min_snr
 standard deviations of the FRF's noise (from the accelerometers' noise before the first hit), and
@@ -15,12 +16,14 @@ modal constants at each accelerometer); a bending mode shows mainly on accelerom
 with the hammer: |R1|/|R2| >= bending_ratio. Anything else is "unclassified".
 
 Uncertainty of a mode's frequency (standard, k = 1; `U` is k = 2):
-  u^2 = u_res^2 + u_fit^2 + u_spread^2
+  u^2 = u_res^2 + u_fit^2 + u_spread^2 + u_model^2
   u_res    = RESOLUTION_SHARE x df / sqrt(12), df = 1/T the resolution: what the finite window
              leaves in a fitted frequency (benchmarks/bench_modal.py: the largest noise-free
              error is about 0.005 df, U_res = 0.058 df); the full df / sqrt(12) if the fit failed;
   u_fit    = from the fit's Jacobian and residuals (modes.py);
-  u_spread = standard deviation of the per-hit fitted frequencies / sqrt(hits) (0 for one hit).
+  u_spread = standard deviation of the per-hit fitted frequencies / sqrt(hits) (0 for one hit);
+  u_model  = close modes only (multipole.py): how far the frequency moves between two fit bands,
+             or how far an unseparable second pole moves it (0 for a mode fitted alone).
 """
 
 from __future__ import annotations
