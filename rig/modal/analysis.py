@@ -250,7 +250,7 @@ def analyze_hits(rec: Recording, hits: Hits, settings: ModalSettings) -> ModalRe
     band = (max(s.f_min_hz, 2.0 * df), f_hi)
     warnings = list(hits.dropped) + _still_ringing(rec, hits, s.ringing_fraction)
     peaks = find_mode_peaks(frf, band, s.prominence_decades, s.height_decades)
-    modes, noise_peaks, buried, clear = [], [], [], []
+    modes, noise_peaks, buried, clear, blends = [], [], [], [], []
     for peak in peaks:
         if frf.noise_h is not None:
             noise = math.sqrt(float(np.sum(frf.noise_h[:, peak.index] ** 2)))
@@ -266,6 +266,8 @@ def analyze_hits(rec: Recording, hits: Hits, settings: ModalSettings) -> ModalRe
             noise_peaks.append((mf.fit, max(c1, c2)))  # a peak of the noise, not of the bat
             continue
         modes.append(_mode(frf, mf, s))
+        if mf.unresolved:
+            blends.append(modes[-1])
     modes.sort(key=lambda m: m.frequency_hz)
     _check_noise_peaks(name, noise_peaks, modes, s, warnings)
     if buried:
@@ -276,6 +278,14 @@ def analyze_hits(rec: Recording, hits: Hits, settings: ModalSettings) -> ModalRe
     elif frf.noise_h is None:
         warnings.append("no quiet samples before the first hit: peaks not tested against the noise level")
     hoop = next((m for m in modes if m.kind == "hoop"), None)
+    for m in blends:
+        if m.kind != "hoop" and (hoop is None or m.frequency_hz < hoop.frequency_hz):
+            warnings.append(
+                f"the {m.kind} mode at {m.frequency_hz:.1f} Hz blends two modes this record cannot separate"
+                f" (|H1|/|H2| {m.magnitude_ratio:.3g}): the first hoop mode may be there, not "
+                + ("absent" if hoop is None else f"at {hoop.frequency_hz:.1f} Hz")
+                + "; record longer per hit"
+            )
     if hoop is None:
         listed = ", ".join(f"{m.frequency_hz:.0f} Hz (|H1|/|H2| {m.magnitude_ratio:.3g})" for m in modes)
         warnings.append(

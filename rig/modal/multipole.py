@@ -238,6 +238,7 @@ class ModeFit:
     hidden: bool  # found by the model-order test, not by the peak finder
     u_model_hz: float = 0.0  # model-error term (close modes), see _narrowed and _unresolved
     note: str = ""  # a warning for the result
+    unresolved: bool = False  # a second pole within 1/T was seen: the residues (and kind) are a blend
 
 
 def group_peaks(peaks: list[Peak]) -> list[list[int]]:
@@ -376,7 +377,7 @@ def _unresolved(
         f" record longer per hit to separate them"
     )
     fits = _modes_of(frf, peaks, members, joint, moved)
-    return [replace(m, note=note) if i == 0 else m for i, m in enumerate(fits)]
+    return [replace(m, note=note if i == 0 else "", unresolved=True) for i, m in enumerate(fits)]
 
 
 def _modes_of(
