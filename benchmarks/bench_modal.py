@@ -160,7 +160,7 @@ def close_mode_cell(offset_hz: float, window_s: float, bats: int, seed0: int) ->
             cell.diagnoses[type(exc).__name__] += 1
             continue
         cell.seconds.append(time.perf_counter() - t0)
-        if any("too close" in w for w in res.warnings):
+        if any("too close" in w or "close modes" in w for w in res.warnings):
             cell.warned += 1
         if res.hoop is None:
             cell.diagnoses["no hoop mode"] += 1
