@@ -226,6 +226,7 @@ def extra_pole(
 GROUP_BANDWIDTHS = 5.0  # peaks closer than this many half-power bandwidths are fitted together
 WIDE_BANDWIDTHS = 4.0  # the band searched for a hidden pole: +- this many bandwidths
 MAX_POLES = 4
+NOISE_GATE = 1.5  # residual power over the noise's expected power above which a hidden pole is sought
 
 
 @dataclass(frozen=True)
@@ -317,7 +318,7 @@ def fit_modes(frf: FrfEstimate, peaks: list[Peak], check_order: bool = True) -> 
         if check_order and len(members) < MAX_POLES:
             wide_bins = _span(frf, peaks, members, WIDE_BANDWIDTHS)
             wide = _fit(frf, list(joint.poles) if joint else guesses, wide_bins)
-            if wide is not None:
+            if wide is not None and _structured(frf, wide):
                 lo, hi = wide_bins
                 more, hint = extra_pole(
                     frf.h[:, lo:hi], frf.s[lo:hi], frf.dt, frf.tau_s, wide, frf.enbw_bins, frf.df
@@ -341,6 +342,17 @@ def fit_modes(frf: FrfEstimate, peaks: list[Peak], check_order: bool = True) -> 
             continue
         out += _modes_of(frf, peaks, members, joint)
     return out
+
+
+def _structured(frf: FrfEstimate, fit: MultiFit) -> bool:
+    """False if the fit's residual is no larger than the FRF's noise explains (the search for a
+    hidden pole is then skipped: it costs most of the analysis); True if it is, or if the noise is
+    unknown."""
+    if frf.noise_h is None:
+        return True
+    lo, hi = fit.bins
+    expected = float(np.sum(frf.noise_h[:, lo:hi] ** 2))
+    return not expected > 0 or float(np.sum(np.abs(fit.residual) ** 2)) > NOISE_GATE * expected
 
 
 def _narrowed(frf: FrfEstimate, wide: MultiFit) -> tuple[MultiFit, tuple[float, ...]]:
