@@ -22,8 +22,8 @@ Uncertainty of a mode's frequency (standard, k = 1; `U` is k = 2):
              error is about 0.005 df, U_res = 0.058 df); the full df / sqrt(12) if the fit failed;
   u_fit    = from the fit's Jacobian and residuals (modes.py);
   u_spread = standard deviation of the per-hit fitted frequencies / sqrt(hits) (0 for one hit);
-  u_model  = close modes only (multipole.py): how far the frequency moves between two fit bands,
-             or how far an unseparable second pole moves it (0 for a mode fitted alone).
+  u_model  = where the fit's residual exceeds the noise (multipole.py): how far the frequency moves
+             between two fit bands, or how far an unseparable second pole moves it; else 0.
 """
 
 from __future__ import annotations

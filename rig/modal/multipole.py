@@ -314,11 +314,15 @@ def fit_modes(frf: FrfEstimate, peaks: list[Peak], check_order: bool = True) -> 
         guesses = [_guess(peaks[i]) for i in members]
         bins = fit_band(frf, peaks, members[0]) if len(members) == 1 else _span(frf, peaks, members, 2.5)
         joint = _fit(frf, guesses, bins)
-        hint = None
+        hint, moved = None, None
         if check_order and len(members) < MAX_POLES:
             wide_bins = _span(frf, peaks, members, WIDE_BANDWIDTHS)
             wide = _fit(frf, list(joint.poles) if joint else guesses, wide_bins)
             if wide is not None and _structured(frf, wide):
+                if joint is not None:  # the residual shows what the model leaves: how far does f move?
+                    moved = tuple(
+                        abs(a - b) for a, b in zip(joint.frequencies_hz, wide.frequencies_hz, strict=True)
+                    )
                 lo, hi = wide_bins
                 more, hint = extra_pole(
                     frf.h[:, lo:hi], frf.s[lo:hi], frf.dt, frf.tau_s, wide, frf.enbw_bins, frf.df
@@ -340,7 +344,7 @@ def fit_modes(frf: FrfEstimate, peaks: list[Peak], check_order: bool = True) -> 
                 per_hit = tuple(f.frequency_hz for f in hits if f.method == "pole fit")
                 out.append(ModeFit(fit, peaks[i], per_hit, False))
             continue
-        out += _modes_of(frf, peaks, members, joint)
+        out += _modes_of(frf, peaks, members, joint, moved)
     return out
 
 
