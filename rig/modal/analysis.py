@@ -1,7 +1,8 @@
 """From a recording to the bat's modes and its first hoop frequency, with uncertainty.
 
 Steps: channel checks (dead, clipped) -> hits (hits.py) -> resolution check -> H1 and coherence
-(frf.py) -> peaks and single-mode fits (modes.py) -> classification -> per-hit spread -> result.
+(frf.py) -> peaks and mode fits, close ones jointly (modes.py, multipole.py) -> classification
+-> per-hit spread -> result.
 
 A peak is a mode only if it stands clear of the noise: its |H| rises above its bases by min_snr
 standard deviations of the FRF's noise (from the accelerometers' noise before the first hit), and
@@ -15,12 +16,14 @@ modal constants at each accelerometer); a bending mode shows mainly on accelerom
 with the hammer: |R1|/|R2| >= bending_ratio. Anything else is "unclassified".
 
 Uncertainty of a mode's frequency (standard, k = 1; `U` is k = 2):
-  u^2 = u_res^2 + u_fit^2 + u_spread^2
+  u^2 = u_res^2 + u_fit^2 + u_spread^2 + u_model^2
   u_res    = RESOLUTION_SHARE x df / sqrt(12), df = 1/T the resolution: what the finite window
              leaves in a fitted frequency (benchmarks/bench_modal.py: the largest noise-free
              error is about 0.005 df, U_res = 0.058 df); the full df / sqrt(12) if the fit failed;
   u_fit    = from the fit's Jacobian and residuals (modes.py);
-  u_spread = standard deviation of the per-hit fitted frequencies / sqrt(hits) (0 for one hit).
+  u_spread = standard deviation of the per-hit fitted frequencies / sqrt(hits) (0 for one hit);
+  u_model  = where the fit's residual exceeds the noise (multipole.py): how far the frequency moves
+             between two fit bands, or how far an unseparable second pole moves it; else 0.
 """
 
 from __future__ import annotations
@@ -35,7 +38,8 @@ from rig.core.errors import ParameterError
 from rig.modal import frf as frf_mod
 from rig.modal.errors import LowCoherence, RecordTooShort
 from rig.modal.hits import QUIET_MIN, Hits, check_channels, pulse_guard, segment
-from rig.modal.modes import Peak, PoleFit, find_mode_peaks, fit_band, fit_mode
+from rig.modal.modes import PoleFit, find_mode_peaks
+from rig.modal.multipole import ModeFit, fit_modes
 from rig.modal.recording import Recording
 
 RESOLUTION_SHARE = 0.1
@@ -118,6 +122,7 @@ class Mode:
     u_spread_hz: float
     per_hit_hz: tuple[float, ...]
     method: str  # "pole fit" or "half-power"
+    u_model_hz: float = 0.0  # close modes: how far the joint fit's frequency moves between two bands
 
     @property
     def expanded_uncertainty_hz(self) -> float:
@@ -213,26 +218,19 @@ def _classify(ratio: float, s: ModalSettings) -> tuple[str, tuple[str, ...]]:
     return "unclassified", ("accel1", "accel2") if ratio >= 1.0 / s.bending_ratio else ("accel2",)
 
 
-def _mode(
-    frf: frf_mod.FrfEstimate, peak: Peak, fit: PoleFit, bins: tuple[int, int], s: ModalSettings
-) -> Mode:
+def _mode(frf: frf_mod.FrfEstimate, mf: ModeFit, s: ModalSettings) -> Mode:
+    fit, peak, per_hit = mf.fit, mf.peak, list(mf.per_hit_hz)
     r1, r2 = fit.residues
     ratio = min(abs(r1) / abs(r2), RATIO_CAP) if abs(r2) * RATIO_CAP > abs(r1) else RATIO_CAP
     kind, accels = _classify(ratio, s)
     phase = math.degrees(np.angle(r2 / r1)) if abs(r1) > 0 else 0.0
     c1, c2 = _coherence(frf, fit.frequency_hz, 0.5 * peak.bandwidth_hz)
     coh = min(c for c, name in ((c1, "accel1"), (c2, "accel2")) if name in accels)
-    per_hit: list[float] = []
-    if frf.n_hits >= 2:
-        for k in range(frf.n_hits):
-            one = fit_mode(frf, peak, bins, frf.per_hit[k])
-            if one.method == "pole fit":
-                per_hit.append(one.frequency_hz)
     u_spread = float(np.std(per_hit, ddof=1) / math.sqrt(len(per_hit))) if len(per_hit) >= 2 else 0.0
     u_res = RESOLUTION_SHARE * frf.df / math.sqrt(12.0)
     if fit.method != "pole fit":
         u_res = frf.df / math.sqrt(12.0)
-    u = math.sqrt(u_res**2 + fit.u_frequency_hz**2 + u_spread**2)
+    u = math.sqrt(u_res**2 + fit.u_frequency_hz**2 + u_spread**2 + mf.u_model_hz**2)
     return Mode(
         frequency_hz=fit.frequency_hz,
         damping_ratio=fit.damping_ratio,
@@ -249,6 +247,7 @@ def _mode(
         u_spread_hz=u_spread,
         per_hit_hz=tuple(per_hit),
         method=fit.method,
+        u_model_hz=mf.u_model_hz,
     )
 
 
@@ -268,20 +267,24 @@ def analyze_hits(rec: Recording, hits: Hits, settings: ModalSettings) -> ModalRe
     band = analysis_band(frf, s, rec.fs)
     warnings = list(hits.dropped) + _still_ringing(rec, hits, s.ringing_fraction)
     peaks = find_mode_peaks(frf, band, s.prominence_decades, s.height_decades)
-    modes, noise_peaks, buried = [], [], []
-    for i, peak in enumerate(peaks):
-        bins = fit_band(frf, peaks, i)
+    modes, noise_peaks, buried, clear, blends = [], [], [], [], []
+    for peak in peaks:
         if frf.noise_h is not None:
             noise = math.sqrt(float(np.sum(frf.noise_h[:, peak.index] ** 2)))
             if peak.rise < s.min_snr * noise:
                 buried.append(peak.frequency_hz)
                 continue
-        fit = fit_mode(frf, peak, bins)
-        c1, c2 = _coherence(frf, fit.frequency_hz, 0.5 * peak.bandwidth_hz)
+        clear.append(peak)
+    for mf in fit_modes(frf, clear):
+        if mf.note:
+            warnings.append(mf.note)
+        c1, c2 = _coherence(frf, mf.fit.frequency_hz, 0.5 * mf.peak.bandwidth_hz)
         if hits.count >= 2 and max(c1, c2) < s.mode_coherence:
-            noise_peaks.append((fit, max(c1, c2)))  # a peak of the noise, not of the bat
+            noise_peaks.append((mf.fit, max(c1, c2)))  # a peak of the noise, not of the bat
             continue
-        modes.append(_mode(frf, peak, fit, bins, s))
+        modes.append(_mode(frf, mf, s))
+        if mf.unresolved:
+            blends.append(modes[-1])
     modes.sort(key=lambda m: m.frequency_hz)
     _check_noise_peaks(name, noise_peaks, modes, s, warnings)
     if buried:
@@ -295,6 +298,14 @@ def analyze_hits(rec: Recording, hits: Hits, settings: ModalSettings) -> ModalRe
             f" short for its tail: peaks not tested against the noise level"
         )
     hoop = next((m for m in modes if m.kind == "hoop"), None)
+    for m in blends:
+        if m.kind != "hoop" and (hoop is None or m.frequency_hz < hoop.frequency_hz):
+            warnings.append(
+                f"the {m.kind} mode at {m.frequency_hz:.1f} Hz blends two modes this record cannot separate"
+                f" (|H1|/|H2| {m.magnitude_ratio:.3g}): the first hoop mode may be there, not "
+                + ("absent" if hoop is None else f"at {hoop.frequency_hz:.1f} Hz")
+                + "; record longer per hit"
+            )
     if hoop is None:
         listed = ", ".join(f"{m.frequency_hz:.0f} Hz (|H1|/|H2| {m.magnitude_ratio:.3g})" for m in modes)
         warnings.append(
