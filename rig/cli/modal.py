@@ -272,7 +272,7 @@ def add_parsers(sub: Any) -> None:
         "--band-min",
         type=float,
         metavar="HZ",
-        help="lowest frequency searched for modes (5/T, at least 10 Hz)",
+        help="lowest frequency searched for modes (3/T, at least 10 Hz)",
     )
     p.add_argument(
         "--band-max",

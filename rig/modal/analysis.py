@@ -47,7 +47,7 @@ COVERAGE_K = 2.0
 RATIO_CAP = 1e6
 # The band's default lower edge: a mode needs a few resolution bins below it to be fitted (and a few
 # cycles in the window); the floor keeps the suspension's bounce (a few Hz on bungee cords) out.
-BAND_MIN_BINS = 5.0
+BAND_MIN_BINS = 3.0
 BAND_FLOOR_HZ = 10.0
 
 

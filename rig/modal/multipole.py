@@ -30,7 +30,7 @@ from rig.modal.modes import MIN_FIT_BINS, Peak, PoleFit, fit_band, fit_mode
 
 N_LINE = 4  # per FRF: C and D, complex
 F_TEST_P = 1e-6  # an extra pole is kept only if this unlikely under the smaller model
-MIN_SHARE = 0.03  # ... and its peak reaches this fraction of the band's largest |H|
+MIN_SHARE = 0.05  # ... and its peak reaches this fraction of the band's largest |H|
 MAX_DAMPING = 0.1  # ... and it is a mode, not a broad term standing in for the far modes:
 DAMPING_FACTOR = 5.0  # damping at most this times the largest of the other poles' and MAX_DAMPING
 

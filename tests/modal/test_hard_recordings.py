@@ -67,7 +67,7 @@ def test_the_band_reaches_down_to_what_the_record_length_resolves() -> None:
     """Issue 13, finding 5: a fixed 40 Hz lower edge hid a 30 Hz mode that 1 s windows resolve."""
     _, rec = _low_mode_recording()
     res = analyze(rec)
-    assert res.band_hz[0] == pytest.approx(max(5.0 / res.window_s, 10.0))  # 5 bins of 1/T, 10 Hz at least
+    assert res.band_hz[0] == pytest.approx(max(3.0 / res.window_s, 10.0))  # 3 bins of 1/T, 10 Hz at least
     first = res.bending_hz[0]
     bending = next(m for m in res.modes if m.kind == "bending")
     assert abs(first - 30.0) <= bending.expanded_uncertainty_hz  # the true first mode, within its U
@@ -82,7 +82,7 @@ def test_the_band_is_a_setting() -> None:
     assert high.band_hz == (2000.0, 4000.0) and high.hoop is not None
     assert high.hoop_hz == pytest.approx(1.7 * 1800.0, abs=1.0)  # the first hoop *in the band*, as it says
     short = analyze(simulate(SimSettings(hits=3, hit_interval_s=0.1, seed=2)))
-    assert short.band_hz[0] == pytest.approx(5.0 / short.window_s)  # a short window cannot resolve low modes
+    assert short.band_hz[0] == pytest.approx(3.0 / short.window_s)  # a short window cannot resolve low modes
     with pytest.raises(ParameterError, match="f_max_hz"):
         ModalSettings(f_min_hz=500.0, f_max_hz=400.0)
 
