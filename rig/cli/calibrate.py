@@ -113,7 +113,7 @@ def _print(record: dict[str, Any]) -> None:
 
 def add_parser(msub: Any) -> None:
     """`rig model calibrate` under the `rig model` subcommands."""
-    from rig.population.calibrate import DEFAULT_LOCATION_IN, MIN_BATS, MIN_HOOP_SPAN_HZ
+    from rig.population.limits import DEFAULT_LOCATION_IN, MIN_BATS, MIN_HOOP_SPAN_HZ
 
     p = msub.add_parser(
         "calibrate",

@@ -7,8 +7,6 @@ import json
 import sys
 from typing import Any
 
-import numpy as np
-
 from rig.cli import calibrate, crosscheck
 from rig.cli.common import (
     Bounds,
@@ -128,6 +126,7 @@ def cmd_curve(args: argparse.Namespace) -> int:
 
 def _print_curve(curve: Any, rows: int = 16) -> None:
     """A readable digest of the curve: a sample of the grid with a bar per point, and the optimum."""
+    import numpy as np
     from rich.console import Console
     from rich.table import Table
 
