@@ -59,6 +59,8 @@ def _cell(value: Any) -> str:
     if isinstance(value, float):
         return f"{value:.6g}"
     if isinstance(value, list | tuple):
+        if not value:
+            return "-"
         return f"[{len(value)} values]" if len(value) > 6 else ", ".join(_cell(v) for v in value)
     return str(value)
 
