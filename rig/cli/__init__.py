@@ -29,11 +29,19 @@ def build_parser() -> argparse.ArgumentParser:
             f" (a file or a postgresql:// URL) or the environment variable {DB_ENV} does."
         ),
     )
-    parser.add_argument("--version", action="version", version=f"rig {_version()}")
+    parser.add_argument("--version", action=_Version, nargs=0, help="print the version and exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for part in (model, rig_cmds, records, export, sync, modal, keys):
         part.add_parsers(sub)
     return parser
+
+
+class _Version(argparse.Action):
+    """--version: looks the version up only when asked (importlib.metadata costs ~20 ms)."""
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: object) -> None:
+        print(f"rig {_version()}")
+        parser.exit()
 
 
 def _version() -> str:
