@@ -12,7 +12,8 @@ from typing import Any
 
 
 class Steps:
-    """A bar of `total` steps; `advance()` one step, `note(text)` to change what it says."""
+    """A bar of `total` steps; `advance()` one step, `note(text)` to change what it says; as a
+    timer wrapper, `counted(timer)` advances once per timed solve."""
 
     def __init__(self, bar: Any = None, task: Any = None) -> None:
         self._bar, self._task = bar, task
@@ -25,6 +26,23 @@ class Steps:
         if self._bar is not None:
             self._bar.update(self._task, description=text)
 
+    def counted(self, timer: Any) -> Any:
+        """`timer` (a study's stopwatch: called with a solve, has .repeats) advancing this bar."""
+        return _Counted(timer, self)
+
+
+class _Counted:
+    """A stopwatch that advances a bar after each solve it times."""
+
+    def __init__(self, timer: Any, bar: Steps) -> None:
+        self._timer, self._bar = timer, bar
+        self.repeats = timer.repeats
+
+    def __call__(self, solve: Any) -> Any:
+        out = self._timer(solve)
+        self._bar.advance()
+        return out
+
 
 def shown() -> bool:
     """Whether a bar would be drawn: stderr is a terminal."""
@@ -35,8 +53,9 @@ def shown() -> bool:
 
 
 @contextmanager
-def steps(total: float, what: str) -> Iterator[Steps]:
-    """A progress bar on stderr for `total` steps of `what`; nothing when stderr is not a terminal."""
+def steps(total: float | None, what: str) -> Iterator[Steps]:
+    """A progress bar on stderr for `total` steps of `what` (None: a count with no end known);
+    nothing when stderr is not a terminal."""
     if not shown():
         yield Steps()
         return

@@ -129,6 +129,7 @@ def cmd_curve(args: argparse.Namespace) -> int:
 def _print_curve(curve: Any, rows: int = 16) -> None:
     """A readable digest of the curve: a sample of the grid with a bar per point, and the optimum."""
     import numpy as np
+
     idx = sorted(
         set(np.linspace(0, curve.hoop_hz.size - 1, min(rows, curve.hoop_hz.size)).round().astype(int))
     )
@@ -265,8 +266,11 @@ def cmd_accuracy(args: argparse.Namespace) -> int:
     from rig.studies import stamped, stopwatch
 
     check_flags(args, BOUNDS)
-    timer = stopwatch(quick=args.quick, repeats=args.repeats)
-    study = stamped(lambda: work_precision(quick=args.quick, timer=timer))
+    from rig.progress import steps
+
+    with steps(None, "work-precision: solves timed") as bar:
+        timer = bar.counted(stopwatch(quick=args.quick, repeats=args.repeats))
+        study = stamped(lambda: work_precision(quick=args.quick, timer=timer))
     if args.plot:
         from rig.report.precision_plots import plot_work_precision
 

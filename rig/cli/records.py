@@ -230,9 +230,13 @@ def cmd_report(args: argparse.Namespace) -> int:
     if args.format == "json":
         text = json.dumps(record, indent=2, allow_nan=False) + "\n"
     else:
+        from rig.progress import steps
         from rig.report.certificate import render
 
-        text = render(record, args.format, figures_dir=args.figures, output=args.output)
+        drawn = args.format == "html" or args.figures is not None
+        with steps(1 if drawn else 0, "certificate: drawing its figures" if drawn else "certificate") as bar:
+            text = render(record, args.format, figures_dir=args.figures, output=args.output)
+            bar.advance()
     if args.output:
         Path(args.output).parent.mkdir(parents=True, exist_ok=True)
         Path(args.output).write_text(text, encoding="utf-8")
