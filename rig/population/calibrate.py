@@ -16,7 +16,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from rig.core.bat import PIVOT_FROM_KNOB_M
 from rig.core.errors import RigError
@@ -160,6 +159,8 @@ def fit_variant(
         return predict(bats, dict(zip(names, x, strict=True))) - measured
 
     tol = 1e-10 if covariance else 1e-7  # a leave-one-out refit starts at the full fit's optimum
+    from scipy.optimize import least_squares  # on first use: reading a calibration needs no fit
+
     res = least_squares(
         residuals,
         x0,
