@@ -10,6 +10,10 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+# Eager (numpy only): the function `simulate` shares its name with its module, and a lazy name
+# would be shadowed by the module once anything imports rig.modal.simulate.
+from rig.modal.simulate import SimMode, SimSettings, bat_modes, simulate
+
 if TYPE_CHECKING:
     from rig.modal.analysis import ModalResult, ModalSettings, Mode, analyze
     from rig.modal.errors import (
@@ -26,7 +30,6 @@ if TYPE_CHECKING:
     )
     from rig.modal.link import MODAL_RESULT_KIND, latest_modal_result, record_modal_result, with_measured_hoop
     from rig.modal.recording import CSV_HEADER, Recording, read_csv, read_recording, write_csv
-    from rig.modal.simulate import SimMode, SimSettings, bat_modes, simulate
 
 _WHERE = {
     "ModalResult": "analysis",
@@ -52,10 +55,6 @@ _WHERE = {
     "read_csv": "recording",
     "read_recording": "recording",
     "write_csv": "recording",
-    "SimMode": "simulate",
-    "SimSettings": "simulate",
-    "bat_modes": "simulate",
-    "simulate": "simulate",
 }
 
 
