@@ -33,6 +33,7 @@ test: lint
 	$(BIN)/python -m pytest -q
 
 bench: $(STAMP)
+	$(BIN)/python benchmarks/bench_startup.py
 	$(BIN)/python benchmarks/bench_curve.py
 	$(BIN)/python benchmarks/bench_scene.py
 	$(BIN)/python benchmarks/bench_certify.py

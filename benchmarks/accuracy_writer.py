@@ -52,6 +52,7 @@ from rig.physics.precision import (
     ToleranceFit,
     work_precision,
 )
+from rig.progress import steps
 from rig.report.precision_plots import (
     case_label,
     cost_markdown,
@@ -281,21 +282,22 @@ def write_accuracy_doc(
     doc = Path(path)
     fig_dir = doc.parent / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
-    study = _on_this_machine(lambda: work_precision(speed=SPEED, timer=careful(repeats)))
-    near = None
-    if near_rigid:
-        near = _on_this_machine(
-            lambda: work_precision(
-                speed=SPEED,
-                hoops=(NEAR_RIGID_HZ,),
-                rtols=NEAR_RIGID_RTOLS,
-                implicit_rtols=NEAR_RIGID_IMPLICIT_RTOLS,
-                timer=careful(NEAR_RIGID_REPEATS),
+    with steps(None, "accuracy study: solves timed") as bar:
+        study = _on_this_machine(lambda: work_precision(speed=SPEED, timer=bar.counted(careful(repeats))))
+        near = None
+        if near_rigid:
+            near = _on_this_machine(
+                lambda: work_precision(
+                    speed=SPEED,
+                    hoops=(NEAR_RIGID_HZ,),
+                    rtols=NEAR_RIGID_RTOLS,
+                    implicit_rtols=NEAR_RIGID_IMPLICIT_RTOLS,
+                    timer=bar.counted(careful(NEAR_RIGID_REPEATS)),
+                )
             )
-        )
-    curve_load = [load_average()]
-    curve = curve_tradeoff(speed=SPEED, timer=careful(repeats))
-    curve_load.append(load_average())
+        curve_load = [load_average()]
+        curve = curve_tradeoff(speed=SPEED, timer=bar.counted(careful(repeats)))
+        curve_load.append(load_average())
     h0 = study.cases()[0]
     first = first_step_effect(Impact(DEFAULT_PARAMS, SPEED, h0), cor_ref=study.references[0].cor)
     probed = parallel_call_probe() if probe else None

@@ -1,6 +1,6 @@
 """A certification procedure as data: what to measure, how often, and the limits (TOML).
 
-Values that standards.md marks unknown are configurable defaults, each commented in the
+Values that docs/standards.md marks unknown are configurable defaults, each commented in the
 built-in files (protocols/*.toml) with its status.
 """
 

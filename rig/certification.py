@@ -240,6 +240,8 @@ def certify(
     return Outcome(run_id, "finished", verdict)
 
 
-def default_db() -> Path:
-    """Where records go when no --db is given: rig-records.db in the working directory."""
-    return Path("rig-records.db")
+def default_db() -> Path | str:
+    """Where records go when no --db is given: $RIG_DB, else rig-records.db in the working directory."""
+    from rig.core.dbpath import default_db as where
+
+    return where()

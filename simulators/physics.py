@@ -139,7 +139,7 @@ class NominalEnvironment:
 def pendulum_period(moi_kgm2: float, mass_kg: float, pivot_to_cg_m: float, amplitude_rad: float) -> float:
     """Period of the bat swinging on the pivot: T0 = 2 pi sqrt(I/(m g d)), times (1 + theta0^2/16)."""
     t0 = 2.0 * math.pi * math.sqrt(moi_kgm2 / (mass_kg * G_STANDARD * pivot_to_cg_m))
-    # First-order finite-amplitude correction, the one ASTM F2398 users back out (standards.md 2).
+    # First-order finite-amplitude correction that ASTM F2398 users back out (docs/standards.md, 2).
     return t0 * (1.0 + amplitude_rad**2 / 16.0)
 
 

@@ -3,10 +3,12 @@
 The first shot of a fresh process otherwise pays, inside its FIRE reply, for loading the compiled
 collision kernel from numba's disk cache (or compiling it in a fresh checkout) and for the first
 pass through every codec and effect: hundreds of ms idle, over a second on a loaded machine, past
-the controller's reply timeout. `warm_up(scene)` pays it once, before any port is announced: it
-builds a separate world of the same scene (same bat, ball and physical effects, faults left out, so
-that the dummy shot is sure to reach the impact) and drives one whole shot through the device
-codecs. The served world is untouched: its clock, random streams and shot count start fresh.
+the controller's reply timeout. `warm_up(scene)` pays it once, before any port is announced. It
+loads the compiled kernel (`fast.warm_up`; left alone, `fast` would start interpreted and switch
+later, inside a reply), builds a separate world of the same scene (same bat, ball and physical
+effects, faults left out, so that the dummy shot is sure to reach the impact) and drives one whole
+shot through the device codecs. The served world is untouched: its clock, random streams and shot
+count start fresh.
 """
 
 from __future__ import annotations
@@ -47,6 +49,11 @@ def warm_up(scene: Scene) -> ShotTruth:
     The shot aims at 60.8 m/s (or 90 % of a weaker cannon's top speed), 80 % of the way from the
     pivot to the tip. RuntimeError if a device refuses a command (a simulator bug, not a scene's).
     """
+    from rig.physics import fast
+
+    # A served rig solves a collision or two a shot for hours: load the compiled kernel now. Left to
+    # itself, fast would run the first solves interpreted and load numba inside a later FIRE reply.
+    fast.warm_up()
     quiet = scene.model_copy(
         update={"effects": tuple(e for e in scene.effects if not isinstance(e, FaultConfig))}
     )

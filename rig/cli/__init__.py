@@ -13,6 +13,7 @@ import sys
 from collections.abc import Callable, Sequence
 
 from rig.cli import export, keys, modal, model, records, rig_cmds, sync
+from rig.core.dbpath import DB_ENV, DEFAULT_DB_NAME
 from rig.core.errors import ParameterError, RigError
 
 Handler = Callable[[argparse.Namespace], int]
@@ -20,11 +21,39 @@ Handler = Callable[[argparse.Namespace], int]
 
 def build_parser() -> argparse.ArgumentParser:
     """The whole command tree."""
-    parser = argparse.ArgumentParser(prog="rig", description="Bat-certification rig controller.")
+    parser = argparse.ArgumentParser(
+        prog="rig",
+        description="Bat-certification rig controller.",
+        epilog=(
+            f"Records go to {DEFAULT_DB_NAME} in the working directory unless --db names another store"
+            f" (a file or a postgresql:// URL) or the environment variable {DB_ENV} does."
+        ),
+    )
+    parser.add_argument("--version", action=_Version, nargs=0, help="print the version and exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for part in (model, rig_cmds, records, export, sync, modal, keys):
         part.add_parsers(sub)
     return parser
+
+
+class _Version(argparse.Action):
+    """--version: looks the version up only when asked (importlib.metadata costs ~20 ms)."""
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: object) -> None:
+        print(f"rig {_version()}")
+        parser.exit()
+
+
+def _version() -> str:
+    """The installed package's version (the source's when not installed)."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("bat-rig")
+    except PackageNotFoundError:
+        from rig import __version__
+
+        return __version__
 
 
 def main(argv: Sequence[str] | None = None) -> int:

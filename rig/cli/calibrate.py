@@ -8,6 +8,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from rig.cli.common import console as out
+from rig.cli.common import new_table
 from rig.core.errors import ConfigError
 
 
@@ -73,16 +75,13 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def _print(record: dict[str, Any]) -> None:
-    from rich.console import Console
-    from rich.table import Table
-
-    console = Console()
+    console = out()
     prov = record["provenance"]
     console.print(
         f"Calibration on {prov['n_bats']} bats ({record['metric']}), hoop {prov['hoop_min_hz']:.0f}-"
         f"{prov['hoop_max_hz']:.0f} Hz, data sha256 {prov['data_sha256'][:12]}..."
     )
-    table = Table(title="Variants (chosen by leave-one-out prediction error)")
+    table = new_table(title="Variants (chosen by leave-one-out prediction error)")
     for col in ("variant", "parameters (+- 1 sigma)", "scatter", "LOO RMSE", ""):
         table.add_column(col)
     for v in record["variants"]:
@@ -95,7 +94,8 @@ def _print(record: dict[str, Any]) -> None:
         table.add_row(v["variant"], params, f"{v['scatter']:.4f}", loo, mark)
     console.print(table)
     names = list(record["parameters"])
-    cov = Table(title=f"Covariance of {record['variant']} ({', '.join(record['units'][n] for n in names)})")
+    units = ", ".join(record["units"][n] for n in names)
+    cov = new_table(title=f"Covariance of {record['variant']} ({units})")
     cov.add_column("")
     for n in names:
         cov.add_column(n, justify="right")
@@ -113,7 +113,7 @@ def _print(record: dict[str, Any]) -> None:
 
 def add_parser(msub: Any) -> None:
     """`rig model calibrate` under the `rig model` subcommands."""
-    from rig.population.calibrate import DEFAULT_LOCATION_IN, MIN_BATS, MIN_HOOP_SPAN_HZ
+    from rig.population.limits import DEFAULT_LOCATION_IN, MIN_BATS, MIN_HOOP_SPAN_HZ
 
     p = msub.add_parser(
         "calibrate",

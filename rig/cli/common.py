@@ -21,24 +21,72 @@ def param_override(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"{name.strip()}: {value!r} is not a number") from None
 
 
+PIPED_WIDTH = 400  # columns of output that is not a terminal: nothing wraps or is cut
+
+
+def console(stderr: bool = False) -> Any:
+    """A rich console: on a terminal rich's own; piped or redirected, no colour and wide enough
+    that no table column is cut."""
+    from rich.console import Console
+
+    out = Console(stderr=stderr)
+    if out.is_terminal:
+        return out
+    return Console(stderr=stderr, width=PIPED_WIDTH, no_color=True, highlight=False)
+
+
+def new_table(**options: Any) -> Any:
+    """A rich table whose columns fold rather than cut; plain ASCII rules when stdout is not a
+    terminal (no box-drawing characters in a file or a pipe)."""
+    from rich import box
+    from rich.table import Table
+
+    if not console().is_terminal:
+        options.setdefault("box", box.ASCII)
+    return Table(**options)
+
+
+def add_columns(table: Any, *names: str, justify: str = "left") -> None:
+    """Columns that never cut a value: a long one folds onto a second line."""
+    for name in names:
+        table.add_column(name, justify=justify, overflow="fold")
+
+
+def _cell(value: Any) -> str:
+    """A value as a table cell: numbers to 6 significant digits, no Python reprs."""
+    if isinstance(value, bool) or value is None:
+        return {True: "yes", False: "no", None: "-"}[value]
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, list | tuple):
+        if not value:
+            return "-"
+        return f"[{len(value)} values]" if len(value) > 6 else ", ".join(_cell(v) for v in value)
+    return str(value)
+
+
+def flat_rows(payload: dict[str, Any], prefix: str = "") -> list[tuple[str, str]]:
+    """(name, text) rows of a payload; a nested mapping becomes 'outer.inner' rows, not a dict repr."""
+    rows: list[tuple[str, str]] = []
+    for key, value in payload.items():
+        if isinstance(value, dict):
+            rows += flat_rows(value, f"{prefix}{key}.")
+        else:
+            rows.append((f"{prefix}{key}", _cell(value)))
+    return rows
+
+
 def emit(args: argparse.Namespace, payload: dict[str, Any], title: str) -> None:
     if args.json:
         json.dump(payload, sys.stdout, indent=2, allow_nan=False)
         sys.stdout.write("\n")
         return
-    from rich.console import Console
-    from rich.table import Table
-
-    table = Table(title=title, show_header=True)
-    table.add_column("quantity")
-    table.add_column("value", justify="right")
-    for key, value in payload.items():
-        if isinstance(value, list):
-            value = f"[{len(value)} values]"
-        elif isinstance(value, float):
-            value = f"{value:.6g}"
-        table.add_row(key, str(value))
-    Console().print(table)
+    table = new_table(title=title, show_header=True)
+    add_columns(table, "quantity")
+    add_columns(table, "value", justify="right")
+    for key, value in flat_rows(payload):
+        table.add_row(key, value)
+    console().print(table)
 
 
 def positive_int(text: str) -> int:
@@ -87,9 +135,9 @@ def rig_config(args: argparse.Namespace, bat: Any = None) -> Any:
     return RigConfig.from_dict({"ports": ports}, source="command line")
 
 
-def default_db() -> Path:
-    """Where records go when no --db is given."""
-    from rig.certification import default_db as where
+def default_db() -> Path | str:
+    """Where records go when no --db is given: $RIG_DB, else rig-records.db in the working directory."""
+    from rig.core.dbpath import default_db as where
 
     return where()
 

@@ -7,6 +7,8 @@ import json
 import sys
 from typing import Any
 
+from rig.cli.common import console as out
+from rig.cli.common import new_table
 from rig.core.errors import ConfigError
 
 
@@ -44,11 +46,8 @@ def cmd_crosscheck(args: argparse.Namespace) -> int:
 
 
 def _print(checks: list[Any], cal: Any, rule: str) -> None:
-    from rich.console import Console
-    from rich.table import Table
-
     prov = cal.provenance
-    table = Table(
+    table = new_table(
         title=f"Cross-check of {cal.metric} against the calibration of {prov.n_bats} bats"
         f" ({prov.hoop_min_hz:.0f}-{prov.hoop_max_hz:.0f} Hz, data sha256 {prov.data_sha256[:12]}...)"
     )
@@ -67,7 +66,7 @@ def _print(checks: list[Any], cal: Any, rule: str) -> None:
             "-" if c.z is None else f"{c.z:+.2f}",
             flag,
         )
-    console = Console()
+    console = out()
     console.print(table)
     console.print(rule)
     unknown = sum(not c.u_measured_known for c in checks)

@@ -7,6 +7,7 @@ import sys
 from typing import Any
 
 from rig.cli.common import open_db, resolve_run
+from rig.core.dbpath import DB_HELP
 
 
 def cmd_export(args: argparse.Namespace) -> int:
@@ -27,7 +28,7 @@ def add_parsers(sub: Any) -> None:
     p = sub.add_parser(
         "export", help="write an analysts' view as CSV or Parquet", description=cmd_export.__doc__
     )
-    p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    p.add_argument("--db", metavar="FILE", help=DB_HELP)
     # checked by the command, not by argparse, so that a wrong name is one line naming the choices
     p.add_argument("--view", required=True, metavar="VIEW", help="shots or runs_summary")
     p.add_argument("--run", metavar="RUN", help="only this run (a unique prefix will do, or 'last')")

@@ -8,6 +8,7 @@ import sys
 from typing import Any
 
 from rig.cli.common import ConfigError, open_db, resolve_run
+from rig.core.dbpath import DB_HELP
 
 
 def cmd_create(args: argparse.Namespace) -> int:
@@ -99,20 +100,20 @@ def add_parsers(sub: Any) -> None:
     q = keys.add_parser(
         "register", help="list a rig's public key in the store", description=cmd_register.__doc__
     )
-    q.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    q.add_argument("--db", metavar="FILE", help=DB_HELP)
     q.add_argument("--rig", required=True, metavar="NAME", help="the rig's identity name")
     q.add_argument("--dir", metavar="DIR", help=dir_help)
     q.add_argument("--replace", action="store_true", help="register a new key for a rig that has one")
     q.set_defaults(handler=cmd_register)
 
     q = keys.add_parser("sign", help="sign a sealed run that has no signature", description=cmd_sign.__doc__)
-    q.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    q.add_argument("--db", metavar="FILE", help=DB_HELP)
     q.add_argument("--run", required=True, metavar="RUN", help="run id (a unique prefix will do), or 'last'")
     q.add_argument("--rig", metavar="NAME", help="the signing rig (default: the one the run recorded)")
     q.add_argument("--dir", metavar="DIR", help=dir_help)
     q.set_defaults(handler=cmd_sign)
 
     q = keys.add_parser("list", help="the registered public keys", description=cmd_list.__doc__)
-    q.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    q.add_argument("--db", metavar="FILE", help=DB_HELP)
     q.add_argument("--json", action="store_true", help="print JSON")
     q.set_defaults(handler=cmd_list)

@@ -13,9 +13,12 @@ from rig.cli.common import (
     ConfigError,
     check_flags,
     default_db,
+    new_table,
     open_db,
     positive_int,
 )
+from rig.cli.common import console as out
+from rig.core.dbpath import DB_HELP
 
 # Physical ranges of the flags (docs/procedures.md, "Bounds"). A bat's hoop modes ring at 200-10000
 # Hz (as a bat file bounds them) and its first bending mode near 150-200 Hz (20-5000 Hz allowed); an
@@ -83,10 +86,7 @@ def cmd_modal_analyze(args: argparse.Namespace) -> int:
         json.dump(payload, sys.stdout, indent=2, allow_nan=False)
         sys.stdout.write("\n")
         return 0
-    from rich.console import Console
-    from rich.table import Table
-
-    table = Table(
+    table = new_table(
         title=f"Modes of {args.file} ({result.n_hits} hits, resolution {result.resolution_hz:.3g} Hz)"
     )
     for col in ("kind", "f (Hz)", "U (Hz, k=2)", "damping", "|H1|/|H2|", "coherence"):
@@ -100,7 +100,7 @@ def cmd_modal_analyze(args: argparse.Namespace) -> int:
             f"{m.magnitude_ratio:.3g}",
             f"{m.coherence:.3f}",
         )
-    console = Console()
+    console = out()
     console.print(table)
     hoop = result.hoop
     console.print(
@@ -204,12 +204,9 @@ def cmd_study(args: argparse.Namespace) -> int:
         json.dump(study.as_dict(), sys.stdout, indent=2, allow_nan=False)
         sys.stdout.write("\n")
         return 0
-    from rich.console import Console
-    from rich.table import Table
-
-    console = Console()
+    console = out()
     tag = " (SYNTHETIC sample data)" if study.synthetic else ""
-    table = Table(title=f"Fig. 6: 50 Hz bins averaged over ±25 Hz, {len(study.bats)} bats{tag}")
+    table = new_table(title=f"Fig. 6: 50 Hz bins averaged over ±25 Hz, {len(study.bats)} bats{tag}")
     for col in ("hoop Hz", "n", "BESR", "BBS (m/s)", "BBCOR"):
         table.add_column(col, justify="right")
     by_centre: dict[float, dict[str, Any]] = {}
@@ -260,7 +257,7 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--plot", metavar="FILE", help="plot FRFs, coherence and modes (PNG and SVG)")
     p.add_argument("--bat", metavar="BAT.toml", help="record the result for this bat in the store")
-    p.add_argument("--db", metavar="FILE", help="record store for --bat (default rig-records.db)")
+    p.add_argument("--db", metavar="FILE", help=f"{DB_HELP}; for --bat")
     p.add_argument(
         "--window", type=float, metavar="S", help="analysis window per hit, s (default: automatic)"
     )

@@ -7,16 +7,16 @@ import json
 import sys
 from typing import Any
 
-import numpy as np
-
 from rig.cli import calibrate, crosscheck
 from rig.cli.common import (
     Bounds,
     check_flags,
     emit,
+    new_table,
     param_override,
     positive_int,
 )
+from rig.cli.common import console as out
 from rig.core.errors import ConfigError
 
 # Physical ranges of the flags (docs/procedures.md, "Bounds"): a ball at 1-100 m/s (100 m/s is
@@ -128,14 +128,13 @@ def cmd_curve(args: argparse.Namespace) -> int:
 
 def _print_curve(curve: Any, rows: int = 16) -> None:
     """A readable digest of the curve: a sample of the grid with a bar per point, and the optimum."""
-    from rich.console import Console
-    from rich.table import Table
+    import numpy as np
 
     idx = sorted(
         set(np.linspace(0, curve.hoop_hz.size - 1, min(rows, curve.hoop_hz.size)).round().astype(int))
     )
     lo, hi = float(curve.efficiency.min()), float(curve.efficiency.max())
-    table = Table(
+    table = new_table(
         title=f"Normalized collision efficiency at {curve.speed:g} m/s (COR_rigid = {curve.cor_rigid:.4f})"
     )
     for col in ("hoop Hz", "COR", "eta", "contacts", ""):
@@ -146,7 +145,7 @@ def _print_curve(curve: Any, rows: int = 16) -> None:
         bar = "#" * (1 + int(30 * (eta - lo) / (hi - lo or 1.0)))
         row = (f"{curve.hoop_hz[i]:.0f}", f"{curve.cor[i]:.4f}", f"{eta:.4f}", str(int(contacts[i])), bar)
         table.add_row(*row)
-    console = Console()
+    console = out()
     console.print(table)
     where = "between grid points" if curve.optimum_interior else "at the end of the grid"
     console.print(
@@ -238,9 +237,7 @@ def _calibrated(args: argparse.Namespace, bat: Any) -> dict[str, Any]:
 
 
 def _print_calibrated(c: dict[str, Any]) -> None:
-    from rich.console import Console
-
-    console = Console()
+    console = out()
     prov = c["calibration_provenance"]
     lo, hi = c["interval"]
     console.print(
@@ -269,8 +266,11 @@ def cmd_accuracy(args: argparse.Namespace) -> int:
     from rig.studies import stamped, stopwatch
 
     check_flags(args, BOUNDS)
-    timer = stopwatch(quick=args.quick, repeats=args.repeats)
-    study = stamped(lambda: work_precision(quick=args.quick, timer=timer))
+    from rig.progress import steps
+
+    with steps(None, "work-precision: solves timed") as bar:
+        timer = bar.counted(stopwatch(quick=args.quick, repeats=args.repeats))
+        study = stamped(lambda: work_precision(quick=args.quick, timer=timer))
     if args.plot:
         from rig.report.precision_plots import plot_work_precision
 
@@ -280,11 +280,12 @@ def cmd_accuracy(args: argparse.Namespace) -> int:
         json.dump([row.as_dict() for row in study.rows], sys.stdout, indent=2, allow_nan=False)
         sys.stdout.write("\n")
     else:
-        from rich.console import Console
-
         from rig.report.precision_plots import precision_table
 
-        Console().print(precision_table(study))
+        table = precision_table(study)
+        if not out().is_terminal:
+            table.box = new_table().box
+        out().print(table)
     return 0
 
 

@@ -3,22 +3,29 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import shlex
 import sys
+import tempfile
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from rig.cli.common import (
     ConfigError,
+    add_columns,
     add_rig_options,
     default_db,
+    new_table,
     open_db,
     resolve_run,
     rig_config,
     shown_db,
 )
+from rig.cli.common import console as out
 from rig.core import events as ev
+from rig.core.dbpath import DB_HELP
 from rig.core.events import Verdict
 
 
@@ -77,7 +84,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
     rig_checked = _signoff(args, "--rig-checked") if args.rig_checked else None
     control = RunControl()
     args.create_db = True
-    with stop_on_signals(control), open_db(args) as store:
+    with stop_on_signals(control), _certify_store(args) as store:
         if args.resume:
             run_id = resolve_run(store, args.resume)
             started = store.entries(run_id, kinds=[ev.RUN_STARTED])
@@ -146,11 +153,26 @@ def cmd_certify(args: argparse.Namespace) -> int:
     return 0 if outcome.verdict and outcome.verdict.get("verdict") == Verdict.PASS else 1
 
 
+@contextlib.contextmanager
+def _certify_store(args: argparse.Namespace) -> Iterator[Any]:
+    """The store a certification records into; a dry run of a new run creates none (a store that is
+    not there yet is stood in for by a throwaway one: it has nothing to look up)."""
+    from rig.store import Store, is_url
+
+    where = args.db or default_db()
+    if args.dry_run and not args.resume and not is_url(where) and not Path(where).exists():
+        with (
+            tempfile.TemporaryDirectory(prefix="rig-dry-run-") as tmp,
+            Store.open(Path(tmp, "dry.db")) as store,
+        ):
+            yield store
+        return
+    with open_db(args) as store:
+        yield store
+
+
 def cmd_runs(args: argparse.Namespace) -> int:
     """rig runs: the recorded runs, newest last."""
-    from rich.console import Console
-    from rich.table import Table
-
     with open_db(args) as store:
         runs = store.runs()
         stopped = {r.run_id for r in runs if _stopped(store, r)}
@@ -162,14 +184,13 @@ def cmd_runs(args: argparse.Namespace) -> int:
         json.dump(rows, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
-    table = Table(title=f"Runs in {shown_db(args.db) if args.db else 'rig-records.db'}")
-    for col in ("run", "procedure", "bat", "rig", "started (UTC)", "status", "verdict"):
-        table.add_column(col)
+    table = new_table(title=f"Runs in {shown_db(args.db or default_db())}")
+    add_columns(table, "run", "procedure", "bat", "rig", "started (UTC)", "status", "verdict")
     for r in runs:
         status = "interrupted" if r.run_id in stopped else r.status
         rig = (rigs.get(r.run_id) or {}).get("name") or "-"
-        table.add_row(r.run_id[:12], r.procedure, r.bat_id, rig, r.started_utc[:19], status, r.verdict or "")
-    Console().print(table)
+        table.add_row(r.run_id[:12], r.procedure, r.bat_id, rig, r.started_utc, status, r.verdict or "")
+    out().print(table)
     return 0
 
 
@@ -196,15 +217,26 @@ def cmd_report(args: argparse.Namespace) -> int:
     from rig.report.record import run_record
     from rig.store import Anchor
 
+    if args.json:
+        if args.format not in (None, "json"):
+            raise ConfigError(
+                f"--json is --format json; it cannot go with --format {args.format}", source="--json"
+            )
+        args.format = "json"
+    args.format = args.format or "md"
     anchor = Anchor.parse(args.anchor) if args.anchor else None
     with open_db(args) as store:
         record = run_record(store, resolve_run(store, args.run), anchor)
     if args.format == "json":
         text = json.dumps(record, indent=2, allow_nan=False) + "\n"
     else:
+        from rig.progress import steps
         from rig.report.certificate import render
 
-        text = render(record, args.format, figures_dir=args.figures, output=args.output)
+        drawn = args.format == "html" or args.figures is not None
+        with steps(1 if drawn else 0, "certificate: drawing its figures" if drawn else "certificate") as bar:
+            text = render(record, args.format, figures_dir=args.figures, output=args.output)
+            bar.advance()
     if args.output:
         Path(args.output).parent.mkdir(parents=True, exist_ok=True)
         Path(args.output).write_text(text, encoding="utf-8")
@@ -251,6 +283,10 @@ def cmd_verify(args: argparse.Namespace) -> int:
     signatures = (
         f"{report.runs_signed} runs signed, {report.runs_unsigned} unsigned, {report.runs_bad_signature} bad"
     )
+    if args.json:
+        json.dump(_verify_json(report), sys.stdout, indent=2)
+        sys.stdout.write("\n")
+        return 0 if report.ok else 1
     if report.ok:
         print(
             f"ok: {report.entries_checked} entries, chain intact; head {report.head.seq}:{report.head.hash}"
@@ -267,13 +303,28 @@ def cmd_verify(args: argparse.Namespace) -> int:
     return 1
 
 
+def _verify_json(report: Any) -> dict[str, Any]:
+    """The verification as data: verdict, entries checked, head, where the chain broke, problems."""
+    return {
+        "ok": report.ok,
+        "entries_checked": report.entries_checked,
+        "head": {"seq": report.head.seq, "hash": report.head.hash},
+        "first_broken_seq": report.first_broken_seq,
+        "reason": report.reason,
+        "problems": list(report.problems),
+        "runs_signed": report.runs_signed,
+        "runs_unsigned": report.runs_unsigned,
+        "runs_bad_signature": report.runs_bad_signature,
+    }
+
+
 def add_parsers(sub: Any) -> None:
     """`rig certify|runs|report|tui|verify`."""
     p = sub.add_parser("certify", help="certify a bat (BBCOR, BESR, BBS)", description=cmd_certify.__doc__)
     p.add_argument("--procedure", help="bbcor, besr, bbs, or a procedure TOML file")
     p.add_argument("--bat", metavar="BAT.toml", help="bat file (table [bat])")
     add_rig_options(p)
-    p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    p.add_argument("--db", metavar="FILE", help=DB_HELP)
     p.add_argument("--resume", metavar="RUN", help="resume an interrupted run")
     p.add_argument(
         "--calibration",
@@ -295,17 +346,23 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(handler=cmd_certify)
 
     p = sub.add_parser("runs", help="list recorded runs", description=cmd_runs.__doc__)
-    p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    p.add_argument("--db", metavar="FILE", help=DB_HELP)
     p.add_argument("--rig", metavar="NAME", help="only the runs of this rig (its identity name)")
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(handler=cmd_runs)
 
     p = sub.add_parser("report", help="a run's record or certificate", description=cmd_report.__doc__)
     p.add_argument("run", metavar="RUN", help="run id (a unique prefix will do), or 'last'")
-    p.add_argument("--format", choices=("json", "md", "html"), default="md", help="output format")
-    p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    p.add_argument("--format", choices=("json", "md", "html"), help="output format (default md)")
+    p.add_argument("--json", action="store_true", help="the run record as JSON (the same as --format json)")
+    p.add_argument("--db", metavar="FILE", help=DB_HELP)
     p.add_argument("--output", "-o", metavar="FILE", help="write to a file instead of stdout")
-    p.add_argument("--figures", metavar="DIR", help="where the certificate's plots go (md/html)")
+    p.add_argument(
+        "--figures",
+        metavar="DIR",
+        help="draw the certificate's plots as PNG files into DIR (Markdown links them; without it Markdown"
+        " has no figures and nothing is written; HTML always embeds them as SVG)",
+    )
     p.add_argument(
         "--anchor", metavar="SEQ:HASH", help="show the run only as far as this anchor (from a certificate)"
     )
@@ -313,13 +370,13 @@ def add_parsers(sub: Any) -> None:
 
     p = sub.add_parser("tui", help="the operator's console (terminal UI)", description=cmd_tui.__doc__)
     add_rig_options(p)
-    p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    p.add_argument("--db", metavar="FILE", help=DB_HELP)
     p.add_argument("--bat", metavar="BAT.toml", help="preselect this bat file")
     p.add_argument("--procedure", help="preselect bbcor, besr, bbs or a procedure TOML file")
     p.set_defaults(handler=cmd_tui)
 
     p = sub.add_parser("verify", help="check the records' hash chain", description=cmd_verify.__doc__)
-    p.add_argument("--db", metavar="FILE", help="record store (default rig-records.db)")
+    p.add_argument("--db", metavar="FILE", help=DB_HELP)
     p.add_argument("--anchor", metavar="SEQ:HASH", help="a head hash printed on a certificate")
     p.add_argument("--run", metavar="RUN", help="only this run: its chain and its anchors in the lab chain")
     p.add_argument(
@@ -329,4 +386,5 @@ def add_parsers(sub: Any) -> None:
         metavar="RIG:FINGERPRINT",
         help="a rig's key fingerprint kept outside the store: any other key registered for it is reported",
     )
+    p.add_argument("--json", action="store_true", help="print the result as JSON (exit status as without)")
     p.set_defaults(handler=cmd_verify)

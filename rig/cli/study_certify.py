@@ -171,7 +171,8 @@ def certify_population(args: argparse.Namespace) -> Tally:
         TimeElapsedColumn(),
         TextColumn("{task.fields[last]}"),
     )
-    with stop_on_signals(control), open_db(args) as store, Progress(*columns, console=console) as bar:
+    shown = Progress(*columns, console=console, disable=not console.is_terminal)  # a bar only on a terminal
+    with stop_on_signals(control), open_db(args) as store, shown as bar:
         task = bar.add_task("certifying", total=len(bats), last="")
         for bat in bats:
             state, run_id = _state(store, bat.spec.id)

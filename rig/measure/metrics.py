@@ -16,7 +16,7 @@ from rig.core.bat import PIVOT_FROM_KNOB_M
 from rig.core.errors import ParameterError
 from rig.core.units import INCH, MPH
 
-BESR_REFERENCE_SPEED_M_S = 136.0 * MPH  # 70 mph pitch + 66 mph bat = 60.8 m/s (standards.md)
+BESR_REFERENCE_SPEED_M_S = 136.0 * MPH  # 70 mph pitch + 66 mph bat = 60.8 m/s (docs/standards.md, section 1)
 
 DEFINITIONS: MappingProxyType[str, str] = MappingProxyType(
     {
@@ -44,7 +44,7 @@ class SwingModel(BaseModel):
     point 6 in from the knob with 66 mph at a point 6 in from the barrel end, so for a bat of
     length L hit at Q from the rig's pivot, V_bat = 66 mph * r / (L - 12 in), r the impact's
     radius about the swing pivot (r = Q when both pivots are 6 in from the knob).
-    Unknown: the NCAA never published bat speed as a function of MOI (standards.md, [U]); Nathan
+    Unknown: the NCAA never published bat speed as a function of MOI (docs/standards.md, [U]); Nathan
     et al. 2011 fit angular speed ~ 1/I_knob but the coefficients are unreadable, so the fixed-speed
     BESR kinematics is the default. Falcon's BESR sheet implies a swing pivot 5.375 in from the
     knob; set `swing_pivot_from_knob_m` to use it.

@@ -59,7 +59,7 @@ class UncertaintyModel(BaseModel):
     gate_delay: Spread = Spread(width=0.0)  # s per gate channel, systematic [assumed 0: calibrate]
     gate_position: Spread = Spread(width=0.005 * INCH, shape="rectangular")  # NCAA +-0.005 in
     impact_q: Spread = Spread(width=0.001, shape="rectangular")  # m, stage setting [assumed]
-    moi_relative: Spread = Spread(width=0.005)  # u(I)/I (standards.md: measure I to 0.5 %)
+    moi_relative: Spread = Spread(width=0.005)  # u(I)/I (docs/standards.md: measure I to 0.5 %)
     ball_mass: Spread = Spread(width=0.0005, shape="rectangular")  # kg, weighed ball [assumed]
     drag_in: Spread = Spread(width=0.05)  # Cd of the inbound ball (rig config air table)
     drag_out: Spread = Spread(width=0.1)  # Cd of the rebounding ball

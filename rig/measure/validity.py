@@ -42,7 +42,7 @@ class Invalidity:
 
 
 class ValidityLimits(BaseModel):
-    """Tolerances of the validity checks. None of them is published (standards.md [U])."""
+    """Tolerances of the validity checks. None of them is published (docs/standards.md [U])."""
 
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 

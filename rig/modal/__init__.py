@@ -1,25 +1,69 @@
 """Modal analysis of impact tests: the bat's hoop and bending frequencies from hammer and accelerometers.
 
 Pure numpy/scipy (pyuff for Universal Files); imports nothing of ours but rig.core.
-See docs/modal.md for the formats, the method and the diagnosis rules.
+See docs/modal.md for the formats, the method and the diagnosis rules. The names load on first
+use: `rig.modal.link` (what certify needs) does not bring in the analysis and scipy.
 """
 
-from rig.modal.analysis import ModalResult, ModalSettings, Mode, analyze
-from rig.modal.errors import (
-    ClippedSignal,
-    DoubleHit,
-    FlatChannel,
-    LowCoherence,
-    ModalError,
-    NoHits,
-    NoHoopMode,
-    RecordingFormatError,
-    RecordTooShort,
-    WeakHit,
-)
-from rig.modal.link import MODAL_RESULT_KIND, latest_modal_result, record_modal_result, with_measured_hoop
-from rig.modal.recording import CSV_HEADER, Recording, read_csv, read_recording, write_csv
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+# Eager (numpy only): the function `simulate` shares its name with its module, and a lazy name
+# would be shadowed by the module once anything imports rig.modal.simulate.
 from rig.modal.simulate import SimMode, SimSettings, bat_modes, simulate
+
+if TYPE_CHECKING:
+    from rig.modal.analysis import ModalResult, ModalSettings, Mode, analyze
+    from rig.modal.errors import (
+        ClippedSignal,
+        DoubleHit,
+        FlatChannel,
+        LowCoherence,
+        ModalError,
+        NoHits,
+        NoHoopMode,
+        RecordingFormatError,
+        RecordTooShort,
+        WeakHit,
+    )
+    from rig.modal.link import MODAL_RESULT_KIND, latest_modal_result, record_modal_result, with_measured_hoop
+    from rig.modal.recording import CSV_HEADER, Recording, read_csv, read_recording, write_csv
+
+_WHERE = {
+    "ModalResult": "analysis",
+    "ModalSettings": "analysis",
+    "Mode": "analysis",
+    "analyze": "analysis",
+    "ClippedSignal": "errors",
+    "DoubleHit": "errors",
+    "FlatChannel": "errors",
+    "LowCoherence": "errors",
+    "ModalError": "errors",
+    "NoHits": "errors",
+    "NoHoopMode": "errors",
+    "RecordingFormatError": "errors",
+    "RecordTooShort": "errors",
+    "WeakHit": "errors",
+    "MODAL_RESULT_KIND": "link",
+    "latest_modal_result": "link",
+    "record_modal_result": "link",
+    "with_measured_hoop": "link",
+    "CSV_HEADER": "recording",
+    "Recording": "recording",
+    "read_csv": "recording",
+    "read_recording": "recording",
+    "write_csv": "recording",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _WHERE.get(name)
+    if module is None:
+        raise AttributeError(f"module 'rig.modal' has no attribute {name!r}")
+    return getattr(importlib.import_module(f"rig.modal.{module}"), name)
+
 
 __all__ = [
     "CSV_HEADER",

@@ -10,12 +10,14 @@ from __future__ import annotations
 import hashlib
 from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from rig.core.bat import BatSpec
 from rig.core.errors import ConfigError
-from rig.modal.analysis import ModalResult
 from rig.modal.errors import NoHoopMode
+
+if TYPE_CHECKING:  # only named in annotations: certify needs the link, not the analysis (scipy)
+    from rig.modal.analysis import ModalResult
 
 MODAL_RESULT_KIND = "ModalResult"
 

@@ -1,6 +1,7 @@
 """Compiled Dormand-Prince 8(5,3) kernel for the collision model (numba, cached on disk).
 
-The same method as scipy's DOP853 (its coefficient tables are imported, not copied), written as
+The same method as scipy's DOP853 (its coefficient tables are read from scipy, not copied; see
+`_scipy_tables`, which does so without loading the rest of scipy.integrate), written as
 scalar loops over a fixed 6-state system so that one solve costs tens of microseconds:
 - per-component absolute tolerance rtol * scale (compression scale for positions, v0 for speeds);
 - contact ends where g = F/|d|^b falls through zero, located on the 7th-order dense output;
@@ -16,8 +17,12 @@ codes; split, each part would need all of them and be read without the others.
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import os
+import sys
+from pathlib import Path
+from types import ModuleType
 
 # numba's OpenMP layer spins by default between parallel regions, which cost ~8 ms a call when
 # another process shares the CPUs; passive waiting costs microseconds. Set before numba loads it.
@@ -25,7 +30,28 @@ os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 
 import numba as nb
 import numpy as np
-from scipy.integrate._ivp import dop853_coefficients as _coef
+
+_TABLES = "scipy.integrate._ivp.dop853_coefficients"
+
+
+def _scipy_tables() -> ModuleType:
+    """scipy's DOP853 coefficient module, executed from its file: importing it by name would run
+    scipy.integrate's __init__, about half a second of modules no kernel solve uses."""
+    if _TABLES in sys.modules:
+        return sys.modules[_TABLES]
+    scipy = importlib.util.find_spec("scipy")  # finds the package without importing it
+    if scipy is None or not scipy.submodule_search_locations:
+        raise ImportError("scipy is not installed")
+    path = Path(next(iter(scipy.submodule_search_locations)), "integrate", "_ivp", "dop853_coefficients.py")
+    spec = importlib.util.spec_from_file_location("_rig_dop853_tables", path)
+    if spec is None or spec.loader is None:
+        raise ImportError(f"cannot read scipy's DOP853 tables from {path}")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+_coef = _scipy_tables()
 
 _A = np.ascontiguousarray(_coef.A, dtype=np.float64)
 _B = np.ascontiguousarray(_coef.B, dtype=np.float64)

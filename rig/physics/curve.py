@@ -7,7 +7,6 @@ import operator
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize_scalar
 
 from rig.core.errors import ParameterError
 from rig.physics import fast
@@ -99,6 +98,8 @@ def refine_optimum(
 
     def negative_eta(f: float) -> float:
         return -fast.solve(Impact(params, speed, f), rtol=rtol).cor / cor_rigid
+
+    from scipy.optimize import minimize_scalar  # on first use: a single solve does not need it
 
     res = minimize_scalar(negative_eta, bounds=(lo, hi), method="bounded", options={"xatol": 1e-3})
     return float(res.x), float(-res.fun)

@@ -7,22 +7,53 @@ the barrel comes back and hits the ball again) it hands the state at the first s
 `reference.continue_contacts`, which follows every later contact with scipy's DOP853 (about
 20-40 ms a collision, against ~50 us for a kernel solve). The first call in a fresh checkout
 compiles the kernel (a few seconds); the machine code is cached on disk for later runs.
+
+numba and the cached machine code take about a second to load, so the kernel loads only when a
+solve needs it: the first `INTERPRETED_SOLVES` single solves of a process run the same kernel
+source in the interpreter (`_interpreted`, 10-20 ms each, the same numbers), batches and later
+solves the compiled kernel. `warm_up` loads the compiled kernel at once.
 """
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Sequence
+from types import ModuleType
 
 import numpy as np
 
 from rig.core.errors import SolverError
-from rig.physics import _dop853 as kernel
+from rig.physics import _interpreted
 from rig.physics.equations import Impact
 from rig.physics.params import check_tolerance
 from rig.physics.reference import CollisionResult, _time_limit, bounded_cor, continue_contacts
 
 DEFAULT_RTOL = 1e-10
 MAX_STEPS = 2_000_000
+INTERPRETED_SOLVES = 20  # ~0.3 s of interpreted solves, about what loading the compiled kernel costs
+_COMPILED = "rig.physics._dop853"
+_interpreted_left = INTERPRETED_SOLVES
+
+
+def compiled() -> ModuleType:
+    """The compiled kernel (numba loads here, the first time)."""
+    global _interpreted_left
+    from rig.physics import _dop853
+
+    _interpreted_left = 0
+    return _dop853
+
+
+def _single() -> ModuleType:
+    """The kernel for one solve: the compiled one once loaded or once enough solves were asked for."""
+    global _interpreted_left
+    if _COMPILED in sys.modules or _interpreted_left <= 0:
+        return compiled()
+    _interpreted_left -= 1
+    return _interpreted.load()
+
+
+kernel = _interpreted.load()  # the status codes and sizes (the same in both)
 _STATUS_TEXT = {
     kernel.STATUS_TIME_LIMIT: "contact did not end within the time limit",
     kernel.STATUS_MAX_STEPS: "step budget exhausted before contact ended",
@@ -49,10 +80,10 @@ def _describe(imp: Impact, rtol: float) -> str:
 
 
 def solve(imp: Impact, rtol: float = DEFAULT_RTOL) -> CollisionResult:
-    """Solve one collision with the compiled DOP853 kernel."""
+    """Solve one collision with the DOP853 kernel (interpreted at first, then compiled: see above)."""
     rtol = check_tolerance(rtol)
     state = np.zeros(6)
-    cor, tc, nfev, _, status = kernel.solve_one(
+    cor, tc, nfev, _, status = _single().solve_one(
         kernel_params(imp),
         imp.speed,
         imp.params.compression_scale(imp.speed),
@@ -122,7 +153,7 @@ def _run_batch(
     nfev = np.empty(n, dtype=np.int64)
     status = np.empty(n, dtype=np.int64)
     states = np.zeros((n, 6))
-    kernel.solve_many(P, v0, length, rtol, n_active, t_max, MAX_STEPS, cor, tc, nfev, status, states)
+    compiled().solve_many(P, v0, length, rtol, n_active, t_max, MAX_STEPS, cor, tc, nfev, status, states)
     if contacts is not None:
         contacts[:] = 1
     for k in np.flatnonzero(status == kernel.STATUS_FOLLOW):
@@ -146,6 +177,8 @@ def _run_batch(
 def warm_up() -> None:
     """Load (or compile) the kernel so that timed calls measure only the solving."""
     from rig.physics.params import DEFAULT_PARAMS
+
+    compiled()
 
     solve(Impact(DEFAULT_PARAMS, 60.8, 1250.0), rtol=1e-6)
     solve_batch([Impact(DEFAULT_PARAMS, 60.8, 1250.0)], rtol=1e-6)

@@ -12,8 +12,6 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.integrate import solve_ivp
-from scipy.optimize import brentq
 
 from rig.core.errors import ParameterError, SolverError
 from rig.physics.equations import (
@@ -172,6 +170,8 @@ class _Phases:
         self.where = f"speed {imp.speed:g} m/s, hoop {imp.hoop_hz or 'rigid'} Hz, {method} rtol {rtol:g}"
 
     def _solve(self, fun: Any, t0: float, t1: float, y0: np.ndarray, events: list, **extra: Any) -> Any:
+        from scipy.integrate import solve_ivp  # on first use: the compiled kernel's solves never need it
+
         try:
             sol = solve_ivp(
                 fun, (t0, t1), y0, method=self.method, rtol=self.rtol, atol=self.atol, events=events, **extra
@@ -302,6 +302,8 @@ class _Phases:
             t_lo = t_lo + 1e-9 * (t_peak - t_lo)
         if level(t_lo) >= 0.0:
             return t_lo, np.asarray(again.sol(t_lo), dtype=float)
+        from scipy.optimize import brentq
+
         t_c = brentq(level, t_lo, t_peak, xtol=1e-14 * max(1.0, t_peak), rtol=4.0 * np.finfo(float).eps)
         return float(t_c), np.asarray(again.sol(t_c), dtype=float)
 

@@ -16,7 +16,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from rig.core.bat import PIVOT_FROM_KNOB_M
 from rig.core.errors import RigError
@@ -25,13 +24,9 @@ from rig.measure.metrics import compute_metrics
 from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat, solve_batch
 from rig.physics.bat import impact_for
 from rig.population.dataset import METRICS, PopulationBat, missing_column
+from rig.population.limits import DEFAULT_LOCATION_IN, MIN_BATS, MIN_HOOP_SPAN_HZ
 from rig.population.model import BALL_MASS_KG, SPEED_M_S
 
-# Where the ball strikes when a row gives no location_in: the middle of 6.0-7.0 in from the barrel
-# end, where the BBCOR procedure's scan finds its maximum on most bats.
-DEFAULT_LOCATION_IN = 6.5
-MIN_BATS = 8
-MIN_HOOP_SPAN_HZ = 400.0  # a span narrower than this cannot separate m2 from c2
 MAX_CONDITION = 1e8  # of the column-scaled Jacobian; above it a parameter is not identified
 DIFF_STEP = 1e-5  # relative step of the finite-difference Jacobian
 FIT_RTOL = 1e-9  # the collision solves inside the fit: far below any bat-to-bat scatter
@@ -164,6 +159,8 @@ def fit_variant(
         return predict(bats, dict(zip(names, x, strict=True))) - measured
 
     tol = 1e-10 if covariance else 1e-7  # a leave-one-out refit starts at the full fit's optimum
+    from scipy.optimize import least_squares  # on first use: reading a calibration needs no fit
+
     res = least_squares(
         residuals,
         x0,

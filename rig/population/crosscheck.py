@@ -23,7 +23,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.stats import t as student_t
 
 from rig.core.bat import PIVOT_FROM_KNOB_M
 from rig.core.errors import ConfigError
@@ -101,6 +100,8 @@ def t_factor(cal: CalibrationFile, coverage: float) -> float:
         raise CrossCheckRefused(f"coverage {coverage:g} must lie between 0 and 1")
     if dof(cal) < 1:
         raise CrossCheckRefused(f"calibration has {dof(cal)} degrees of freedom: no interval")
+    from scipy.stats import t as student_t  # on first use: scipy.stats takes ~1 s to import
+
     return float(student_t.ppf(0.5 * (1.0 + coverage), dof(cal)))
 
 

@@ -40,10 +40,12 @@ class Table:
 
 @dataclass(frozen=True)
 class Figure:
-    """A PNG figure on disk with its caption."""
+    """A figure with its caption: a PNG file on disk (Markdown links it) and/or SVG text (HTML
+    embeds it; vector, so it scales for print)."""
 
-    path: Path
+    path: Path | None
     caption: str
+    svg: str | None = None
 
 
 @dataclass(frozen=True)
@@ -102,6 +104,8 @@ def to_markdown(blocks: list[Block], link_base: Path | None) -> str:
             lines += ["| " + " | ".join(md_escape(c, cell=True) for c in row) + " |" for row in b.rows]
             parts.append("\n".join(lines))
         elif isinstance(b, Figure):
+            if b.path is None:  # drawn only in memory, for HTML
+                continue
             where = os.path.abspath(b.path)
             link = Path(where if link_base is None else os.path.relpath(where, os.path.abspath(link_base)))
             link = link.as_posix()
@@ -129,14 +133,23 @@ th { background: #eee; }
 .fail { border-color: #c0262d; background: #fbeaea; }
 .none { border-color: #9a6700; background: #fff8e1; }
 pre { background: #f4f4f4; padding: .6rem; overflow-x: auto; }
-figure { margin: 1rem 0; } figure img { max-width: 100%; }
+figure { margin: 1rem 0; } figure img { width: 100%; max-width: 40rem; height: auto; }
 figcaption { font-size: .85rem; color: #555; }
-@media print { .banner { -webkit-print-color-adjust: exact; print-color-adjust: exact; } }
+@page { size: A4; margin: 15mm 14mm; }
+@media print {
+  body { max-width: none; margin: 0; padding: 0; font-size: 10pt; }
+  h1, h2, h3 { break-after: avoid; page-break-after: avoid; }
+  table, tr, figure, pre, .banner { break-inside: avoid; page-break-inside: avoid; }
+  figure img { max-width: 100%; }
+  pre { white-space: pre-wrap; overflow: visible; }
+  .banner, th { -webkit-print-color-adjust: exact; print-color-adjust: exact; }
+}
 """
 
 
 def to_html(blocks: list[Block], title: str) -> str:
-    """A standalone HTML page: inline CSS, figures embedded as data: URIs, all text escaped."""
+    """A standalone HTML page: inline CSS (screen and print), figures embedded as data: URIs (SVG
+    where drawn as such), all text escaped."""
     e = html_escape
     body: list[str] = []
     for b in blocks:
@@ -149,9 +162,14 @@ def to_html(blocks: list[Block], title: str) -> str:
             rows = "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in r) + "</tr>" for r in b.rows)
             body.append(f"<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>")
         elif isinstance(b, Figure):
-            data = base64.b64encode(b.path.read_bytes()).decode("ascii")
+            if b.svg is not None:
+                data, kind = base64.b64encode(b.svg.encode("utf-8")).decode("ascii"), "svg+xml"
+            elif b.path is not None:
+                data, kind = base64.b64encode(b.path.read_bytes()).decode("ascii"), "png"
+            else:
+                continue
             body.append(
-                f'<figure><img src="data:image/png;base64,{data}" alt="{e(b.caption)}">'
+                f'<figure><img src="data:image/{kind};base64,{data}" alt="{e(b.caption)}">'
                 f"<figcaption>{e(b.caption)}</figcaption></figure>"
             )
         elif isinstance(b, Code):

@@ -1,18 +1,17 @@
-"""The certificate's figures (matplotlib Agg, PNG): location scan, valid hits, model curve with the bat.
+"""The certificate's figures (matplotlib Agg): location scan, valid hits, model curve with the bat.
 
 Each plot works from the run record alone (`rig.report.record.run_record`) and is skipped (None)
-when the record lacks what it needs, e.g. an interrupted run has no verdict to plot.
+when the record lacks what it needs, e.g. an interrupted run has no verdict to plot. The figures
+are drawn only when asked for: PNG files (`write_figures`) or SVG text in memory (`svg_figures`,
+what the HTML certificate embeds); matplotlib loads on the first drawing, not on import.
 """
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 
 from rig.core.errors import RigError
@@ -27,6 +26,17 @@ CURVE_RTOL = 1e-8  # far below the rig's resolution; keeps the 60-point batch we
 LABELS = {"bbcor": "BBCOR", "besr": "BESR", "bbs": "BBS", "e_a": "e_A"}
 UNITS = {"bbs": "m/s"}
 _DPI = 110
+SVG_SALT = "rig-certificate"  # fixed ids in the SVG text: the same record gives the same document
+
+
+def _pyplot() -> Any:
+    """matplotlib's pyplot on the Agg backend (no display), loaded on first use."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
 
 
 def metric_label(name: str | None) -> str:
@@ -61,11 +71,24 @@ def certification_hits(record: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 def _save(fig: Any, path: Path) -> Path:
+    """The figure as a PNG file."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.tight_layout()
     fig.savefig(path, dpi=_DPI, metadata={"Software": None})
-    plt.close(fig)
+    _pyplot().close(fig)
     return path
+
+
+def _svg(fig: Any) -> str:
+    """The figure as SVG text (vector: it scales for print), with no date and fixed ids."""
+    import matplotlib
+
+    fig.tight_layout()
+    out = io.StringIO()
+    with matplotlib.rc_context({"svg.hashsalt": SVG_SALT}):
+        fig.savefig(out, format="svg", metadata={"Date": None, "Creator": None})
+    _pyplot().close(fig)
+    return out.getvalue()
 
 
 def _limit_line(ax: Any, limit: Any) -> None:
@@ -73,13 +96,13 @@ def _limit_line(ax: Any, limit: Any) -> None:
         ax.axhline(limit, color="C3", lw=1.2, ls="--", label=f"limit {limit:g}")
 
 
-def plot_scan(record: dict[str, Any], path: Path) -> Path | None:
+def plot_scan(record: dict[str, Any]) -> Any | None:
     """Metric against distance from the barrel end: valid scan shots, scan means, chosen location."""
     shots = [s for s in record.get("shots", []) if s.get("purpose") == "scan" and s.get("status") == "valid"]
     if not shots:
         return None
     name = (record.get("procedure") or {}).get("standard")
-    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    fig, ax = _pyplot().subplots(figsize=(6.4, 3.8))
     ax.plot(
         [s["location_in"] for s in shots], [s["metric"] for s in shots], "o", color="C0", label="valid shot"
     )
@@ -98,16 +121,16 @@ def plot_scan(record: dict[str, Any], path: Path) -> Path | None:
     ax.set_title("Location scan")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    return _save(fig, path)
+    return fig
 
 
-def plot_hits(record: dict[str, Any], path: Path) -> Path | None:
+def plot_hits(record: dict[str, Any]) -> Any | None:
     """The valid hits the verdict averaged, with their mean, the +-U band and the limit."""
     v = record.get("verdict") or {}
     hits = certification_hits(record)
     if not hits or v.get("mean") is None:
         return None
-    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    fig, ax = _pyplot().subplots(figsize=(6.4, 3.8))
     idx = [s["index"] for s in hits]
     ax.errorbar(
         idx,
@@ -134,7 +157,7 @@ def plot_hits(record: dict[str, Any], path: Path) -> Path | None:
     ax.set_title(f"Valid hits at {v.get('location_in')} in from the barrel end: {v.get('verdict')}")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    return _save(fig, path)
+    return fig
 
 
 def model_curve(record: dict[str, Any], hoops: np.ndarray) -> tuple[np.ndarray, float] | None:
@@ -182,7 +205,7 @@ def model_curve(record: dict[str, Any], hoops: np.ndarray) -> tuple[np.ndarray, 
     return np.array([metric(float(e)) for e in cor]), metric(float(rigid[0]))
 
 
-def plot_model(record: dict[str, Any], path: Path) -> Path | None:
+def plot_model(record: dict[str, Any]) -> Any | None:
     """Predicted metric against hoop frequency, this bat's measured value (+-U) on it, the limit."""
     v = record.get("verdict") or {}
     hoop = (record.get("bat") or {}).get("hoop_hz")
@@ -194,7 +217,7 @@ def plot_model(record: dict[str, Any], path: Path) -> Path | None:
     if curve is None:
         return None
     values, rigid = curve
-    fig, ax = plt.subplots(figsize=(6.4, 3.8))
+    fig, ax = _pyplot().subplots(figsize=(6.4, 3.8))
     calibrated = (record.get("cross_check") or {}).get("calibrated") is True
     what = "calibrated model" if calibrated else "model (uncalibrated)"
     ax.plot(hoops, values, "-", color="C0", lw=1.6, label=f"{what}: pivoted bat with hoop mode")
@@ -239,7 +262,7 @@ def plot_model(record: dict[str, Any], path: Path) -> Path | None:
     ax.set_title("Collision model and this bat")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    return _save(fig, path)
+    return fig
 
 
 FIGURES = (
@@ -258,7 +281,17 @@ def write_figures(record: dict[str, Any], figures_dir: Path) -> dict[str, tuple[
     """Draw every figure the record supports into figures_dir; key -> (PNG path, caption)."""
     out: dict[str, tuple[Path, str]] = {}
     for key, filename, plot, caption in FIGURES:
-        path = plot(record, figures_dir / filename)
-        if path is not None:
-            out[key] = (path, caption)
+        fig = plot(record)
+        if fig is not None:
+            out[key] = (_save(fig, figures_dir / filename), caption)
+    return out
+
+
+def svg_figures(record: dict[str, Any]) -> dict[str, tuple[str, str]]:
+    """Every figure the record supports as SVG text, written nowhere; key -> (SVG, caption)."""
+    out: dict[str, tuple[str, str]] = {}
+    for key, _filename, plot, caption in FIGURES:
+        fig = plot(record)
+        if fig is not None:
+            out[key] = (_svg(fig), caption)
     return out

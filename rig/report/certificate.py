@@ -1,11 +1,13 @@
 """A run's certificate, the document a lab's quality manager signs, as Markdown or standalone HTML.
 
 Built from the run record alone (`rig.report.record.run_record`): every shot appears, valid or not.
-Figures are PNG files written to `figures_dir`; by default `<run id[:12]>-figures` in the folder
-of `output` (the path the document will be saved to), else in the working directory. Markdown
-links them relative to the folder of `output`, or by absolute path when `output` is not given
-(the text may then go anywhere); HTML embeds them as data: URIs, so it stands alone. Nothing in
-the document depends on the time of rendering: the same record gives the same text.
+Rendering writes no file unless `figures_dir` is given. Markdown has figures only then: PNG files
+written there, linked relative to the folder of `output` (the path the document will be saved
+to), or by absolute path when `output` is not given (the text may then go anywhere); without
+`figures_dir` it draws nothing, so it is quick (no matplotlib, no model solves). HTML always
+embeds its figures as SVG data: URIs drawn in memory (vector: they scale for print), so it stands
+alone; `figures_dir` also saves them there as PNG. Nothing in the document depends on the time of
+rendering: the same record gives the same text.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from rig.core.events import Verdict
 from rig.core.units import INCH, OUNCE
 from rig.report.cert_crosscheck import cross_check_blocks
 from rig.report.cert_doc import Banner, Block, Code, Figure, Heading, Para, Table, kv, to_html, to_markdown
-from rig.report.cert_plots import certification_hits, metric_label, write_figures
+from rig.report.cert_plots import certification_hits, metric_label, svg_figures, write_figures
 from rig.report.cert_sections import budget_blocks, operator_blocks, shot_blocks
 
 FORMATS = ("md", "html")
@@ -37,19 +39,21 @@ def render(
     *,
     output: str | Path | None = None,
 ) -> str:
-    """The certificate as 'md' or 'html' text; writes its figures (PNG) into figures_dir.
+    """The certificate as 'md' or 'html' text; writes its figures (PNG) into figures_dir if given.
 
-    `output`, the path the text will be saved to, places the default figures folder beside it and
-    makes the Markdown's image links relative to it.
+    `output`, the path the text will be saved to, makes the Markdown's image links relative to it.
     """
     if fmt not in FORMATS:
         raise ConfigError(
             f"unknown certificate format {fmt!r}: use one of {', '.join(FORMATS)}", source="--format"
         )
-    base = Path(output).parent if output is not None else None
-    default = (base or Path.cwd()) / f"{record['run_id'][:12]}-figures"
-    blocks = build(record, write_figures(record, Path(figures_dir) if figures_dir is not None else default))
-    return to_markdown(blocks, base) if fmt == "md" else to_html(blocks, title(record))
+    pngs = write_figures(record, Path(figures_dir)) if figures_dir is not None else {}
+    if fmt == "md":
+        base = Path(output).parent if output is not None else None
+        return to_markdown(build(record, {k: Figure(p, c) for k, (p, c) in pngs.items()}), base)
+    svgs = svg_figures(record)
+    figures = {k: Figure(pngs[k][0] if k in pngs else None, c, svg=svg) for k, (svg, c) in svgs.items()}
+    return to_html(build(record, figures), title(record))
 
 
 def title(record: dict[str, Any]) -> str:
@@ -66,10 +70,9 @@ def own_plan(record: dict[str, Any]) -> list[tuple[str, str]]:
     return [("plan", f"{plan}: a lab's own plan, not the standard procedure's steps (rig.plans)")]
 
 
-def build(record: dict[str, Any], figures: dict[str, tuple[Path, str]]) -> list[Block]:
-    """Every section of the certificate, in reading order."""
+def build(record: dict[str, Any], fig: dict[str, Figure]) -> list[Block]:
+    """Every section of the certificate, in reading order; `fig`: the figures drawn, by key."""
     proc = record.get("procedure") or {}
-    fig = {key: Figure(path, caption) for key, (path, caption) in figures.items()}
     blocks: list[Block] = [
         Heading(title(record), 1),
         Para(f"Edition: {proc.get('edition', 'not recorded')}"),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import base64
 import copy
 import re
 from html.parser import HTMLParser
@@ -124,10 +125,13 @@ def test_html_is_standalone_well_formed_and_embeds_the_figures(
     rec = records["pass"]
     page = render(rec, "html", figures_dir=tmp_path / "figs")
     checker = _check_html(page)
-    assert len(checker.images) == 3 and all(
-        src.startswith("data:image/png;base64,") for src in checker.images
-    )
+    svg = "data:image/svg+xml;base64,"
+    assert len(checker.images) == 3 and all(src.startswith(svg) for src in checker.images)
+    for src in checker.images:  # vector figures that scale: a viewBox, drawn paths, no raster inside
+        text = base64.b64decode(src[len(svg) :]).decode("utf-8")
+        assert "<svg" in text and "viewBox=" in text and "<path" in text and "<image" not in text
     assert "<style>" in page and 'class="banner pass"' in page
+    assert "@media print" in page and "break-inside: avoid" in page
     assert rec["anchor"]["hash"] in page
     assert sorted(p.name for p in (tmp_path / "figs").iterdir()) == [
         "location-scan.png",
@@ -137,14 +141,17 @@ def test_html_is_standalone_well_formed_and_embeds_the_figures(
     assert all(p.stat().st_size > 1000 for p in (tmp_path / "figs").iterdir())
 
 
-def test_default_figures_folder_is_beside_the_output(
-    records: dict[str, dict[str, Any]], tmp_path: Path
+def test_without_a_figures_folder_nothing_is_written(
+    records: dict[str, dict[str, Any]], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     rec = records["pass"]
+    monkeypatch.chdir(tmp_path)
     md = render(rec, "md", output=tmp_path / "out" / "cert.md")
-    folder = f"{rec['run_id'][:12]}-figures"
-    assert (tmp_path / "out" / folder / "valid-hits.png").is_file()
-    assert f"]({folder}/valid-hits.png)" in md
+    assert "![" not in md and "> **PASS: BBCOR" in md  # the text, without figures
+    page = render(rec, "html")
+    assert len(_check_html(page).images) == 3  # drawn in memory
+    assert page == render(rec, "html")  # no date or random id in the SVG: the same record, the same page
+    assert list(tmp_path.iterdir()) == []
     # without an output path the links are absolute: right wherever the text is saved
     md = render(rec, "md", figures_dir=tmp_path / "figs")
     assert f"]({(tmp_path / 'figs' / 'valid-hits.png').as_posix()})" in md

@@ -201,3 +201,20 @@ def test_rig_sim_serve_answers_the_first_fire_within_the_device_promise() -> Non
         assert first_fire_s < 0.1
     finally:
         stop_group(server)
+
+
+def test_warm_up_loads_the_compiled_kernel() -> None:
+    """A served rig must not switch from the interpreted kernel to numba inside a FIRE reply (a shot
+    was lost to that under load): after the warm-up, single solves run compiled."""
+    code = (
+        "import sys\n"
+        "from simulators.scene import Scene\n"
+        "from simulators.warmup import warm_up\n"
+        "from rig.physics import fast\n"
+        "warm_up(Scene.load('lab'))\n"
+        "print('rig.physics._dop853' in sys.modules, fast._single().__name__)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=300
+    )
+    assert out.stdout.split() == ["True", "rig.physics._dop853"]

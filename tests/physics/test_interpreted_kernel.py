@@ -1,0 +1,59 @@
+"""The kernel run by the interpreter gives the compiled kernel's numbers, and single solves start
+interpreted and switch to the compiled kernel (numba) only when enough are asked for."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from scipy.integrate._ivp import dop853_coefficients as scipy_tables
+
+from rig.physics import _dop853, _interpreted, fast
+from rig.physics.equations import Impact
+from rig.physics.params import DEFAULT_PARAMS
+
+CASES = [
+    (60.8, 1276.0, None),
+    (60.8, None, None),
+    (45.0, 3600.0, 0.6),
+    (60.8, 900.0, None),
+    (1.0, 100.0, None),
+]
+
+
+@pytest.mark.parametrize(("speed", "hoop", "body"), CASES)
+def test_interpreted_kernel_gives_the_compiled_kernels_numbers(
+    speed: float, hoop: float | None, body: float | None
+) -> None:
+    imp = Impact(DEFAULT_PARAMS, speed, hoop, body_mass=body)
+    args = (fast.kernel_params(imp), imp.speed, imp.params.compression_scale(imp.speed), 1e-10, imp.n_states)
+    limits = (fast._time_limit(imp), fast.MAX_STEPS)
+    s1, s2 = np.zeros(6), np.zeros(6)
+    one = _interpreted.load().solve_one(*args, *limits, s1)
+    two = _dop853.solve_one(*args, *limits, s2)
+    assert [float(x) for x in one] == [float(x) for x in two]  # cor, contact time, nfev, steps, status
+    assert s1.tolist() == s2.tolist()
+
+
+def test_the_tables_are_scipys() -> None:
+    kernel = _interpreted.load()
+    for name in ("A", "B", "C", "E3", "E5", "D"):
+        assert np.array_equal(getattr(kernel, f"_{name}"), getattr(scipy_tables, name))
+
+
+def test_single_solves_start_interpreted_and_switch_to_the_compiled_kernel() -> None:
+    code = (
+        "import sys\n"
+        "from rig.physics import fast\n"
+        "from rig.physics.equations import Impact\n"
+        "from rig.physics.params import DEFAULT_PARAMS\n"
+        "imp = Impact(DEFAULT_PARAMS, 60.8, 1276.0)\n"
+        "first = fast.solve(imp).cor\n"
+        "print('numba' in sys.modules)\n"
+        "for _ in range(fast.INTERPRETED_SOLVES): fast.solve(imp)\n"
+        "print('numba' in sys.modules, fast.solve(imp).cor == first)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.split() == ["False", "True", "True"]
