@@ -47,6 +47,7 @@ class RunScreen(RunKeys, Screen[None]):
     """
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("f", "fire", "Fire"),
+        Binding("enter", "quick", "OK"),
         Binding("y", "answer(True)", "Yes"),
         Binding("n", "answer(False)", "No"),
         Binding("p", "pause", "Pause"),
@@ -201,6 +202,7 @@ class RunScreen(RunKeys, Screen[None]):
             ended=self.outcome.status if self.outcome else "",
             reason=self.outcome.reason if self.outcome else "",
             failure=self.failure,
+            ring_check=self.job.procedure.ring_check,
         )
 
     def fire_block(self) -> str:

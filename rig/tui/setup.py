@@ -117,25 +117,26 @@ class SetupScreen(Screen[None]):
         self.query_one("#bat", Vertical).border_title = "Bat"
         self.query_one("#choice", Vertical).border_title = "Procedure and rig"
         self.query_one("#devices", Static).border_title = "Devices"
-        if self.settings.bat_path:
-            self.load_bat_file(self.settings.bat_path)
-        self.query_one("#start", Button).focus()
+        loaded = bool(self.settings.bat_path) and self.load_bat_file(self.settings.bat_path)
+        # a bat to type: the file field takes the keys; a bat given: s (or Enter) starts
+        self.query_one("#start" if loaded else "#bat-file").focus()
         self.action_read_devices()
 
     # -- the bat -----------------------------------------------------------------------------
-    def load_bat_file(self, path: str) -> None:
+    def load_bat_file(self, path: str) -> bool:
         """Fill the form from a bat file; a bad file shows why and leaves the form as it was."""
         try:
             bat = BatSpec.load(path)
         except ConfigError as exc:
             self.show_status(f"bat file: {exc}", error=True)
-            return
+            return False
         for name, _, _ in BAT_FIELDS:
             value = getattr(bat, name)
             text = "" if value is None else f"{value:g}" if isinstance(value, float) else str(value)
             self.query_one(f"#bat-{name}", Input).value = text
         self.query_one("#bat-barrel", Select).value = bat.barrel.value
-        self.show_status(f"bat {bat.id} loaded from {path}")
+        self.show_status(f"bat {bat.id} loaded from {path}: s or Enter starts")
+        return True
 
     def bat_from_form(self) -> BatSpec:
         """The bat as the form describes it; a bad value raises ConfigError naming the field."""
@@ -152,8 +153,8 @@ class SetupScreen(Screen[None]):
             raise ConfigError(first["msg"], source="bat", field=".".join(map(str, first["loc"]))) from None
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
-        if event.input.id == "bat-file" and event.value.strip():
-            self.load_bat_file(event.value.strip())
+        if event.input.id == "bat-file" and event.value.strip() and self.load_bat_file(event.value.strip()):
+            self.query_one("#start", Button).focus()  # the next key starts (s or Enter)
 
     # -- the rig -----------------------------------------------------------------------------
     @property
