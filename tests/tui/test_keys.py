@@ -11,16 +11,23 @@ import asyncio
 import time
 import tomllib
 from collections.abc import Callable
+from pathlib import Path
 
+import pytest
 from textual.pilot import Pilot
-from textual.widgets import Input, Static
+from textual.widgets import Input, Markdown, Static
 
+from protocols.procedure import Procedure
+from rig.certification import certify
+from rig.core.bat import BatSpec
+from rig.session import sim_config
 from rig.store import Store
 from rig.tui import ConsoleSettings, RigConsole
+from rig.tui.history import HistoryScreen
 from rig.tui.operator import ConsoleOperator
 from rig.tui.run import RunScreen
 from rig.tui.setup import SetupScreen
-from tests.tui.conftest import SAMPLE_BAT, until
+from tests.tui.conftest import QUICK, SAMPLE_BAT, until
 
 SIZE = (80, 24)
 MAX_KEYS = 40
@@ -113,3 +120,32 @@ def test_whole_bbcor_in_at_most_40_keys_every_fire_confirmed(
     assert {f"fire-{e.payload['index']}" for e in fired} == {p["prompt_id"] for p in confirmed}
     assert len(rings) == 28 and all(p["answer"] for p in rings)  # before and after every hit
     assert len(pressed) <= MAX_KEYS
+
+
+def test_history_shows_the_certificate_without_drawing_figures(
+    make_settings: Callable[..., ConsoleSettings], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """The History screen renders the certificate's Markdown and never a PNG (that took seconds)."""
+    import rig.report.cert_plots as plots
+
+    drawn: list[object] = []
+    monkeypatch.setattr(plots, "write_figures", lambda *a, **k: drawn.append(a) or {})
+    monkeypatch.chdir(tmp_path)  # any figure folder would land here
+    settings = make_settings()
+    bat = BatSpec.load(SAMPLE_BAT)
+    with Store.open(settings.db) as store:
+        run_id = certify(store, Procedure.load(QUICK), bat, sim_config("ideal", bat=bat)).run_id
+
+    async def body() -> str:
+        app = RigConsole(settings)
+        async with app.run_test(size=SIZE) as pilot:
+            await until(pilot, lambda: isinstance(app.screen, SetupScreen) and app.screen.report, "set-up")
+            await pilot.press("h")
+            await until(pilot, lambda: isinstance(app.screen, HistoryScreen), "the history")
+            report = app.screen.query_one("#report-text", Markdown)
+            await until(pilot, lambda: report.source.startswith("# Bat performance certificate"), "it")
+            return report.source
+
+    source = asyncio.run(body())
+    assert drawn == [] and list(tmp_path.rglob("*.png")) == []
+    assert run_id in source and "Quick BBCOR (UI tests)" in source and "![" not in source
