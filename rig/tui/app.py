@@ -4,12 +4,13 @@ from __future__ import annotations
 
 from typing import ClassVar
 
+from rich.text import Text
 from textual.app import App
 from textual.binding import Binding, BindingType
 
 from rig.tui.history import HistoryScreen
 from rig.tui.messages import OpenHistory, StartRun
-from rig.tui.modals import ConfirmScreen, HelpScreen
+from rig.tui.modals import ConfirmScreen, HelpScreen, TooSmallScreen
 from rig.tui.rigs import ConsoleSettings
 from rig.tui.run import RunScreen
 from rig.tui.setup import SetupScreen
@@ -22,6 +23,9 @@ class RigConsole(App[None]):
     """
 
     TITLE = "Rig console"
+    MIN_SIZE = (80, 24)  # below it the screens would cut the rig label, the metric, the prompts
+    HORIZONTAL_BREAKPOINTS: ClassVar[list[tuple[int, str]]] = [(0, "-narrow"), (120, "-wide")]
+    VERTICAL_BREAKPOINTS: ClassVar[list[tuple[int, str]]] = [(0, "-short"), (40, "-tall")]
     ENABLE_COMMAND_PALETTE = False  # every command has its key; keep the footer for them
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("question_mark,f1", "help", "Help"),
@@ -34,6 +38,28 @@ class RigConsole(App[None]):
 
     def on_mount(self) -> None:
         self.push_screen(SetupScreen(self.settings))
+        self.call_after_refresh(self._check_size)
+
+    def on_resize(self) -> None:
+        self.call_after_refresh(self._check_size)
+
+    def _check_size(self) -> None:
+        """Below MIN_SIZE, cover the screen with a notice that says so (and what matters now)."""
+        small = self.size.width < self.MIN_SIZE[0] or self.size.height < self.MIN_SIZE[1]
+        covered = isinstance(self.screen, TooSmallScreen)
+        if small and not covered:
+            self.push_screen(TooSmallScreen(self.MIN_SIZE, self.essentials))
+        elif not small and covered:
+            self.pop_screen()
+
+    def essentials(self) -> Text:
+        """What must stay readable at any size: the rig (SIMULATED or not), the prompt, the metric."""
+        screen = self.run_screen or next(
+            (s for s in reversed(self.screen_stack) if isinstance(s, RunScreen)), None
+        )
+        if screen is None:
+            return Text(self.settings.rigs[0].label, style="bold")
+        return screen.essentials()
 
     def on_open_history(self, message: OpenHistory) -> None:
         """A screen asks for the past runs."""

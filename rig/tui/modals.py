@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import ClassVar
 
+from rich.text import Text
 from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
 from textual.containers import Horizontal, Vertical
@@ -88,3 +90,36 @@ class HelpScreen(ModalScreen[None]):
     def action_close(self) -> None:
         """Back to the screen below."""
         self.dismiss(None)
+
+
+class TooSmallScreen(ModalScreen[None]):
+    """Covers everything while the terminal is smaller than the console needs; the run goes on.
+
+    The keys of the screens below are off meanwhile (no fire without the full picture); it shows
+    the rig, the prompt and the metric, refreshed, and closes itself when the terminal grows.
+    """
+
+    DEFAULT_CSS = """
+    TooSmallScreen { background: $surface; padding: 0 1; }
+    TooSmallScreen #need { text-style: bold; color: $warning; height: auto; }
+    TooSmallScreen #essentials { height: auto; margin-top: 1; }
+    """
+
+    def __init__(self, need: tuple[int, int], essentials: Callable[[], Text]) -> None:
+        super().__init__()
+        self.need, self.essentials = need, essentials
+
+    def compose(self) -> ComposeResult:
+        yield Static(id="need")
+        yield Static(id="essentials")
+
+    def on_mount(self) -> None:
+        self.show()
+        self.set_interval(0.25, self.show)
+
+    def show(self) -> None:
+        """Say how big the terminal is and must be; then what matters now."""
+        w, h = self.app.size
+        need = f"The console needs at least {self.need[0]}x{self.need[1]}; this terminal is {w}x{h}. "
+        self.query_one("#need", Static).update(need + "Enlarge it: the keys are off until then (q quits).")
+        self.query_one("#essentials", Static).update(self.essentials())

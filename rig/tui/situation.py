@@ -118,4 +118,8 @@ def message_text(s: Situation, live: LiveRun) -> Text:
         return verdict_text(live)
     if live.interrupted:
         return Text(f"interrupted: {live.interrupted}", style="yellow")
+    shot = live.shot
+    if shot is not None and shot.status in ("invalid", "lost"):  # why, in full: it decides a re-shoot
+        why = "; ".join(shot.reasons) or "no reason given"
+        return Text(f"shot {shot.index} {shot.status.upper()}: {why}", style="yellow")
     return Text(live.cannon_error and f"cannon: {live.cannon_error}", style="red")

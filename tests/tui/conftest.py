@@ -62,6 +62,7 @@ async def start_run(pilot: Pilot) -> RunScreen:
 
 async def answer_prompts(pilot: Pilot, screen: RunScreen, timeout: float = 60.0) -> None:
     """Until the run ends: confirm every fire (f) and pass every ring check, one prompt at a time (y)."""
+
     def actionable() -> bool:
         p = screen.operator.pending
         return not screen.running or (p is not None and (not p.is_fire or not screen.fire_block()))

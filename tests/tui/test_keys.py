@@ -89,8 +89,10 @@ def test_whole_bbcor_in_at_most_40_keys_every_fire_confirmed(
                 assert time.monotonic() < deadline, "the run did not end in time"
                 await until(
                     pilot,
-                    lambda: not screen.running
-                    or (op.pending is not None and (not op.pending.is_fire or not screen.fire_block())),
+                    lambda: (
+                        not screen.running
+                        or (op.pending is not None and (not op.pending.is_fire or not screen.fire_block()))
+                    ),
                     "a prompt",
                 )
                 prompt = op.pending
