@@ -2,18 +2,21 @@
 
 from __future__ import annotations
 
-from typing import ClassVar
+import sys
+from typing import TYPE_CHECKING, ClassVar
 
 from rich.text import Text
+from textual import work
 from textual.app import App
 from textual.binding import Binding, BindingType
 
-from rig.tui.history import HistoryScreen
 from rig.tui.messages import OpenHistory, StartRun
 from rig.tui.modals import ConfirmScreen, HelpScreen, TooSmallScreen
 from rig.tui.rigs import ConsoleSettings
-from rig.tui.run import RunScreen
 from rig.tui.setup import SetupScreen
+
+if TYPE_CHECKING:  # the run and history screens load when first opened: a faster start
+    from rig.tui.run import RunScreen
 
 
 class RigConsole(App[None]):
@@ -39,6 +42,14 @@ class RigConsole(App[None]):
     def on_mount(self) -> None:
         self.push_screen(SetupScreen(self.settings))
         self.call_after_refresh(self._check_size)
+        self.call_after_refresh(self._warm_up)
+
+    @work(thread=True, group="warm-up", exit_on_error=False)
+    def _warm_up(self) -> None:
+        """After the first paint, load the run and history screens (and the procedures, the
+        session, the physics they use) in the background, so Start does not wait for them."""
+        import rig.tui.history
+        import rig.tui.run  # noqa: F401
 
     def on_resize(self) -> None:
         self.call_after_refresh(self._check_size)
@@ -54,19 +65,21 @@ class RigConsole(App[None]):
 
     def essentials(self) -> Text:
         """What must stay readable at any size: the rig (SIMULATED or not), the prompt, the metric."""
-        screen = self.run_screen or next(
-            (s for s in reversed(self.screen_stack) if isinstance(s, RunScreen)), None
-        )
+        screen = self.run_screen or next(reversed(self._run_screens()), None)
         if screen is None:
             return Text(self.settings.rigs[0].label, style="bold")
         return screen.essentials()
 
     def on_open_history(self, message: OpenHistory) -> None:
         """A screen asks for the past runs."""
+        from rig.tui.history import HistoryScreen
+
         self.push_screen(HistoryScreen(self.settings, message.rig))
 
     def on_start_run(self, message: StartRun) -> None:
         """A screen asks for a run (a new one from set-up, or a resumed one from the history)."""
+        from rig.tui.run import RunScreen
+
         screen = RunScreen(self.settings, message.job, message.past)
         if message.replace:
             self.switch_screen(screen)
@@ -77,7 +90,12 @@ class RigConsole(App[None]):
     @property
     def run_screen(self) -> RunScreen | None:
         """The run screen whose run is active, if any."""
-        return next((s for s in self.screen_stack if isinstance(s, RunScreen) and s.running), None)
+        return next((s for s in self._run_screens() if s.running), None)
+
+    def _run_screens(self) -> list[RunScreen]:
+        """The run screens on the stack, newest last (none before the run screen's module loads)."""
+        run = sys.modules.get("rig.tui.run")
+        return [] if run is None else [s for s in self.screen_stack if isinstance(s, run.RunScreen)]
 
     @property
     def run_active(self) -> bool:

@@ -7,12 +7,15 @@ columns wide, so the whole run screen fits an 80x24 terminal.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from rich.text import Text
 
 from rig.core.devices import CannonState, CannonStatus, GateConfig
 from rig.core.events import Verdict
-from rig.tui.live import LiveRun, LiveShot
+
+if TYPE_CHECKING:  # the set-up screen draws the interlocks without the run's fold
+    from rig.tui.live import LiveRun, LiveShot
 
 BLOCKS = "▁▂▃▄▅▆▇█"
 SHOT_STATUS = {

@@ -10,14 +10,15 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
-from protocols.procedure import Procedure
-from rig.core.bat import BatSpec
-from rig.core.config import RigConfig
-from rig.core.devices import CannonStatus, ClampStatus, Environment, GateConfig
 from rig.core.errors import RigError
-from rig.session import RigSession, sim_config
+
+if TYPE_CHECKING:  # the session, the drivers and the procedures load when a rig is first used
+    from protocols.procedure import Procedure
+    from rig.core.bat import BatSpec
+    from rig.core.config import RigConfig
+    from rig.core.devices import CannonStatus, ClampStatus, Environment, GateConfig
 
 SCENES = ("ideal", "lab", "faulty")
 T = TypeVar("T")
@@ -44,7 +45,11 @@ class RigChoice:
     def config(self, bat: BatSpec | None = None) -> RigConfig:
         """The rig config: a fresh simulated rig (with the bat's true properties), or the file."""
         if self.kind == "sim":
+            from rig.session import sim_config
+
             return sim_config(self.ref, bat=bat)
+        from rig.core.config import RigConfig
+
         return RigConfig.load(self.ref)
 
 
@@ -97,6 +102,8 @@ class DeviceReport:
 
 def read_devices(config: RigConfig, lock: threading.Lock) -> DeviceReport:
     """Open the rig, read every device's status, close it (blocking; skipped while a run holds it)."""
+    from rig.session import RigSession
+
     if not lock.acquire(timeout=5.0):
         return DeviceReport(errors=("a run is using the devices",))
     try:

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
 from pydantic import ValidationError
 from rich.text import Text
@@ -13,14 +13,14 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import Button, Footer, Header, Input, Label, Select, Static
 
-from protocols.procedure import Procedure
-from protocols.runner import dry_run
 from rig.core.bat import Barrel, BatSpec
-from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RigError
 from rig.tui.messages import OpenHistory, StartRun
 from rig.tui.render import STATE_STYLE, interlock_text
 from rig.tui.rigs import PROCEDURES, ConsoleSettings, DeviceReport, RigChoice, RunJob, read_devices
+
+if TYPE_CHECKING:
+    from rig.core.config import RigConfig
 
 # (field, label, unit) of the bat form, in BatSpec's names
 BAT_FIELDS = (
@@ -120,7 +120,7 @@ class SetupScreen(Screen[None]):
         loaded = bool(self.settings.bat_path) and self.load_bat_file(self.settings.bat_path)
         # a bat to type: the file field takes the keys; a bat given: s (or Enter) starts
         self.query_one("#start" if loaded else "#bat-file").focus()
-        self.action_read_devices()
+        self.call_after_refresh(self.action_read_devices)  # opening the rig loads much: after the first paint
 
     # -- the bat -----------------------------------------------------------------------------
     def load_bat_file(self, path: str) -> bool:
@@ -228,6 +228,9 @@ class SetupScreen(Screen[None]):
 
     def build_job(self) -> RunJob:
         """The run the form describes; raises RigError (with the field) when something is wrong."""
+        from protocols.procedure import Procedure  # loaded at the first start, not before the first paint
+        from protocols.runner import dry_run
+
         bat = self.bat_from_form()
         procedure = Procedure.load(str(self.query_one("#procedure", Select).value))
         choice = self.rig
