@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable
 
 from rich.console import Console
+from textual.widgets import Static
 
 from rig.report.record import run_record
 from rig.store import Store
@@ -66,7 +67,9 @@ def test_below_80x24_it_says_so_and_keeps_the_rig_the_prompt_and_the_metric(
             assert metric is not None
             await pilot.resize_terminal(60, 20)
             await until(pilot, lambda: isinstance(app.screen, TooSmallScreen), "the size notice")
-            await pilot.pause(0.3)  # the notice refreshes itself every 0.25 s
+            notice = app.screen.query_one("#essentials", Static)
+            await until(pilot, lambda: flat(op.pending.text) in flat(str(notice.render())), "the prompt")
+            await pilot.pause()
             shown = screen_text(app)
             assert "SIMULATED: ideal" in shown
             assert flat(op.pending.text) in shown  # the whole prompt, not cut
