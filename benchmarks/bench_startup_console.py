@@ -34,8 +34,8 @@ def painted(screen):
     print("ready", flush=True)
     screen.app.exit()
 def hooked(screen):
+    screen.call_after_refresh(painted, screen)  # first: before the work the screen defers past its paint
     on_mount(screen)
-    screen.call_after_refresh(painted, screen)
 setup.SetupScreen.on_mount = hooked
 run = app.RigConsole.run
 app.RigConsole.run = lambda self, *a, **k: run(self, *a, **{**k, "headless": True})
@@ -55,8 +55,8 @@ def painted(screen):
     print("ready", flush=True)
     screen.app.exit()
 def hooked(screen):
+    screen.call_after_refresh(painted, screen)  # first: before the work the screen defers past its paint
     on_mount(screen)
-    screen.call_after_refresh(painted, screen)
 setup.SetupScreen.on_mount = hooked
 RigConsole(ConsoleSettings.from_args("ideal", None, sys.argv[1])).run(headless=True)
 """

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, ClassVar
 
-from pydantic import ValidationError
 from rich.text import Text
 from textual import work
 from textual.app import ComposeResult
@@ -13,13 +12,12 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import Button, Footer, Header, Input, Label, Select, Static
 
-from rig.core.bat import Barrel, BatSpec
 from rig.core.errors import ConfigError, RigError
 from rig.tui.messages import OpenHistory, StartRun
-from rig.tui.render import STATE_STYLE, interlock_text
 from rig.tui.rigs import PROCEDURES, ConsoleSettings, DeviceReport, RigChoice, RunJob, read_devices
 
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # the bat model (pydantic) and the renderings load after the first paint
+    from rig.core.bat import BatSpec
     from rig.core.config import RigConfig
 
 # (field, label, unit) of the bat form, in BatSpec's names
@@ -64,6 +62,7 @@ class SetupScreen(Screen[None]):
         self._status_configs: dict[str, RigConfig] = {}
         self.report: DeviceReport | None = None
         self._read_key = ""
+        self._barrels_filled = False
 
     # -- layout ------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
@@ -73,10 +72,8 @@ class SetupScreen(Screen[None]):
                 yield self._row("file", Input(self.settings.bat_path, id="bat-file", compact=True), "")
                 for name, label, unit in BAT_FIELDS:
                     yield self._row(label, Input(id=f"bat-{name}", compact=True), unit)
-                barrel = [(b.value, b.value) for b in Barrel]
-                yield self._row(
-                    "barrel", Select(barrel, id="bat-barrel", allow_blank=False, compact=True), ""
-                )
+                barrels = Select[str]([], id="bat-barrel", prompt="...", compact=True)  # after the paint
+                yield self._row("barrel", barrels, "")
             with Vertical(id="right"):
                 with Vertical(id="choice", classes="box"):
                     procs = [(label, ref) for label, ref in PROCEDURES]
@@ -117,14 +114,31 @@ class SetupScreen(Screen[None]):
         self.query_one("#bat", Vertical).border_title = "Bat"
         self.query_one("#choice", Vertical).border_title = "Procedure and rig"
         self.query_one("#devices", Static).border_title = "Devices"
+        if not self.settings.bat_path:
+            self.call_after_refresh(self._fill_barrels)
         loaded = bool(self.settings.bat_path) and self.load_bat_file(self.settings.bat_path)
         # a bat to type: the file field takes the keys; a bat given: s (or Enter) starts
         self.query_one("#start" if loaded else "#bat-file").focus()
+        self._read_key = self.rig.key  # the rig selector's first Changed event must not read again
         self.call_after_refresh(self.action_read_devices)  # opening the rig loads much: after the first paint
 
     # -- the bat -----------------------------------------------------------------------------
+    def _fill_barrels(self) -> None:
+        """The barrel choices, from the bat model (loaded now, not before the first paint)."""
+        if self._barrels_filled:
+            return
+        from rig.core.bat import Barrel
+
+        select: Select[str] = self.query_one("#bat-barrel", Select)
+        select.set_options([(b.value, b.value) for b in Barrel])
+        select.value = next(iter(Barrel)).value
+        self._barrels_filled = True
+
     def load_bat_file(self, path: str) -> bool:
         """Fill the form from a bat file; a bad file shows why and leaves the form as it was."""
+        from rig.core.bat import BatSpec
+
+        self._fill_barrels()
         try:
             bat = BatSpec.load(path)
         except ConfigError as exc:
@@ -140,6 +154,11 @@ class SetupScreen(Screen[None]):
 
     def bat_from_form(self) -> BatSpec:
         """The bat as the form describes it; a bad value raises ConfigError naming the field."""
+        from pydantic import ValidationError
+
+        from rig.core.bat import BatSpec
+
+        self._fill_barrels()
         data: dict[str, object] = {}
         for name, _, _ in BAT_FIELDS:
             value = self.query_one(f"#bat-{name}", Input).value.strip()
@@ -184,6 +203,8 @@ class SetupScreen(Screen[None]):
         self.app.call_from_thread(self._show_devices, report)
 
     def _show_devices(self, report: DeviceReport) -> None:
+        from rig.tui.render import STATE_STYLE, interlock_text
+
         self.report = report
         text = Text()
         if report.cannon is not None:

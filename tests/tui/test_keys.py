@@ -151,3 +151,33 @@ def test_history_shows_the_certificate_without_drawing_figures(
     source = asyncio.run(body())
     assert drawn == [] and list(tmp_path.rglob("*.png")) == []
     assert run_id in source and "Quick BBCOR (UI tests)" in source and "![" not in source
+
+
+def test_the_set_up_screen_reads_the_devices_once(
+    make_settings: Callable[..., ConsoleSettings], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The read starts after the first paint; the rig selector's first event must not start another
+    (two reads at once: the second finds the ports busy)."""
+    import rig.tui.setup as setup_module
+
+    calls: list[str] = []
+    real = setup_module.read_devices
+    monkeypatch.setattr(
+        setup_module, "read_devices", lambda config, lock: calls.append("read") or real(config, lock)
+    )
+
+    async def body() -> None:
+        app = RigConsole(make_settings())
+        async with app.run_test(size=SIZE) as pilot:
+            setup = app.screen
+            assert isinstance(setup, SetupScreen)
+            await until(pilot, lambda: setup.report is not None, "the device check")
+            await until(
+                pilot, lambda: all(w.is_finished for w in app.workers), "idle"
+            )
+            assert setup.report is not None and setup.report.errors == ()
+            await pilot.press("r")  # asked again: read again
+            await until(pilot, lambda: len(calls) == 2 and setup.report is not None, "the second read")
+
+    asyncio.run(body())
+    assert calls == ["read", "read"]

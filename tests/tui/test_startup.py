@@ -34,8 +34,8 @@ def painted(screen):
     print(json.dumps({"loaded": loaded, "bat": screen.query_one("#bat-id").value}), flush=True)
     screen.app.exit()
 def hooked(screen):
+    screen.call_after_refresh(painted, screen)  # first: before the work the screen defers past its paint
     on_mount(screen)
-    screen.call_after_refresh(painted, screen)
 setup.SetupScreen.on_mount = hooked
 settings = ConsoleSettings.from_args("ideal", None, sys.argv[2], bat=sys.argv[3])
 RigConsole(settings).run(headless=True)
