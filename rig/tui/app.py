@@ -12,7 +12,7 @@ from textual.binding import Binding, BindingType
 
 from rig.tui.messages import OpenHistory, StartRun
 from rig.tui.modals import ConfirmScreen, HelpScreen, TooSmallScreen
-from rig.tui.rigs import ConsoleSettings
+from rig.tui.rigs import LOADING, ConsoleSettings
 from rig.tui.setup import SetupScreen
 
 if TYPE_CHECKING:  # the run and history screens load when first opened: a faster start
@@ -48,8 +48,9 @@ class RigConsole(App[None]):
     def _warm_up(self) -> None:
         """After the first paint, load the run and history screens (and the procedures, the
         session, the physics they use) in the background, so Start does not wait for them."""
-        import rig.tui.history
-        import rig.tui.run  # noqa: F401
+        with LOADING:
+            import rig.tui.history
+            import rig.tui.run  # noqa: F401
 
     def on_resize(self) -> None:
         self.call_after_refresh(self._check_size)
@@ -72,14 +73,15 @@ class RigConsole(App[None]):
 
     def on_open_history(self, message: OpenHistory) -> None:
         """A screen asks for the past runs."""
-        from rig.tui.history import HistoryScreen
+        with LOADING:
+            from rig.tui.history import HistoryScreen
 
         self.push_screen(HistoryScreen(self.settings, message.rig))
 
     def on_start_run(self, message: StartRun) -> None:
         """A screen asks for a run (a new one from set-up, or a resumed one from the history)."""
-        from rig.tui.run import RunScreen
-
+        with LOADING:
+            from rig.tui.run import RunScreen
         screen = RunScreen(self.settings, message.job, message.past)
         if message.replace:
             self.switch_screen(screen)

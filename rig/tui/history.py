@@ -20,15 +20,16 @@ from rig.report.record import run_record
 from rig.store import RunSummary, Store
 from rig.tui.messages import StartRun
 from rig.tui.report import record_summary
-from rig.tui.rigs import ConsoleSettings, RigChoice, RunJob
+from rig.tui.rigs import LOADING, ConsoleSettings, RigChoice, RunJob
 
 
 def _certificate_md(record: dict[str, Any]) -> str | None:
     """The certificate as Markdown without its figures (a terminal shows no PNG: drawing them took
     seconds per run), or None when rig.report cannot build it."""
     try:
-        from rig.report.cert_doc import to_markdown
-        from rig.report.certificate import build
+        with LOADING:
+            from rig.report.cert_doc import to_markdown
+            from rig.report.certificate import build
 
         return to_markdown(build(record, {}), None)
     except Exception:  # a certificate that cannot be built still leaves the summary to read

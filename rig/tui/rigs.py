@@ -23,6 +23,11 @@ if TYPE_CHECKING:  # the session, the drivers and the procedures load when a rig
 SCENES = ("ideal", "lab", "faulty")
 T = TypeVar("T")
 PROCEDURES = (("NCAA BBCOR", "bbcor"), ("NCAA BESR", "besr"), ("BBS (batted-ball speed)", "bbs"))
+# Held while the console loads the heavy part it left until after the first paint (the session,
+# the procedures, the run screen, the report): one thread at a time, so no thread ever sees a
+# module another is still initialising (a cycle between two importing threads allows that).
+# The light part (the bat model, the renderings) imports without it: the UI thread never waits.
+LOADING = threading.RLock()
 
 
 @dataclass(frozen=True)
@@ -44,12 +49,11 @@ class RigChoice:
 
     def config(self, bat: BatSpec | None = None) -> RigConfig:
         """The rig config: a fresh simulated rig (with the bat's true properties), or the file."""
-        if self.kind == "sim":
+        with LOADING:
+            from rig.core.config import RigConfig
             from rig.session import sim_config
-
+        if self.kind == "sim":
             return sim_config(self.ref, bat=bat)
-        from rig.core.config import RigConfig
-
         return RigConfig.load(self.ref)
 
 
@@ -102,8 +106,8 @@ class DeviceReport:
 
 def read_devices(config: RigConfig, lock: threading.Lock) -> DeviceReport:
     """Open the rig, read every device's status, close it (blocking; skipped while a run holds it)."""
-    from rig.session import RigSession
-
+    with LOADING:
+        from rig.session import RigSession
     if not lock.acquire(timeout=5.0):
         return DeviceReport(errors=("a run is using the devices",))
     try:

@@ -14,7 +14,7 @@ from textual.widgets import Button, Footer, Header, Input, Label, Select, Static
 
 from rig.core.errors import ConfigError, RigError
 from rig.tui.messages import OpenHistory, StartRun
-from rig.tui.rigs import PROCEDURES, ConsoleSettings, DeviceReport, RigChoice, RunJob, read_devices
+from rig.tui.rigs import LOADING, PROCEDURES, ConsoleSettings, DeviceReport, RigChoice, RunJob, read_devices
 
 if TYPE_CHECKING:  # the bat model (pydantic) and the renderings load after the first paint
     from rig.core.bat import BatSpec
@@ -127,7 +127,7 @@ class SetupScreen(Screen[None]):
         """The barrel choices, from the bat model (loaded now, not before the first paint)."""
         if self._barrels_filled:
             return
-        from rig.core.bat import Barrel
+        from rig.core.bat import Barrel  # light (pydantic): not under LOADING, so never waits
 
         select: Select[str] = self.query_one("#bat-barrel", Select)
         select.set_options([(b.value, b.value) for b in Barrel])
@@ -249,8 +249,9 @@ class SetupScreen(Screen[None]):
 
     def build_job(self) -> RunJob:
         """The run the form describes; raises RigError (with the field) when something is wrong."""
-        from protocols.procedure import Procedure  # loaded at the first start, not before the first paint
-        from protocols.runner import dry_run
+        with LOADING:  # loaded at the first start (or by the warm-up), not before the first paint
+            from protocols.procedure import Procedure
+            from protocols.runner import dry_run
 
         bat = self.bat_from_form()
         procedure = Procedure.load(str(self.query_one("#procedure", Select).value))
