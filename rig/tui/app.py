@@ -2,17 +2,21 @@
 
 from __future__ import annotations
 
-from typing import ClassVar
+import sys
+from typing import TYPE_CHECKING, ClassVar
 
+from rich.text import Text
+from textual import work
 from textual.app import App
 from textual.binding import Binding, BindingType
 
-from rig.tui.history import HistoryScreen
 from rig.tui.messages import OpenHistory, StartRun
-from rig.tui.modals import ConfirmScreen, HelpScreen
-from rig.tui.rigs import ConsoleSettings
-from rig.tui.run import RunScreen
+from rig.tui.modals import ConfirmScreen, HelpScreen, TooSmallScreen
+from rig.tui.rigs import LOADING, ConsoleSettings
 from rig.tui.setup import SetupScreen
+
+if TYPE_CHECKING:  # the run and history screens load when first opened: a faster start
+    from rig.tui.run import RunScreen
 
 
 class RigConsole(App[None]):
@@ -22,6 +26,9 @@ class RigConsole(App[None]):
     """
 
     TITLE = "Rig console"
+    MIN_SIZE = (80, 24)  # below it the screens would cut the rig label, the metric, the prompts
+    HORIZONTAL_BREAKPOINTS: ClassVar[list[tuple[int, str]]] = [(0, "-narrow"), (120, "-wide")]
+    VERTICAL_BREAKPOINTS: ClassVar[list[tuple[int, str]]] = [(0, "-short"), (40, "-tall")]
     ENABLE_COMMAND_PALETTE = False  # every command has its key; keep the footer for them
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("question_mark,f1", "help", "Help"),
@@ -34,13 +41,47 @@ class RigConsole(App[None]):
 
     def on_mount(self) -> None:
         self.push_screen(SetupScreen(self.settings))
+        self.call_after_refresh(self._check_size)
+        self.call_after_refresh(self._warm_up)
+
+    @work(thread=True, group="warm-up", exit_on_error=False)
+    def _warm_up(self) -> None:
+        """After the first paint, load the run and history screens (and the procedures, the
+        session, the physics they use) in the background, so Start does not wait for them."""
+        with LOADING:
+            import rig.tui.history
+            import rig.tui.run  # noqa: F401
+
+    def on_resize(self) -> None:
+        self.call_after_refresh(self._check_size)
+
+    def _check_size(self) -> None:
+        """Below MIN_SIZE, cover the screen with a notice that says so (and what matters now)."""
+        small = self.size.width < self.MIN_SIZE[0] or self.size.height < self.MIN_SIZE[1]
+        covered = isinstance(self.screen, TooSmallScreen)
+        if small and not covered:
+            self.push_screen(TooSmallScreen(self.MIN_SIZE, self.essentials))
+        elif not small and covered:
+            self.pop_screen()
+
+    def essentials(self) -> Text:
+        """What must stay readable at any size: the rig (SIMULATED or not), the prompt, the metric."""
+        screen = self.run_screen or next(reversed(self._run_screens()), None)
+        if screen is None:
+            return Text(self.settings.rigs[0].label, style="bold")
+        return screen.essentials()
 
     def on_open_history(self, message: OpenHistory) -> None:
         """A screen asks for the past runs."""
+        with LOADING:
+            from rig.tui.history import HistoryScreen
+
         self.push_screen(HistoryScreen(self.settings, message.rig))
 
     def on_start_run(self, message: StartRun) -> None:
         """A screen asks for a run (a new one from set-up, or a resumed one from the history)."""
+        with LOADING:
+            from rig.tui.run import RunScreen
         screen = RunScreen(self.settings, message.job, message.past)
         if message.replace:
             self.switch_screen(screen)
@@ -51,7 +92,12 @@ class RigConsole(App[None]):
     @property
     def run_screen(self) -> RunScreen | None:
         """The run screen whose run is active, if any."""
-        return next((s for s in self.screen_stack if isinstance(s, RunScreen) and s.running), None)
+        return next((s for s in self._run_screens() if s.running), None)
+
+    def _run_screens(self) -> list[RunScreen]:
+        """The run screens on the stack, newest last (none before the run screen's module loads)."""
+        run = sys.modules.get("rig.tui.run")
+        return [] if run is None else [s for s in self.screen_stack if isinstance(s, run.RunScreen)]
 
     @property
     def run_active(self) -> bool:

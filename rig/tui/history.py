@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import tempfile
 from typing import Any, ClassVar
 
 from textual import work
@@ -21,19 +20,19 @@ from rig.report.record import run_record
 from rig.store import RunSummary, Store
 from rig.tui.messages import StartRun
 from rig.tui.report import record_summary
-from rig.tui.rigs import ConsoleSettings, RigChoice, RunJob
+from rig.tui.rigs import LOADING, ConsoleSettings, RigChoice, RunJob
 
 
 def _certificate_md(record: dict[str, Any]) -> str | None:
-    """The certificate as Markdown when rig.report.certificate can render it, else None."""
+    """The certificate as Markdown without its figures (a terminal shows no PNG: drawing them took
+    seconds per run), or None when rig.report cannot build it."""
     try:
-        from rig.report.certificate import render
-    except ImportError:
-        return None
-    try:
-        with tempfile.TemporaryDirectory(prefix="rig-tui-") as figures:  # no PNGs left in the cwd
-            return render(record, "md", figures_dir=figures)
-    except Exception:  # a certificate that cannot be drawn still leaves the summary to read
+        with LOADING:
+            from rig.report.cert_doc import to_markdown
+            from rig.report.certificate import build
+
+        return to_markdown(build(record, {}), None)
+    except Exception:  # a certificate that cannot be built still leaves the summary to read
         return None
 
 
@@ -93,7 +92,7 @@ class HistoryScreen(Screen[None]):
         self.action_show()
 
     def action_show(self) -> None:
-        """Show the highlighted run's report (built in a worker: a certificate draws plots)."""
+        """Show the highlighted run's report (built in a worker: reading the record takes a moment)."""
         run = self._selected()
         if run is not None:
             self.query_one("#report-text", Markdown).update(f"Reading run {run.run_id[:8]}...")

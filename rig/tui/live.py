@@ -8,7 +8,9 @@ recorded events, so the scan, the hits and the average are whole again before th
 
 from __future__ import annotations
 
+import base64
 import math
+from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -66,6 +68,9 @@ class LiveShot:
         return [f"{x['code']}: {x.get('message', '')}" for x in found if x.get("invalidates", True)]
 
 
+TRAFFIC_LINES = 60
+
+
 @dataclass
 class LiveRun:
     """The state of the run screen."""
@@ -89,6 +94,8 @@ class LiveRun:
     interrupted: str = ""
     paused: bool = False
     log: list[str] = field(default_factory=list)
+    traffic: deque[str] = field(default_factory=lambda: deque(maxlen=TRAFFIC_LINES))  # decoded lines
+    _partial: dict[tuple[str, str], str] = field(default_factory=dict)  # a line not yet ended
     run: RunState = field(default_factory=RunState)  # the fold of the persisted events
 
     # -- derived views ------------------------------------------------------------------------
@@ -229,6 +236,22 @@ def _answered(r: LiveRun, d: dict[str, Any]) -> None:
         r.note(f"{d['prompt_id']}: {'yes' if d['answer'] else 'NO'}")
 
 
+def _traffic(r: LiveRun, d: dict[str, Any]) -> None:
+    """Decode the device traffic into lines: 'cannon > 1 STATUS*7D7D' (> sent, < received)."""
+    for chunk in d.get("chunks", []):
+        key = (str(chunk.get("device", "?")), str(chunk.get("dir", "?")))
+        try:
+            text = base64.b64decode(chunk.get("data_b64", "")).decode("ascii", "replace")
+        except ValueError:
+            text = "<undecodable>\n"
+        *done, rest = (r._partial.pop(key, "") + text).split("\n")
+        for line in done:
+            if line.strip():
+                r.traffic.append(f"{key[0]:<6} {'>' if key[1] == 'tx' else '<'} {line.strip()}")
+        if rest:
+            r._partial[key] = rest
+
+
 def _finished(r: LiveRun, d: dict[str, Any]) -> None:
     r.verdict = dict(r.run.verdict or d)
     cc = d.get("cross_check") or {}
@@ -276,6 +299,7 @@ _HANDLERS = {
     ev.BALL_REPLACED: _ball,
     ev.OPERATOR_ANSWERED: _answered,
     ev.RUN_FINISHED: _finished,
+    ev.TRAFFIC: _traffic,
     ev.RUN_INTERRUPTED: _interrupted,
     ev.RUN_PAUSED: _paused,
     ev.RUN_CONTINUED: _continued,

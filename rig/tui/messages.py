@@ -7,11 +7,13 @@ screen, opens the one asked for. So set-up, run and history stay independent mod
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
 
 from textual.message import Message
 
-from rig.core.events import RunEvent
-from rig.tui.rigs import RigChoice, RunJob
+if TYPE_CHECKING:
+    from rig.core.events import RunEvent
+    from rig.tui.rigs import RigChoice, RunJob
 
 
 class OpenHistory(Message):

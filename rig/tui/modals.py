@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import ClassVar
 
+from rich.text import Text
 from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
 from textual.containers import Horizontal, Vertical
@@ -11,22 +13,21 @@ from textual.screen import ModalScreen
 from textual.widgets import Button, Static
 
 HELP = """\
-[b]Set-up[/b]
+[b]Set-up[/b]  the bat file field takes the keys first: a path, Enter loads it
   Tab / Shift+Tab  move between fields         Esc  leave a field
-  Enter in the bat file field loads the file into the form
-  s  start the run      r  read the devices again      h  history
+  s (Enter on Start)  start the run   r  read the devices again   h  history
 [b]Run[/b]
-  f  fire the waiting shot: asks to confirm; off while an interlock is open
-  y / n  answer a prompt (ring check, ball replaced)
-  p  pause / go on before the next shot   a  abort (it stays resumable)
-  r  resume an interrupted run            b  back to set-up once it ended
+  f  fire the waiting shot (the key is the confirmation); off while an
+     interlock is open, the cannon's status is unknown or the run is paused
+  Enter  the answer that needs no thought: the ring passes, accept the
+     valid shot (and its ring check after); never fires
+  y / n  answer one prompt; n on a ring check asks first (it fails the bat)
+  p  pause / go on   a  abort (resumable)   r  resume   b  back once ended
 [b]History[/b]
   Up / Down  choose a run (report below)   r  resume it   Esc  back
 [b]Anywhere[/b]
   ?  this help (Esc closes it)    q  quit (asks first during a run)
-
-The run works in a thread of its own: the screen only listens to its events
-and sends commands, so it never freezes while a device is slow."""
+Needs 80x24; from 120x40 the run shows plots, the budget and the traffic."""
 
 
 class ConfirmScreen(ModalScreen[bool]):
@@ -88,3 +89,40 @@ class HelpScreen(ModalScreen[None]):
     def action_close(self) -> None:
         """Back to the screen below."""
         self.dismiss(None)
+
+
+class TooSmallScreen(ModalScreen[None]):
+    """Covers everything while the terminal is smaller than the console needs; the run goes on.
+
+    The keys of the screens below are off meanwhile (no fire without the full picture); it shows
+    the rig, the prompt and the metric, refreshed, and closes itself when the terminal grows.
+    """
+
+    DEFAULT_CSS = """
+    TooSmallScreen { background: $surface; padding: 0 1; }
+    TooSmallScreen #need { text-style: bold; color: $warning; height: auto; }
+    TooSmallScreen #essentials { height: auto; margin-top: 1; }
+    """
+
+    def __init__(self, need: tuple[int, int], essentials: Callable[[], Text]) -> None:
+        super().__init__()
+        self.need, self.essentials = need, essentials
+
+    def compose(self) -> ComposeResult:
+        yield Static(id="need")
+        yield Static(id="essentials")
+
+    def on_mount(self) -> None:
+        self.show()
+        self.set_interval(0.25, self.show)
+
+    def show(self) -> None:
+        """Say how big the terminal is and must be; then what matters now."""
+        w, h = self.app.size
+        if w >= self.need[0] and h >= self.need[1]:  # grown while another screen was on top
+            if self.is_current:
+                self.dismiss(None)
+            return
+        need = f"The console needs at least {self.need[0]}x{self.need[1]}; this terminal is {w}x{h}. "
+        self.query_one("#need", Static).update(need + "Enlarge it: the keys are off until then (q quits).")
+        self.query_one("#essentials", Static).update(self.essentials())

@@ -78,6 +78,7 @@ class ConsoleOperator:
         self._answer = False
         self._cancel_reason = ""
         self._read_status: Callable[[], CannonStatus] | None = None
+        self._standing: tuple[str, ...] = ()  # ring checks already answered yes, in order
 
     # -- runner side (worker thread) ---------------------------------------------------------
     def attach(self, session: RigSession) -> None:
@@ -102,6 +103,11 @@ class ConsoleOperator:
         with self._lock:
             if self._cancel_reason:
                 raise RunAborted(self._cancel_reason)
+            if prompt_id in self._standing:  # answered with an earlier key: nothing happened since
+                self._standing = self._standing[self._standing.index(prompt_id) + 1 :]
+                return True
+            if prompt_id != "ball":  # a new ball does not touch the bat; anything else ends them
+                self._standing = ()
             self._pending, self._answer = prompt, False
             self._done.clear()
         self._publish(prompt)
@@ -122,12 +128,20 @@ class ConsoleOperator:
         """The prompt waiting for an answer, if any."""
         return self._pending
 
-    def answer(self, prompt_id: str, value: bool) -> bool:
-        """Answer the pending prompt if it is still `prompt_id`; False if it is not pending."""
+    def answer(self, prompt_id: str, value: bool, then: tuple[str, ...] = ()) -> bool:
+        """Answer the pending prompt if it is still `prompt_id`; False if it is not pending.
+
+        `then`: ring checks the operator passes with the same key; each is answered yes when the
+        runner asks it next (a new ball between is allowed), and dropped when anything else comes
+        first. Only ring checks: a fire is never answered in advance.
+        """
+        if any(not p.startswith("ring-") for p in then):
+            raise ValueError(f"only ring checks can be answered in advance, not {then}")
         with self._lock:
             if self._pending is None or self._pending.prompt_id != prompt_id or self._done.is_set():
                 return False
             self._answer = value
+            self._standing = then if value else ()
             self._done.set()
             return True
 

@@ -7,12 +7,15 @@ columns wide, so the whole run screen fits an 80x24 terminal.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from rich.text import Text
 
 from rig.core.devices import CannonState, CannonStatus, GateConfig
 from rig.core.events import Verdict
-from rig.tui.live import LiveRun, LiveShot
+
+if TYPE_CHECKING:  # the set-up screen draws the interlocks without the run's fold
+    from rig.tui.live import LiveRun, LiveShot
 
 BLOCKS = "▁▂▃▄▅▆▇█"
 SHOT_STATUS = {
@@ -131,8 +134,9 @@ def shot_panel(r: LiveRun) -> Text:
     text.append(f"in  {_speed(s.inbound)}   out {_speed(s.rebound)}")
     if s.metric is not None:
         text.append(f"\n{r.metric_name} {s.metric:.4f} ± {s.u or 0.0:.4f}")
-    if s.status in ("invalid", "lost"):  # why, in the lines left
-        text.append("\n" + ("; ".join(s.reasons) or "no reason given"), style="yellow")
+    if s.status in ("invalid", "lost"):  # the codes here; the reasons in full on the message line
+        codes = [x.split(":")[0] for x in s.reasons] if s.status == "invalid" else ["see below"]
+        text.append("\n" + (", ".join(codes) or "no reason given"), style="yellow")
     return text
 
 
@@ -190,3 +194,92 @@ def verdict_text(r: LiveRun) -> Text:
     else:
         text.append(f" {v.get('reason', '')}")
     return text
+
+
+# -- the wide layout (120x40 and more): plots, the budget, the device traffic --------------------
+def bar(value: float, lo: float, hi: float, width: int, mark: float | None = None) -> Text:
+    """A horizontal bar of `value` on [lo, hi] in `width` cells; `mark` (a limit) drawn as │."""
+    span = hi - lo if hi > lo else 1.0
+    fill = min(max((value - lo) / span, 0.0), 1.0) * width
+    at_mark = None if mark is None else min(max(round((mark - lo) / span * width), 0), width - 1)
+    text = Text()
+    for i in range(width):
+        if i == at_mark:
+            text.append("│", style="bold red")
+        elif i < int(fill):
+            text.append("█", style="cyan")
+        elif i < fill:
+            text.append("▌", style="cyan")
+        else:
+            text.append("·", style="dim")
+    return text
+
+
+def scan_plot(r: LiveRun, width: int = 16) -> Text:
+    """The location scan: one bar per location (mean metric), the chosen one marked."""
+    means = r.scan_means()
+    locations = sorted(set(r.scan_locations) | set(means))
+    known = list(means.values())
+    lo, hi = (min(known), max(known)) if known else (0.0, 1.0)
+    pad = max((hi - lo) * 0.2, 0.002)
+    text = Text()
+    for loc in locations:
+        v = means.get(loc)
+        text.append(f"{loc:>4g} in ")
+        if v is None:
+            text.append("   -    " + "·" * width, style="dim")
+        else:
+            text.append(f"{v:.4f} ")
+            text.append_text(bar(v, lo - pad, hi + pad, width))
+        if loc == r.best_location_in:
+            text.append(" best", style="bold")
+        text.append("\n")
+    text.rstrip()
+    return text
+
+
+def hits_plot(r: LiveRun, width: int = 16) -> Text:
+    """The valid hits against the limit (│), then their running average."""
+    limit = r.limit or 1.0
+    lo, hi = 0.8 * limit, 1.1 * limit
+    hits = r.hits()
+    text = Text()
+    for i in range(max(r.hits_needed, len(hits))):
+        text.append(f"hit {i + 1:<2} ")
+        if i < len(hits):
+            text.append(f"{hits[i]:.4f} ")
+            text.append_text(bar(hits[i], lo, hi, width, mark=limit))
+        else:
+            text.append("   -    " + "·" * width, style="dim")
+        text.append("\n")
+    avg = r.average()
+    text.append("avg    ", style="bold")
+    if avg is not None:
+        text.append(f"{avg:.4f} ")
+        text.append_text(bar(avg, lo, hi, width, mark=limit))
+    text.append(f"\nlimit {limit:g}", style="dim")
+    return text
+
+
+def budget_panel(r: LiveRun, rows: int = 8, width: int = 12) -> Text:
+    """The last valid shot's uncertainty budget: u, U and the largest shares of the variance."""
+    shot = next((s for s in reversed(r.shots.values()) if s.status == "valid"), None)
+    budget = ((shot.entry.outcome or {}).get("budget") or {}) if shot else {}
+    out = (budget.get("outputs") or {}).get(r.metric_name) if r.metric_name else None
+    if shot is None or not out:
+        return Text("no valid shot yet", style="dim")
+    text = Text.assemble((f"shot {shot.index} ", "bold"), f"{r.metric_name} {out['value']:.4f}\n")
+    text.append(f"u {out['u']:.5f}  U {out['U']:.5f} (k={budget.get('coverage_k', 2):g})\n")
+    shares = sorted((out.get("contributions") or {}).items(), key=lambda kv: -kv[1])
+    for name, share in [kv for kv in shares if kv[1] > 0][:rows]:
+        text.append(f"{name:<9}{share * 100:5.1f} % ")
+        text.append_text(bar(share, 0.0, 1.0, width))
+        text.append("\n")
+    text.rstrip()
+    return text
+
+
+def traffic_panel(r: LiveRun, lines: int = 12) -> Text:
+    """The last lines of device traffic ('>' sent to a device, '<' received)."""
+    shown = list(r.traffic)[-lines:]
+    return Text("\n".join(shown)) if shown else Text("no traffic yet", style="dim")

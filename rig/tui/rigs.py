@@ -10,18 +10,24 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
-from protocols.procedure import Procedure
-from rig.core.bat import BatSpec
-from rig.core.config import RigConfig
-from rig.core.devices import CannonStatus, ClampStatus, Environment, GateConfig
 from rig.core.errors import RigError
-from rig.session import RigSession, sim_config
+
+if TYPE_CHECKING:  # the session, the drivers and the procedures load when a rig is first used
+    from protocols.procedure import Procedure
+    from rig.core.bat import BatSpec
+    from rig.core.config import RigConfig
+    from rig.core.devices import CannonStatus, ClampStatus, Environment, GateConfig
 
 SCENES = ("ideal", "lab", "faulty")
 T = TypeVar("T")
 PROCEDURES = (("NCAA BBCOR", "bbcor"), ("NCAA BESR", "besr"), ("BBS (batted-ball speed)", "bbs"))
+# Held while the console loads the heavy part it left until after the first paint (the session,
+# the procedures, the run screen, the report): one thread at a time, so no thread ever sees a
+# module another is still initialising (a cycle between two importing threads allows that).
+# The light part (the bat model, the renderings) imports without it: the UI thread never waits.
+LOADING = threading.RLock()
 
 
 @dataclass(frozen=True)
@@ -43,6 +49,9 @@ class RigChoice:
 
     def config(self, bat: BatSpec | None = None) -> RigConfig:
         """The rig config: a fresh simulated rig (with the bat's true properties), or the file."""
+        with LOADING:
+            from rig.core.config import RigConfig
+            from rig.session import sim_config
         if self.kind == "sim":
             return sim_config(self.ref, bat=bat)
         return RigConfig.load(self.ref)
@@ -97,6 +106,8 @@ class DeviceReport:
 
 def read_devices(config: RigConfig, lock: threading.Lock) -> DeviceReport:
     """Open the rig, read every device's status, close it (blocking; skipped while a run holds it)."""
+    with LOADING:
+        from rig.session import RigSession
     if not lock.acquire(timeout=5.0):
         return DeviceReport(errors=("a run is using the devices",))
     try:

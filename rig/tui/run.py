@@ -11,10 +11,11 @@ import logging
 from dataclasses import replace
 from typing import Any, ClassVar
 
+from rich.text import Text
 from textual import work
 from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
-from textual.containers import Grid
+from textual.containers import Grid, Horizontal
 from textual.screen import Screen
 from textual.widgets import Footer, Header, RichLog, Static
 from textual.worker import Worker
@@ -32,6 +33,7 @@ from rig.tui.run_keys import RunKeys
 from rig.tui.situation import Situation
 
 log = logging.getLogger(__name__)
+WIDE = ("scan-plot", "hits-plot", "budget")
 
 
 class RunScreen(RunKeys, Screen[None]):
@@ -41,12 +43,19 @@ class RunScreen(RunKeys, Screen[None]):
     RunScreen #title { height: 1; padding: 0 1; background: $boost; text-style: bold; }
     RunScreen #panels { grid-size: 2 2; grid-columns: 38 1fr; grid-rows: 6 6; height: 12; }
     RunScreen .box { border: round $primary; padding: 0 1; height: 6; }
-    RunScreen #prompt { height: 1; padding: 0 1; background: $warning 30%; }
-    RunScreen #message { height: auto; max-height: 2; padding: 0 1; }
-    RunScreen #log { height: 1fr; border: round $primary-darken-2; padding: 0 1; }
+    RunScreen #wide { display: none; height: 12; }
+    RunScreen #wide .box { width: 1fr; height: 12; }
+    RunScreen #prompt { height: auto; max-height: 2; padding: 0 1; background: $warning 30%; }
+    RunScreen #message { height: auto; max-height: 4; padding: 0 1; }
+    RunScreen #bottom { height: 1fr; min-height: 3; }
+    RunScreen #log { height: 1fr; width: 1fr; border: round $primary-darken-2; padding: 0 1; }
+    RunScreen #traffic { display: none; height: 1fr; width: 1fr; padding: 0 1; }
+    RunScreen.-wide.-tall #wide { display: block; }
+    RunScreen.-wide.-tall #traffic { display: block; }
     """
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("f", "fire", "Fire"),
+        Binding("enter", "quick", "OK"),
         Binding("y", "answer(True)", "Yes"),
         Binding("n", "answer(False)", "No"),
         Binding("p", "pause", "Pause"),
@@ -75,19 +84,25 @@ class RunScreen(RunKeys, Screen[None]):
 
     def compose(self) -> ComposeResult:
         yield Header()
-        p, bat = self.job.procedure, self.job.bat
-        yield Static(f"{p.name} · bat {bat.id} · {self.job.rig_label}", id="title")
+        yield Static(self._title(), id="title")  # the rig first: SIMULATED is never cut off
         with Grid(id="panels"):
             for name in ("cannon", "shot", "gates", "progress"):
                 yield Static(id=name, classes="box")
+        with Horizontal(id="wide"):  # shown from 120x40 on
+            for name in WIDE:
+                yield Static(id=name, classes="box")
         yield Static(id="prompt")
         yield Static(id="message")
-        yield RichLog(id="log", wrap=True, markup=False, max_lines=500)
+        with Horizontal(id="bottom"):
+            yield RichLog(id="log", wrap=True, markup=False, max_lines=500)
+            yield Static(id="traffic", classes="box")
         yield Footer()
 
     def on_mount(self) -> None:
         self.sub_title = "run"
         titles = {"cannon": "Cannon", "shot": "Live shot", "gates": "Gates", "progress": "Scan and hits"}
+        titles |= {"scan-plot": "Location scan", "hits-plot": "Valid hits", "budget": "Uncertainty budget"}
+        titles["traffic"] = "Device traffic (> sent, < received)"
         for name, title in titles.items():
             self.query_one(f"#{name}", Static).border_title = title
         self.query_one("#log", RichLog).border_title = "Log"
@@ -201,7 +216,25 @@ class RunScreen(RunKeys, Screen[None]):
             ended=self.outcome.status if self.outcome else "",
             reason=self.outcome.reason if self.outcome else "",
             failure=self.failure,
+            ring_check=self.job.procedure.ring_check,
         )
+
+    def essentials(self) -> Text:
+        """The rig, the prompt, the live metric and the verdict or fault: for a too-small terminal."""
+        text = Text(self._title(), style="bold")
+        now = self.situation()
+        for part in (situation.prompt_text(now), situation.message_text(now, self.live)):
+            if part.plain:
+                text.append("\n\n")
+                text.append_text(part)
+        s = self.live.shot
+        if s is not None and s.metric is not None:
+            text.append(f"\n\nshot {s.index}: {self.live.metric_name} {s.metric:.4f} ± {s.u or 0.0:.4f}")
+        return text
+
+    def _title(self) -> str:
+        p, bat = self.job.procedure, self.job.bat
+        return f"{self.job.rig_label} · {p.name} · bat {bat.id}"
 
     def fire_block(self) -> str:
         """Why the fire key is off now ('' when the waiting shot may be fired)."""
@@ -217,6 +250,11 @@ class RunScreen(RunKeys, Screen[None]):
             "shot": render.shot_panel,
             "progress": render.progress_panel,
         }
+        # the wide panels: hidden below 120x40, cheap to draw
+        panels |= {"scan-plot": render.scan_plot, "hits-plot": render.hits_plot}
+        panels |= {"budget": render.budget_panel}
+        rows = self.query_one("#traffic", Static).content_size.height
+        panels["traffic"] = lambda live: render.traffic_panel(live, max(rows, 1))  # the newest lines
         for name, draw in panels.items():
             self.query_one(f"#{name}", Static).update(draw(self.live))
         now = self.situation()

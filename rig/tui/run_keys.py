@@ -11,7 +11,8 @@ from protocols.runner import RunControl
 from rig.tui.messages import OpenHistory
 from rig.tui.modals import ConfirmScreen
 from rig.tui.operator import ConsoleOperator
-from rig.tui.rigs import ConsoleSettings
+from rig.tui.rigs import ConsoleSettings, RunJob
+from rig.tui.situation import quick_answer
 
 if TYPE_CHECKING:
     from textual.app import App
@@ -24,6 +25,7 @@ class RunKeys:
     if TYPE_CHECKING:  # provided by RunScreen and Screen; nothing is defined here at run time
         app: App[Any]
         settings: ConsoleSettings
+        job: RunJob
         operator: ConsoleOperator
         control: RunControl
         running: bool
@@ -37,21 +39,22 @@ class RunKeys:
         def post_message(self, message: Message) -> bool: ...
 
     def action_fire(self) -> None:
-        """Confirm, then answer the pending fire prompt."""
+        """Fire the waiting shot: the key is the operator's confirmation (off while fire_block says why)."""
         prompt = self.operator.pending
-        if prompt is None or self.fire_block():
+        if prompt is None or not prompt.is_fire:
             return
+        blocked = self.fire_block()  # checked again at the key: the interlocks may have opened
+        if blocked:
+            self.notify(f"not fired: {blocked}", severity="error")
+            return
+        self.operator.answer(prompt.prompt_id, True)
 
-        def confirmed(yes: bool | None) -> None:
-            blocked = self.fire_block()
-            if yes and not blocked and self.operator.pending == prompt:
-                self.operator.answer(prompt.prompt_id, True)
-            elif yes:
-                self.notify(f"not fired: {blocked}", severity="error")
-
-        self.app.push_screen(
-            ConfirmScreen(f"{prompt.text}\n\nThe cannon arms and fires.", "Fire (y)", "Cancel (n)"), confirmed
-        )
+    def action_quick(self) -> None:
+        """Enter: the answer that needs no thought (a ring check passes, a valid shot is accepted)."""
+        prompt = self.operator.pending
+        then = None if prompt is None else quick_answer(prompt.prompt_id, self.job.procedure.ring_check)
+        if prompt is not None and then is not None:
+            self.operator.answer(prompt.prompt_id, True, then)
 
     def action_answer(self, value: bool) -> None:
         """Answer the pending yes/no prompt; a failed ring check (it fails the bat) asks first."""

@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
-from pydantic import ValidationError
 from rich.text import Text
 from textual import work
 from textual.app import ComposeResult
@@ -13,14 +12,13 @@ from textual.containers import Horizontal, Vertical
 from textual.screen import Screen
 from textual.widgets import Button, Footer, Header, Input, Label, Select, Static
 
-from protocols.procedure import Procedure
-from protocols.runner import dry_run
-from rig.core.bat import Barrel, BatSpec
-from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RigError
 from rig.tui.messages import OpenHistory, StartRun
-from rig.tui.render import STATE_STYLE, interlock_text
-from rig.tui.rigs import PROCEDURES, ConsoleSettings, DeviceReport, RigChoice, RunJob, read_devices
+from rig.tui.rigs import LOADING, PROCEDURES, ConsoleSettings, DeviceReport, RigChoice, RunJob, read_devices
+
+if TYPE_CHECKING:  # the bat model (pydantic) and the renderings load after the first paint
+    from rig.core.bat import BatSpec
+    from rig.core.config import RigConfig
 
 # (field, label, unit) of the bat form, in BatSpec's names
 BAT_FIELDS = (
@@ -64,6 +62,7 @@ class SetupScreen(Screen[None]):
         self._status_configs: dict[str, RigConfig] = {}
         self.report: DeviceReport | None = None
         self._read_key = ""
+        self._barrels_filled = False
 
     # -- layout ------------------------------------------------------------------------------
     def compose(self) -> ComposeResult:
@@ -73,10 +72,8 @@ class SetupScreen(Screen[None]):
                 yield self._row("file", Input(self.settings.bat_path, id="bat-file", compact=True), "")
                 for name, label, unit in BAT_FIELDS:
                     yield self._row(label, Input(id=f"bat-{name}", compact=True), unit)
-                barrel = [(b.value, b.value) for b in Barrel]
-                yield self._row(
-                    "barrel", Select(barrel, id="bat-barrel", allow_blank=False, compact=True), ""
-                )
+                barrels = Select[str]([], id="bat-barrel", prompt="...", compact=True)  # after the paint
+                yield self._row("barrel", barrels, "")
             with Vertical(id="right"):
                 with Vertical(id="choice", classes="box"):
                     procs = [(label, ref) for label, ref in PROCEDURES]
@@ -117,28 +114,51 @@ class SetupScreen(Screen[None]):
         self.query_one("#bat", Vertical).border_title = "Bat"
         self.query_one("#choice", Vertical).border_title = "Procedure and rig"
         self.query_one("#devices", Static).border_title = "Devices"
-        if self.settings.bat_path:
-            self.load_bat_file(self.settings.bat_path)
-        self.query_one("#start", Button).focus()
-        self.action_read_devices()
+        if not self.settings.bat_path:
+            self.call_after_refresh(self._fill_barrels)
+        loaded = bool(self.settings.bat_path) and self.load_bat_file(self.settings.bat_path)
+        # a bat to type: the file field takes the keys; a bat given: s (or Enter) starts
+        self.query_one("#start" if loaded else "#bat-file").focus()
+        self._read_key = self.rig.key  # the rig selector's first Changed event must not read again
+        self.call_after_refresh(self.action_read_devices)  # opening the rig loads much: after the first paint
 
     # -- the bat -----------------------------------------------------------------------------
-    def load_bat_file(self, path: str) -> None:
+    def _fill_barrels(self) -> None:
+        """The barrel choices, from the bat model (loaded now, not before the first paint)."""
+        if self._barrels_filled:
+            return
+        from rig.core.bat import Barrel  # light (pydantic): not under LOADING, so never waits
+
+        select: Select[str] = self.query_one("#bat-barrel", Select)
+        select.set_options([(b.value, b.value) for b in Barrel])
+        select.value = next(iter(Barrel)).value
+        self._barrels_filled = True
+
+    def load_bat_file(self, path: str) -> bool:
         """Fill the form from a bat file; a bad file shows why and leaves the form as it was."""
+        from rig.core.bat import BatSpec
+
+        self._fill_barrels()
         try:
             bat = BatSpec.load(path)
         except ConfigError as exc:
             self.show_status(f"bat file: {exc}", error=True)
-            return
+            return False
         for name, _, _ in BAT_FIELDS:
             value = getattr(bat, name)
             text = "" if value is None else f"{value:g}" if isinstance(value, float) else str(value)
             self.query_one(f"#bat-{name}", Input).value = text
         self.query_one("#bat-barrel", Select).value = bat.barrel.value
-        self.show_status(f"bat {bat.id} loaded from {path}")
+        self.show_status(f"bat {bat.id} loaded from {path}: s or Enter starts")
+        return True
 
     def bat_from_form(self) -> BatSpec:
         """The bat as the form describes it; a bad value raises ConfigError naming the field."""
+        from pydantic import ValidationError
+
+        from rig.core.bat import BatSpec
+
+        self._fill_barrels()
         data: dict[str, object] = {}
         for name, _, _ in BAT_FIELDS:
             value = self.query_one(f"#bat-{name}", Input).value.strip()
@@ -152,8 +172,8 @@ class SetupScreen(Screen[None]):
             raise ConfigError(first["msg"], source="bat", field=".".join(map(str, first["loc"]))) from None
 
     def on_input_submitted(self, event: Input.Submitted) -> None:
-        if event.input.id == "bat-file" and event.value.strip():
-            self.load_bat_file(event.value.strip())
+        if event.input.id == "bat-file" and event.value.strip() and self.load_bat_file(event.value.strip()):
+            self.query_one("#start", Button).focus()  # the next key starts (s or Enter)
 
     # -- the rig -----------------------------------------------------------------------------
     @property
@@ -183,6 +203,8 @@ class SetupScreen(Screen[None]):
         self.app.call_from_thread(self._show_devices, report)
 
     def _show_devices(self, report: DeviceReport) -> None:
+        from rig.tui.render import STATE_STYLE, interlock_text
+
         self.report = report
         text = Text()
         if report.cannon is not None:
@@ -227,6 +249,10 @@ class SetupScreen(Screen[None]):
 
     def build_job(self) -> RunJob:
         """The run the form describes; raises RigError (with the field) when something is wrong."""
+        with LOADING:  # loaded at the first start (or by the warm-up), not before the first paint
+            from protocols.procedure import Procedure
+            from protocols.runner import dry_run
+
         bat = self.bat_from_form()
         procedure = Procedure.load(str(self.query_one("#procedure", Select).value))
         choice = self.rig

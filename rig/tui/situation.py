@@ -25,6 +25,7 @@ class Situation:
     ended: str = ""  # the outcome's status once the run has ended: finished | interrupted
     reason: str = ""  # why it was interrupted
     failure: str = ""  # the error that stopped it (a device fault)
+    ring_check: bool = False  # whether the procedure asks for ring checks
 
 
 def fire_block(s: Situation) -> str:
@@ -40,7 +41,31 @@ def fire_block(s: Situation) -> str:
     return ""
 
 
-RUN_KEYS = ("fire", "answer", "pause", "abort", "resume", "back")
+RUN_KEYS = ("fire", "quick", "answer", "pause", "abort", "resume", "back")
+
+
+def quick_answer(prompt_id: str, ring_check: bool) -> tuple[str, ...] | None:
+    """What Enter answers yes with the pending prompt: the ring checks that come next with nothing
+    hitting the bat between (None: Enter does not answer this prompt, e.g. a fire)."""
+    kind, _, number = prompt_id.rpartition("-")
+    if prompt_id == "ball" or kind == "ring-before":
+        return ()
+    if not number.isdigit() or not ring_check:
+        return () if kind == "review" else None
+    after, before = f"ring-after-{number}", f"ring-before-{int(number) + 1}"
+    if kind == "review":  # accept the shot and pass the ring check after it (and before the next)
+        return (after, before)
+    if kind == "ring-after":  # the bat is not hit between this check and the next shot's
+        return (before,)
+    return None
+
+
+QUICK_HINT = {
+    "review": "Enter: accept, and the ring passes  y: accept only  n: reject",
+    "ring-after": "Enter/y: passes (also counts before the next shot)  n: fails",
+    "ring-before": "Enter/y: passes  n: fails",
+    "ball": "Enter/y: done  n: stop the run",
+}
 
 
 def allowed(s: Situation, action: str) -> bool | None:
@@ -49,6 +74,8 @@ def allowed(s: Situation, action: str) -> bool | None:
         return True if not fire_block(s) else (None if s.running else False)
     if action == "answer":
         return s.prompt is not None and not s.prompt.is_fire
+    if action == "quick":
+        return s.prompt is not None and quick_answer(s.prompt.prompt_id, s.ring_check) is not None
     if action in ("pause", "abort"):
         return s.running
     if action == "resume":  # after an interruption or a fault
@@ -68,7 +95,12 @@ def prompt_text(s: Situation) -> Text:
             return Text(f"FIRE DISABLED: {blocked}", style="bold red")
         return Text.assemble((s.prompt.text, "bold"), "  f: arm and fire")
     if s.prompt is not None:
-        return Text.assemble((s.prompt.text, "bold"), "  y: yes  n: no")
+        pid = s.prompt.prompt_id
+        kind = pid if pid == "ball" else pid.rpartition("-")[0]
+        hint = QUICK_HINT.get(kind, "y: yes  n: no")
+        if kind == "review" and not s.ring_check:
+            hint = "Enter/y: accept  n: reject"
+        return Text.assemble((s.prompt.text, "bold"), "  ", (hint, "reverse"))
     if s.running:
         return Text("Paused: p goes on" if s.paused else "Running...", style="bold")
     if s.failure:
@@ -86,4 +118,8 @@ def message_text(s: Situation, live: LiveRun) -> Text:
         return verdict_text(live)
     if live.interrupted:
         return Text(f"interrupted: {live.interrupted}", style="yellow")
+    shot = live.shot
+    if shot is not None and shot.status in ("invalid", "lost"):  # why, in full: it decides a re-shoot
+        why = "; ".join(shot.reasons) or "no reason given"
+        return Text(f"shot {shot.index} {shot.status.upper()}: {why}", style="yellow")
     return Text(live.cannon_error and f"cannon: {live.cannon_error}", style="red")

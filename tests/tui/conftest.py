@@ -13,7 +13,6 @@ import pytest
 from textual.pilot import Pilot
 
 from rig.tui import ConsoleSettings, RigConsole
-from rig.tui.modals import ConfirmScreen
 from rig.tui.run import RunScreen
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -62,8 +61,7 @@ async def start_run(pilot: Pilot) -> RunScreen:
 
 
 async def answer_prompts(pilot: Pilot, screen: RunScreen, timeout: float = 60.0) -> None:
-    """Until the run ends: confirm every fire (f, then y in the modal) and pass every ring check (y)."""
-    app = pilot.app
+    """Until the run ends: confirm every fire (f) and pass every ring check, one prompt at a time (y)."""
 
     def actionable() -> bool:
         p = screen.operator.pending
@@ -76,8 +74,5 @@ async def answer_prompts(pilot: Pilot, screen: RunScreen, timeout: float = 60.0)
         prompt = screen.operator.pending
         if not screen.running or prompt is None:
             continue
-        if prompt.is_fire:
-            await pilot.press("f")
-            await until(pilot, lambda: isinstance(app.screen, ConfirmScreen), "the fire confirmation")
-        await pilot.press("y")
+        await pilot.press("f" if prompt.is_fire else "y")
         await until(pilot, lambda p=prompt: screen.operator.pending is not p, "the answer to go through")

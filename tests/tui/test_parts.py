@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from dataclasses import replace
 from pathlib import Path
@@ -21,7 +22,7 @@ from rig.tui.live import LiveRun
 from rig.tui.operator import CannonRead, ConsoleOperator, GatesRead, PromptClosed, PromptPending
 from rig.tui.render import gate_times, gauge, progress_panel, sparkline
 from rig.tui.report import record_summary
-from rig.tui.situation import Situation, allowed, fire_block, prompt_text
+from rig.tui.situation import Situation, allowed, fire_block, prompt_text, quick_answer
 from tests.tui.conftest import QUICK, SAMPLE_BAT
 
 
@@ -79,7 +80,7 @@ def test_fire_is_off_unless_a_fire_prompt_waits_with_every_interlock_closed() ->
     assert "unknown" in fire_block(replace(ready, cannon_error="timeout"))
     ring = PromptPending("ring-before-3", "Ring check?")
     assert fire_block(replace(ready, prompt=ring)) != ""
-    assert "y: yes" in prompt_text(replace(ready, prompt=ring)).plain
+    assert "Enter/y: passes  n: fails" in prompt_text(replace(ready, prompt=ring)).plain
     assert "FIRE DISABLED" in prompt_text(replace(ready, cannon=status(door=False))).plain
     assert allowed(ready, "fire") is True and allowed(replace(ready, paused=True), "fire") is None
     assert allowed(replace(ready, running=False), "fire") is False  # hidden once the run has ended
@@ -109,3 +110,49 @@ def test_operator_waits_for_the_ui_and_polls_the_cannon_meanwhile() -> None:
     op.cancel("aborted by the operator")
     with pytest.raises(RunAborted, match="aborted"):
         op.ask("fire-2", "Fire?")
+
+
+def test_enter_answers_only_what_needs_no_thought() -> None:
+    assert quick_answer("review-4", ring_check=True) == ("ring-after-4", "ring-before-5")
+    assert quick_answer("ring-after-4", ring_check=True) == ("ring-before-5",)
+    assert quick_answer("ring-before-4", ring_check=True) == ()
+    assert quick_answer("review-4", ring_check=False) == () and quick_answer("ball", True) == ()
+    assert quick_answer("fire-4", ring_check=True) is None  # a fire takes its own key
+    assert quick_answer("edge-location", ring_check=True) is None  # a question to think about
+    fire = Situation(running=True, prompt=PromptPending("fire-3", "Fire?"), cannon=status())
+    assert allowed(fire, "quick") is False and allowed(fire, "answer") is False
+    review = replace(fire, prompt=PromptPending("review-3", "Accept?"), ring_check=True)
+    assert allowed(review, "quick") is True
+    assert "Enter: accept, and the ring passes" in prompt_text(review).plain
+
+
+def _ask_in_thread(op: ConsoleOperator, prompt_id: str) -> list[bool]:
+    out: list[bool] = []
+
+    def ask() -> None:
+        with contextlib.suppress(RunAborted):  # the test ends by cancelling the last one
+            out.append(op.ask(prompt_id, prompt_id))
+
+    t = threading.Thread(target=ask)
+    t.start()
+    t.join(0.3)
+    return out if not t.is_alive() else []
+
+
+def test_ring_checks_answered_with_the_key_before_stop_at_anything_else() -> None:
+    op = ConsoleOperator(lambda notice: None, poll_s=0.01)
+    with pytest.raises(ValueError, match="ring checks"):
+        op.answer("review-1", True, ("fire-2",))  # a fire is never answered in advance
+    worker = threading.Thread(target=op.ask, args=("review-1", "Accept?"))
+    worker.start()
+    while op.pending is None:
+        pass
+    assert op.answer("review-1", True, ("ring-after-1", "ring-before-2"))
+    worker.join(2)
+    assert _ask_in_thread(op, "ring-after-1") == [True]  # returned at once: no one was asked
+    assert op.pending is None
+    assert _ask_in_thread(op, "edge-location") == []  # something else: it waits for the operator
+    assert op.pending is not None and op.pending.prompt_id == "edge-location"
+    op.answer("edge-location", True)
+    assert _ask_in_thread(op, "ring-before-2") == []  # the carried check did not survive it
+    op.cancel("done")

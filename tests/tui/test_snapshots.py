@@ -1,4 +1,5 @@
-"""SVG snapshots of the console's main screens at 80x24 (baselines in __snapshots__/).
+"""SVG snapshots of the console's main screens at 80x24, and at 60x20 and 120x40 (baselines in
+__snapshots__/).
 
 What would vary between runs is held still: no cursor blink, no toasts, the store's clock frozen,
 run ids counted instead of random, relative paths, the ideal scene (deterministic). Update the
@@ -14,6 +15,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 import pytest
+from rich.text import Text
 from textual.pilot import Pilot
 from textual.widgets import Input, Markdown
 
@@ -24,6 +26,7 @@ from rig.session import sim_config
 from rig.store import Store
 from rig.tui import ConsoleSettings, RigConsole
 from rig.tui.history import HistoryScreen
+from rig.tui.modals import TooSmallScreen
 from rig.tui.setup import SetupScreen
 from simulators.urlhandler import reset_worlds
 from tests.tui.conftest import QUICK, ROOT, answer_prompts, start_run, until
@@ -78,15 +81,37 @@ def test_help_overlay(snap_compare: Snap, tmp_path: Path) -> None:
     assert snap_compare(RigConsole(settings(tmp_path)), terminal_size=SIZE, run_before=help_open)
 
 
-def test_run_screen_at_the_verdict(snap_compare: Snap, tmp_path: Path) -> None:
-    async def whole_run(pilot: Pilot) -> None:
-        screen = await start_run(pilot)
-        await answer_prompts(pilot, screen)
-        await until(pilot, lambda: screen.live.prediction is not None, "the model's prediction")
-        still(pilot)
+async def whole_run(pilot: Pilot) -> None:
+    screen = await start_run(pilot)
+    await answer_prompts(pilot, screen)
+    await until(pilot, lambda: screen.live.prediction is not None, "the model's prediction")
+    still(pilot)
 
+
+def test_run_screen_at_the_verdict(snap_compare: Snap, tmp_path: Path) -> None:
     app = RigConsole(settings(tmp_path, procedure=str(QUICK.relative_to(ROOT))))
     assert snap_compare(app, terminal_size=SIZE, run_before=whole_run)
+
+
+def test_run_screen_at_the_verdict_120x40(
+    snap_compare: Snap, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The wide layout: the scan, the hits, the budget and the device traffic as well.
+
+    The traffic's last lines depend on how often the cannon was polled while a prompt waited
+    (timing), so here the panel shows a fixed line; test_sizes checks its content.
+    """
+    monkeypatch.setattr("rig.tui.render.traffic_panel", lambda live, lines=12: Text("(device traffic)"))
+    app = RigConsole(settings(tmp_path, procedure=str(QUICK.relative_to(ROOT))))
+    assert snap_compare(app, terminal_size=(120, 40), run_before=whole_run)
+
+
+def test_too_small_notice_60x20(snap_compare: Snap, tmp_path: Path) -> None:
+    async def notice(pilot: Pilot) -> None:
+        await until(pilot, lambda: isinstance(pilot.app.screen, TooSmallScreen), "the notice")
+        await pilot.pause()
+
+    assert snap_compare(RigConsole(settings(tmp_path)), terminal_size=(60, 20), run_before=notice)
 
 
 def test_history_screen(snap_compare: Snap, tmp_path: Path) -> None:

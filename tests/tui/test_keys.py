@@ -1,0 +1,183 @@
+"""The operator's keys: the first screen takes a bat path, and a whole BBCOR takes few keys.
+
+Every key goes through `Keys.press`, which counts it; the fires are counted on the record
+(ShotFired) and compared with the operator's confirmations (OperatorAnswered fire-N: yes) and
+with the fire keys the test pressed, so "fewer keys" can never mean "fires nobody confirmed".
+"""
+
+from __future__ import annotations
+
+import asyncio
+import time
+import tomllib
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+from textual.pilot import Pilot
+from textual.widgets import Input, Markdown, Static
+
+from protocols.procedure import Procedure
+from rig.certification import certify
+from rig.core.bat import BatSpec
+from rig.session import sim_config
+from rig.store import Store
+from rig.tui import ConsoleSettings, RigConsole
+from rig.tui.history import HistoryScreen
+from rig.tui.operator import ConsoleOperator
+from rig.tui.run import RunScreen
+from rig.tui.setup import SetupScreen
+from tests.tui.conftest import QUICK, SAMPLE_BAT, until
+
+SIZE = (80, 24)
+MAX_KEYS = 40
+
+
+class Keys:
+    """Pilot.press that counts every key."""
+
+    def __init__(self, pilot: Pilot) -> None:
+        self.pilot, self.pressed = pilot, []
+
+    async def press(self, *keys: str) -> None:
+        self.pressed.extend(keys)
+        await self.pilot.press(*keys)
+
+
+def test_typing_a_bat_path_on_the_first_screen_loads_it(
+    make_settings: Callable[..., ConsoleSettings],
+) -> None:
+    async def body() -> None:
+        app = RigConsole(make_settings(bat_path=""))
+        async with app.run_test(size=SIZE) as pilot:
+            setup = app.screen
+            assert isinstance(setup, SetupScreen)
+            await pilot.pause()
+            assert app.focused is setup.query_one("#bat-file", Input)
+            path = str(SAMPLE_BAT)
+            await pilot.press(*path, "enter")  # one character at a time, as typed
+            assert setup.query_one("#bat-file", Input).value == path
+            bat = tomllib.loads(SAMPLE_BAT.read_text())["bat"]  # the file itself, not BatSpec
+            assert setup.query_one("#bat-id", Input).value == bat["id"]
+            assert float(setup.query_one("#bat-length_in", Input).value) == bat["length_in"]
+            assert isinstance(app.screen, SetupScreen)  # no hotkey fired on the way
+            assert [n.title for n in app._notifications] == []  # no "Cannot start" pop-up
+            assert f"bat {bat['id']} loaded" in str(setup.query_one("#status", Static).render())
+
+    asyncio.run(body())
+
+
+def test_whole_bbcor_in_at_most_40_keys_every_fire_confirmed(
+    make_settings: Callable[..., ConsoleSettings],
+) -> None:
+    settings = make_settings()
+    fire_keys = 0
+
+    async def body() -> list[str]:
+        nonlocal fire_keys
+        app = RigConsole(settings)
+        async with app.run_test(size=SIZE) as pilot:
+            keys = Keys(pilot)
+            await until(pilot, lambda: isinstance(app.screen, SetupScreen) and app.screen.report, "set-up")
+            await keys.press("s")
+            await until(pilot, lambda: isinstance(app.screen, RunScreen), "the run screen")
+            screen = app.screen
+            assert isinstance(screen, RunScreen)
+            op: ConsoleOperator = screen.operator
+            deadline = time.monotonic() + 120
+            while screen.running:
+                assert time.monotonic() < deadline, "the run did not end in time"
+                await until(
+                    pilot,
+                    lambda: (
+                        not screen.running
+                        or (op.pending is not None and (not op.pending.is_fire or not screen.fire_block()))
+                    ),
+                    "a prompt",
+                )
+                prompt = op.pending
+                if not screen.running or prompt is None:
+                    continue
+                if prompt.is_fire:
+                    fire_keys += 1
+                    await keys.press("f")
+                elif prompt.prompt_id == "edge-location":
+                    await keys.press("y")
+                else:  # a ring check, a review of a valid shot, the ball: no thought needed
+                    await keys.press("enter")
+                await until(pilot, lambda p=prompt: op.pending is not p, "the answer to go through")
+            assert screen.outcome is not None and screen.outcome.status == "finished"
+            return keys.pressed
+
+    pressed = asyncio.run(body())
+    print(f"\nkeys from set-up to the verdict: {len(pressed)} ({' '.join(pressed)})")
+    with Store.open(settings.db, create=False) as store:
+        (run,) = store.runs()
+        assert run.status == "finished" and run.verdict == "PASS"
+        fired = store.entries(run.run_id, kinds=["ShotFired"])
+        answered = [e.payload for e in store.entries(run.run_id, kinds=["OperatorAnswered"])]
+        confirmed = [p for p in answered if p["prompt_id"].startswith("fire-") and p["answer"]]
+        rings = [p for p in answered if p["prompt_id"].startswith("ring-")]
+    assert len(fired) == len(confirmed) == fire_keys == 14  # one operator's key per fire, no more
+    assert {f"fire-{e.payload['index']}" for e in fired} == {p["prompt_id"] for p in confirmed}
+    assert len(rings) == 28 and all(p["answer"] for p in rings)  # before and after every hit
+    assert len(pressed) <= MAX_KEYS
+
+
+def test_history_shows_the_certificate_without_drawing_figures(
+    make_settings: Callable[..., ConsoleSettings], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """The History screen renders the certificate's Markdown and never a PNG (that took seconds)."""
+    import rig.report.cert_plots as plots
+
+    drawn: list[object] = []
+    monkeypatch.setattr(plots, "write_figures", lambda *a, **k: drawn.append(a) or {})
+    monkeypatch.chdir(tmp_path)  # any figure folder would land here
+    settings = make_settings()
+    bat = BatSpec.load(SAMPLE_BAT)
+    with Store.open(settings.db) as store:
+        run_id = certify(store, Procedure.load(QUICK), bat, sim_config("ideal", bat=bat)).run_id
+
+    async def body() -> str:
+        app = RigConsole(settings)
+        async with app.run_test(size=SIZE) as pilot:
+            await until(pilot, lambda: isinstance(app.screen, SetupScreen) and app.screen.report, "set-up")
+            await pilot.press("h")
+            await until(pilot, lambda: isinstance(app.screen, HistoryScreen), "the history")
+            report = app.screen.query_one("#report-text", Markdown)
+            await until(pilot, lambda: report.source.startswith("# Bat performance certificate"), "it")
+            return report.source
+
+    source = asyncio.run(body())
+    assert drawn == [] and list(tmp_path.rglob("*.png")) == []
+    assert run_id in source and "Quick BBCOR (UI tests)" in source and "![" not in source
+
+
+def test_the_set_up_screen_reads_the_devices_once(
+    make_settings: Callable[..., ConsoleSettings], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The read starts after the first paint; the rig selector's first event must not start another
+    (two reads at once: the second finds the ports busy)."""
+    import rig.tui.setup as setup_module
+
+    calls: list[str] = []
+    real = setup_module.read_devices
+    monkeypatch.setattr(
+        setup_module, "read_devices", lambda config, lock: calls.append("read") or real(config, lock)
+    )
+
+    async def body() -> None:
+        app = RigConsole(make_settings())
+        async with app.run_test(size=SIZE) as pilot:
+            setup = app.screen
+            assert isinstance(setup, SetupScreen)
+            await until(pilot, lambda: setup.report is not None, "the device check")
+            await until(
+                pilot, lambda: all(w.is_finished for w in app.workers), "idle"
+            )
+            assert setup.report is not None and setup.report.errors == ()
+            await pilot.press("r")  # asked again: read again
+            await until(pilot, lambda: len(calls) == 2 and setup.report is not None, "the second read")
+
+    asyncio.run(body())
+    assert calls == ["read", "read"]
