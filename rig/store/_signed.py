@@ -17,9 +17,6 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
-from cryptography.exceptions import InvalidSignature
-from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
-
 from rig.store._codec import canonical_json
 from rig.store._records import CLOSED_STATUSES, RUN_CREATED, RUN_STATUS_CHANGED, VerifyReport
 
@@ -52,6 +49,9 @@ class RegisteredKey:
 
     def verifies(self, signature: bytes, message: bytes) -> bool:
         """Whether `signature` is this key's Ed25519 signature of `message`."""
+        from cryptography.exceptions import InvalidSignature  # loaded when a signature is checked
+        from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PublicKey
+
         try:
             Ed25519PublicKey.from_public_bytes(base64.b64decode(self.public_key)).verify(signature, message)
         except (InvalidSignature, ValueError):
