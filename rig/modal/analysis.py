@@ -288,11 +288,12 @@ def analyze_hits(rec: Recording, hits: Hits, settings: ModalSettings) -> ModalRe
         if mf.unresolved:
             blends.append(modes[-1])
     modes.sort(key=lambda m: m.frequency_hz)
+    modes = _without_mains(modes, warnings)
     _check_noise_peaks(name, noise_peaks, modes, s, warnings)
     if buried:
         warnings.append(
             f"{len(buried)} peak(s) not clear of the FRF's noise"
-            f" (rise < {s.min_snr:g} x noise std) ignored: " + ", ".join(f"{f:.0f}" for f in buried) + " Hz"
+            f" (rise < {s.min_snr:g} x noise std) ignored: {_listed(buried)} Hz"
         )
     elif frf.noise_h is None:
         warnings.append(
@@ -355,6 +356,43 @@ def analysis_band(frf: frf_mod.FrfEstimate, s: ModalSettings, fs: float) -> tupl
     lo = s.f_min_hz if s.f_min_hz is not None else max(BAND_MIN_BINS * frf.df, BAND_FLOOR_HZ)
     hi = s.f_max_hz if s.f_max_hz is not None else frf_mod.force_band(frf, s.force_drop_db)
     return max(lo, 2.0 * frf.df), min(hi, 0.45 * fs)
+
+
+# Mains interference: a sine at a multiple of 50 or 60 Hz reads as a mode without damping. No bat
+# mode is that undamped (hoop and bending modes: zeta 0.001-0.02), and none sits within this of a
+# multiple of the mains frequency by chance often enough to matter.
+MAINS_HZ = (50.0, 60.0)
+MAINS_TOLERANCE_HZ = 0.5
+MAINS_MAX_DAMPING = 2e-4
+LISTED = 12  # frequencies listed in a warning; the rest are counted
+
+
+def _without_mains(modes: list[Mode], warnings: list[str]) -> list[Mode]:
+    """Modes less those that are mains hum (undamped, at a multiple of 50 or 60 Hz), with a warning."""
+    hum = [
+        m
+        for m in modes
+        if m.damping_ratio < MAINS_MAX_DAMPING
+        and any(
+            abs(m.frequency_hz - n * base) <= MAINS_TOLERANCE_HZ
+            for base in MAINS_HZ
+            for n in range(1, 1 + int(m.frequency_hz // base) + 1)
+        )
+    ]
+    if hum:
+        warnings.append(
+            "mains interference left out: "
+            + ", ".join(f"{m.frequency_hz:.2f} Hz (damping {m.damping_ratio:.1e})" for m in hum)
+            + ", undamped at a multiple of 50 or 60 Hz: check the grounding and shielding of the"
+            " sensor cables"
+        )
+    return [m for m in modes if m not in hum]
+
+
+def _listed(freqs: list[float]) -> str:
+    """Frequencies for a warning: the first LISTED, and a count of the rest."""
+    shown = ", ".join(f"{f:.0f}" for f in freqs[:LISTED])
+    return shown if len(freqs) <= LISTED else f"{shown} and {len(freqs) - LISTED} more up to {max(freqs):.0f}"
 
 
 def _still_ringing(rec: Recording, hits: Hits, fraction: float) -> list[str]:

@@ -53,10 +53,11 @@ class Recording:
         accel1: Iterable[float],
         accel2: Iterable[float],
         source: str = "",
-        first_line: int = 1,
+        first_line: Lines = 1,
         time_quantum: np.ndarray | float = 0.0,
     ) -> Recording:
-        """Check and freeze the arrays; `first_line` numbers the samples in error messages.
+        """Check and freeze the arrays; `first_line` numbers the samples in error messages (the
+        number of the first, or each sample's own: a file's line numbers).
 
         `time_quantum` is the last printed digit of each time (s): rounding that the time axis
         may carry without being uneven (a float32 column's spacing is allowed for by itself).
@@ -73,7 +74,7 @@ class Recording:
             bad = np.flatnonzero(~np.isfinite(a))
             if bad.size:
                 raise RecordingFormatError(
-                    f"{where}{name} is {a[bad[0]]} at sample {bad[0] + first_line}"
+                    f"{where}{name} is {a[bad[0]]} at sample {_at(first_line, int(bad[0]))}"
                     f" ({bad.size} non-finite value(s) in that column)"
                 )
         step = _check_time(arrays[0], time_quantum, where, first_line)
@@ -146,7 +147,15 @@ def _float32_ulp(t: np.ndarray) -> np.ndarray | float:
     return np.spacing(np.abs(t32)).astype(float)
 
 
-def _check_time(t: np.ndarray, quantum: np.ndarray | float, where: str, first_line: int) -> float:
+Lines = int | np.ndarray  # the first sample's number, or every sample's (line numbers in a file)
+
+
+def _at(lines: Lines, i: int) -> int:
+    """Sample i's number in messages: its line in the file where known."""
+    return int(lines[i]) if isinstance(lines, np.ndarray) else i + lines
+
+
+def _check_time(t: np.ndarray, quantum: np.ndarray | float, where: str, first_line: Lines) -> float:
     """Check the time axis and return its step: a least-squares line through the times.
 
     Each time may carry rounding up to half its `quantum` (the last printed digit), plus half the
@@ -156,7 +165,8 @@ def _check_time(t: np.ndarray, quantum: np.ndarray | float, where: str, first_li
     uneven step, each named with its sample; then no time may lie further from the fitted line
     than its own rounding allows.
     """
-    q = np.broadcast_to(np.asarray(quantum, dtype=float) + _float32_ulp(t), t.shape)
+    # the printed digits' rounding, a float32 column's, and a float64 value's own spacing (Unix time)
+    q = np.broadcast_to(np.asarray(quantum, dtype=float) + _float32_ulp(t) + np.spacing(np.abs(t)), t.shape)
     n = t.size
     overall = float((t[-1] - t[0]) / (n - 1))
     steps = np.diff(t)
@@ -167,15 +177,18 @@ def _check_time(t: np.ndarray, quantum: np.ndarray | float, where: str, first_li
             # rounding to the printed digits alone can give this step: the digits are too few
             raise RecordingFormatError(
                 f"{where}the time column is printed to {float(np.median(q)):.3g} s, too coarse for its"
-                f" step of {overall:.3g} s: it cannot tell the samples apart (sample {i + first_line});"
+                f" step of {overall:.3g} s: it cannot tell the samples apart (sample {_at(first_line, i)});"
                 f" export the time with more digits"
             )
         raise RecordingFormatError(
-            f"{where}time is not strictly increasing at sample {i + first_line}"
+            f"{where}time is not strictly increasing at sample {_at(first_line, i)}"
             f" ({t[i - 1]:.9g} s then {t[i]:.9g} s)"
         )
-    step = float(np.median(steps[: min(64, steps.size)]))
-    tol = q[:-1] + q[1:] + UNIFORM_TOLERANCE * step
+    first = min(64, steps.size)
+    step = float(np.median(steps[:first]))
+    # each step's two roundings, the reference step's own (the median of steps rounded as finely
+    # as the first times are: around t = 0 that is finer than later on) and UNIFORM_TOLERANCE
+    tol = q[:-1] + q[1:] + 2.0 * float(np.max(q[: first + 1])) + UNIFORM_TOLERANCE * step
     off = np.flatnonzero(np.abs(steps - step) > tol)
     if off.size:
         _raise_uneven(t, steps, int(off[0]), step, tol, where, first_line)
@@ -187,17 +200,17 @@ def _check_time(t: np.ndarray, quantum: np.ndarray | float, where: str, first_li
         i = int(np.argmax(residual))
         raise RecordingFormatError(
             f"{where}sampling is not even: the time column wanders off an even axis (step {fitted:.6g} s)"
-            f" by up to {residual[i]:.3g} s ({residual[i] / fitted:.2g} steps, at sample {i + first_line},"
-            f" {t[i]:.9g} s), more than its printed precision allows"
+            f" by up to {residual[i]:.3g} s ({residual[i] / fitted:.2g} steps, at sample"
+            f" {_at(first_line, i)}, {t[i]:.9g} s), more than its printed precision allows"
         )
     return fitted
 
 
 def _raise_uneven(
-    t: np.ndarray, steps: np.ndarray, i: int, step: float, tol: np.ndarray, where: str, first_line: int
+    t: np.ndarray, steps: np.ndarray, i: int, step: float, tol: np.ndarray, where: str, first_line: Lines
 ) -> None:
     """Name what happened at step i (from sample i to i + 1): a gap, a new sample rate, or one odd step."""
-    at = f"at sample {i + 1 + first_line}"
+    at = f"at sample {_at(first_line, i + 1)}"
     after = steps[i + 1 : i + 17]
     new = float(np.median(after)) if after.size else step
     same_after = abs(new - step) <= float(np.max(tol[i + 1 : i + 17], initial=tol[i]))
@@ -249,7 +262,12 @@ def read_csv(path: str | Path) -> Recording:
             f"{path}: line {i + 1}: header {lines[i].strip()!r} must be exactly {CSV_HEADER!r}"
             f" ({'; '.join(detail)})"
         )
-    body = [(n + 1, line) for n, line in enumerate(lines[i + 1 :], start=i + 1) if line.strip()]
+    # blank lines and comment lines inside the data are skipped; messages give each sample's line
+    body = [
+        (n + 1, line)
+        for n, line in enumerate(lines[i + 1 :], start=i + 1)
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
     if not body:
         raise RecordingFormatError(f"{path}: no samples after the header")
     first_line = body[0][0]
@@ -263,7 +281,8 @@ def read_csv(path: str | Path) -> Recording:
     data[:, 0] *= scale
     _check_time_unit(data[:, 0], path, first_line - 1)
     quantum = scale * time_quantum(line.partition(",")[0] for _, line in body)
-    return Recording.build(*data.T, source=str(path), first_line=first_line, time_quantum=quantum)
+    numbers = np.array([n for n, _ in body])
+    return Recording.build(*data.T, source=str(path), first_line=numbers, time_quantum=quantum)
 
 
 def _check_time_unit(t: np.ndarray, path: Path, header_line: int) -> None:

@@ -240,3 +240,40 @@ def test_a_time_column_that_wanders_is_refused_saying_how_far(recording: Recordi
         RecordingFormatError, match=r"wanders off an even axis .* by up to .* steps, at sample"
     ):
         Recording.build(t, recording.force, recording.accel1, recording.accel2)
+
+
+def test_comment_and_blank_lines_inside_the_data(recording: Recording, tmp_path: Path) -> None:
+    """Review of issue 13: '# pause' inside the data ended in a traceback; after blank lines the
+    sample numbers in messages were off by their count. Comment and blank lines are skipped, and a
+    message names the file's own line."""
+    good = write_csv(recording, tmp_path / "g.csv").read_text().splitlines()
+    at = next(i for i, line in enumerate(good) if line.startswith("time_s,"))
+    lines = [*good[: at + 1000], "# pause", "", *good[at + 1000 :]]
+    back = read_csv(write(tmp_path, "\n".join(lines) + "\n", "c.csv"))
+    assert back.n == recording.n and back.fs == pytest.approx(recording.fs, rel=1e-9)
+    broken = list(lines)
+    nan_at = at + 3000  # 0-based index into `broken`: file line nan_at + 1
+    broken[nan_at] = broken[nan_at].replace(broken[nan_at].split(",")[1], "nan", 1)
+    with pytest.raises(RecordingFormatError, match=rf"force_N is nan at sample {nan_at + 1} "):
+        read_csv(write(tmp_path, "\n".join(broken) + "\n", "n.csv"))
+
+
+@pytest.mark.parametrize(
+    ("name", "shift", "fmt"),
+    [
+        ("negative start, 7 digits", -0.2, lambda t: f"{t:.7g}"),
+        ("negative start, 7 digits, 0.5 s", -0.5, lambda t: f"{t:.7g}"),
+        ("Unix time, 7 decimals", 1732430000.0, lambda t: f"{t:.7f}"),
+    ],
+)
+def test_time_around_zero_or_far_from_it(
+    recording: Recording, tmp_path: Path, name: str, shift: float, fmt: object
+) -> None:
+    """Review of issue 13: a pre-trigger time starting below zero, printed to 7 significant digits,
+    was refused as uneven (the first steps, rounded more finely near zero, set the reference); Unix
+    time with 7 decimals too (a float64's own spacing there is 2.4e-7 s)."""
+    path = _rewrite_time(
+        recording, tmp_path, name.replace(" ", "-").replace(",", ""), lambda t: fmt(t + shift)
+    )  # type: ignore[operator]
+    back = read_csv(path)
+    assert back.fs == pytest.approx(recording.fs, rel=2e-6)
