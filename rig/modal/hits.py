@@ -216,6 +216,15 @@ def segment(
     for p in pulses:
         if hits and p.start - hits[-1].start < reach:
             first = hits[-1]
+            gap = (p.start - first.start) / fs
+            if fixed is not None and gap >= min_spacing_s and p.peak_n >= 0.5 * first.peak_n:
+                # as strong as a hit and too late for a bounce: the window asked for is longer than
+                # the hits' spacing (a bounce is weaker: a test keeps one at 35 % a double hit)
+                raise RecordTooShort(
+                    f"{name}: the hit at {rec.time_s[p.start]:.4f} s comes {gap:.3g} s after the one at"
+                    f" {rec.time_s[first.start]:.4f} s, inside the window of {window_s:g} s asked for:"
+                    f" give a window shorter than the time between hits (or leave it automatic)"
+                )
             raise DoubleHit(
                 f"{name}: double hit: hit {len(hits)} at {rec.time_s[first.start]:.4f} s is followed"
                 f" {(p.start - first.start) / fs * 1e3:.2f} ms later by a second force pulse (peak"

@@ -258,6 +258,11 @@ def read_csv(path: str | Path) -> Recording:
             detail.append(f"unexpected {', '.join(extra)}")
         if not detail:
             detail.append("columns out of order")
+        for sep, name in ((";", "semicolons"), ("\t", "tabs")):
+            if len(header) == 1 and sep in lines[i]:
+                detail = [f"the columns are separated by {name}: the separator must be ','"]
+        if header and header[-1] == "" and header[:-1] == list(CSV_COLUMNS):
+            detail = ["a trailing comma"]
         raise RecordingFormatError(
             f"{path}: line {i + 1}: header {lines[i].strip()!r} must be exactly {CSV_HEADER!r}"
             f" ({'; '.join(detail)})"

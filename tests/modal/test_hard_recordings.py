@@ -175,3 +175,22 @@ def test_mains_hum_is_not_a_hoop_mode(hz: float, hits: int, interval: float) -> 
     assert res.hoop is not None and abs(res.hoop.frequency_hz - 1800.0) < 1.0
     assert all(abs(m.frequency_hz - hz) > 1.0 for m in res.modes)
     assert any(w.startswith("mains interference left out") for w in res.warnings), res.warnings
+
+
+def test_a_long_peak_list_is_cut_in_warnings() -> None:
+    """Review of issue 13: a 60 s one-hit record listed 10354 buried peaks in one ~60 kB warning."""
+    from rig.modal.analysis import LISTED, _listed
+
+    freqs = [100.0 + 3 * k for k in range(500)]
+    text = _listed(freqs)
+    assert text.count(",") == LISTED - 1 and text.endswith(f"and {500 - LISTED} more up to 1597")
+    assert _listed(freqs[:3]) == "100, 103, 106"
+
+
+def test_a_window_longer_than_the_hit_spacing_is_named_not_blamed_on_the_hammer() -> None:
+    """Review of issue 13: --window 5 on hits 0.2 s apart said 'double hit ... the hammer bounced'."""
+    from rig.modal import RecordTooShort
+
+    rec = simulate(SimSettings(hits=3, hit_interval_s=0.2, seed=2))
+    with pytest.raises(RecordTooShort, match=r"inside the window of 5 s asked for: give a window shorter"):
+        analyze(rec, ModalSettings(window_s=5.0))

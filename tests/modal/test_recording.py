@@ -277,3 +277,18 @@ def test_time_around_zero_or_far_from_it(
     )  # type: ignore[operator]
     back = read_csv(path)
     assert back.fs == pytest.approx(recording.fs, rel=2e-6)
+
+
+@pytest.mark.parametrize(
+    ("header", "needle"),
+    [
+        ("time_s;force_N;accel1_ms2;accel2_ms2", "separated by semicolons: the separator must be ','"),
+        ("time_s\tforce_N\taccel1_ms2\taccel2_ms2", "separated by tabs: the separator must be ','"),
+        ("time_s,force_N,accel1_ms2,accel2_ms2,", "(a trailing comma)"),
+    ],
+)
+def test_a_foreign_separator_is_named(tmp_path: Path, header: str, needle: str) -> None:
+    """Review of issue 13: these said 'missing time_s, force_N, ...; unexpected time_s;force_N;...'."""
+    with pytest.raises(RecordingFormatError) as err:
+        read_csv(write(tmp_path, "\n".join([header, *GOOD_ROWS])))
+    assert needle in str(err.value)
