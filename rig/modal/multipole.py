@@ -32,6 +32,7 @@ N_LINE = 4  # per FRF: C and D, complex
 F_TEST_P = 1e-6  # an extra pole is kept only if this unlikely under the smaller model
 MIN_SHARE = 0.05  # ... and its peak reaches this fraction of the band's largest |H|
 MAX_DAMPING = 0.1  # ... and it is a mode, not a broad term standing in for the far modes:
+BANDWIDTH_SHARE = 0.25  # an extra pole must lie this share of the wider half-power bandwidth apart
 DAMPING_FACTOR = 5.0  # damping at most this times the largest of the other poles' and MAX_DAMPING
 
 
@@ -261,7 +262,14 @@ def _judge(
     if max(trial.damping_ratios) > min(MAX_DAMPING, DAMPING_FACTOR * max(base.damping_ratios)):
         return None
     freqs = trial.frequencies_hz
-    if min(np.diff(freqs), default=math.inf) < min_separation_hz:
+    # apart by the resolution, and by a share of the pair's half-power bandwidth: poles closer than
+    # that are one broad peak to the data (a noisy 4 s record made a 'hoop' 0.9 Hz from a bending
+    # mode 5.5 Hz wide)
+    widths = [2.0 * z * f for f, z in zip(freqs, trial.damping_ratios, strict=True)]
+    apart = [
+        max(min_separation_hz, BANDWIDTH_SHARE * max(widths[i], widths[i + 1])) for i in range(len(freqs) - 1)
+    ]
+    if any(b - a < gap for a, b, gap in zip(freqs, freqs[1:], apart, strict=False)):
         return "close" if len(trial.poles) == len(base.poles) + 1 else None
     u = trial.u_frequency_hz
     if any(2.0 * (u[i] + u[i + 1]) >= freqs[i + 1] - freqs[i] for i in range(len(freqs) - 1)):

@@ -162,3 +162,13 @@ def test_no_made_up_pole_beside_a_lone_bending_mode() -> None:
     res = analyze(simulate(sim), ModalSettings(window_s=0.8, min_spacing_s=0.4))
     assert res.hoop is not None and abs(res.hoop.frequency_hz - hoop) <= res.hoop.expanded_uncertainty_hz
     assert [m.kind for m in res.modes if m.frequency_hz < 1000.0] == ["bending"] * 3
+
+
+def test_no_pole_is_made_inside_a_mode_s_own_bandwidth() -> None:
+    """Review of issue 13: two noisy 4 s hits gave a 'hoop' at 480.4 Hz, 0.9 Hz from the 481.3 Hz
+    bending mode whose half-power bandwidth is 5.5 Hz, and it became the first hoop. An extra pole
+    must lie a quarter of the wider bandwidth apart (and 1/T)."""
+    res = analyze(simulate(SimSettings(seed=18, hits=2, hit_interval_s=4.0, noise=0.01)))
+    assert res.hoop is not None and abs(res.hoop.frequency_hz - 1800.0) <= res.hoop.expanded_uncertainty_hz
+    low = [m for m in res.modes if m.frequency_hz < 1000.0]
+    assert [m.kind for m in low] == ["bending"] * 3, [(round(m.frequency_hz, 1), m.kind) for m in low]
