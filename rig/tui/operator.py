@@ -145,6 +145,12 @@ class ConsoleOperator:
             self._done.set()
             return True
 
+    def drop_answers_ahead(self) -> None:
+        """Forget ring checks answered in advance: after a pause, an abort or a withdrawn fail
+        something may have happened to the bat, so each is asked again."""
+        with self._lock:
+            self._standing = ()
+
     def cancel(self, reason: str) -> None:
         """Stop waiting: the pending (and any later) prompt raises RunAborted with `reason`."""
         with self._lock:

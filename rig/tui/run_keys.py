@@ -22,6 +22,8 @@ if TYPE_CHECKING:
 class RunKeys:
     """Actions of the run screen (mixed into RunScreen, which owns the state they use)."""
 
+    _withdrawn_fail: str | None = None  # a ring check failed with n, then withdrawn: Enter won't pass it
+
     if TYPE_CHECKING:  # provided by RunScreen and Screen; nothing is defined here at run time
         app: App[Any]
         settings: ConsoleSettings
@@ -50,9 +52,15 @@ class RunKeys:
         self.operator.answer(prompt.prompt_id, True)
 
     def action_quick(self) -> None:
-        """Enter: the answer that needs no thought (a ring check passes, a valid shot is accepted)."""
+        """Enter: the answer that needs no thought (a ring check passes, a valid shot is accepted);
+        not on a ring check whose fail was just withdrawn: that one needs y or n."""
         prompt = self.operator.pending
+        if prompt is not None and prompt.prompt_id == self._withdrawn_fail:
+            self.notify("the ring check was failed, then withdrawn: answer it with y (passes) or n (fails)")
+            return
         then = None if prompt is None else quick_answer(prompt.prompt_id, self.job.procedure.ring_check)
+        if then and self.control.paused:
+            then = ()  # paused: the bat may be handled before the run goes on, so no answers ahead
         if prompt is not None and then is not None:
             self.operator.answer(prompt.prompt_id, True, then)
 
@@ -68,6 +76,9 @@ class RunKeys:
         def confirmed(yes: bool | None) -> None:
             if yes:
                 self.operator.answer(prompt.prompt_id, False)
+            else:  # withdrawn: Enter must not now pass what the operator just failed
+                self._withdrawn_fail = prompt.prompt_id
+                self.operator.drop_answers_ahead()
 
         self.app.push_screen(
             ConfirmScreen("The ring does not pass: the run ends with FAIL (barrel deformed). Record that?"),
@@ -77,9 +88,11 @@ class RunKeys:
     def action_pause(self) -> None:
         """Hold before the next shot, or go on."""
         if self.control.paused:
+            self.operator.drop_answers_ahead()
             self.control.resume()
         else:
             self.control.pause()
+            self.operator.drop_answers_ahead()  # the bat may be handled: ring checks are asked again
             self.notify("the run holds before the next shot", title="Pause")
         self.refresh_view()
 
@@ -98,6 +111,7 @@ class RunKeys:
     def stop(self, reason: str) -> None:
         """Abort: the runner stops at its next hold; a prompt before a shot is withdrawn now."""
         self.control.abort()
+        self.operator.drop_answers_ahead()
         prompt = self.operator.pending
         if prompt is None or not prompt.prompt_id.startswith("ring-after-"):
             self.operator.cancel(reason)  # the ring check after a hit is still worth answering

@@ -172,12 +172,62 @@ def test_the_set_up_screen_reads_the_devices_once(
             setup = app.screen
             assert isinstance(setup, SetupScreen)
             await until(pilot, lambda: setup.report is not None, "the device check")
-            await until(
-                pilot, lambda: all(w.is_finished for w in app.workers), "idle"
-            )
+            await until(pilot, lambda: all(w.is_finished for w in app.workers), "idle")
             assert setup.report is not None and setup.report.errors == ()
             await pilot.press("r")  # asked again: read again
             await until(pilot, lambda: len(calls) == 2 and setup.report is not None, "the second read")
 
     asyncio.run(body())
     assert calls == ["read", "read"]
+
+
+def test_a_withdrawn_fail_and_a_pause_are_not_passed_by_habit(
+    make_settings: Callable[..., ConsoleSettings],
+) -> None:
+    """Review of issue 14: n, Enter (withdraws the fail), Enter recorded the ring check as passed;
+    and ring checks passed ahead by Enter on a review survived a pause, when the bat may be handled.
+    Now the withdrawn check needs y or n, and a pause drops answers given ahead."""
+    settings = make_settings()
+
+    async def body() -> None:
+        app = RigConsole(settings)
+        async with app.run_test(size=SIZE) as pilot:
+            await until(pilot, lambda: isinstance(app.screen, SetupScreen) and app.screen.report, "set-up")
+            await pilot.press("s")
+            await until(pilot, lambda: isinstance(app.screen, RunScreen), "the run screen")
+            screen = app.screen
+            assert isinstance(screen, RunScreen)
+            op: ConsoleOperator = screen.operator
+            await until(pilot, lambda: op.pending is not None, "the first ring check")
+            first = op.pending
+            assert first is not None and first.prompt_id.startswith("ring-before-")
+            await pilot.press("n")  # fail ... then withdraw it (the dialog's focus is on No)
+            await until(pilot, lambda: not isinstance(app.screen, RunScreen), "the confirmation")
+            await pilot.press("enter")
+            await until(pilot, lambda: app.screen is screen, "back to the run")
+            await pilot.press("enter")  # habit: this must not pass what was just failed
+            await pilot.pause(0.3)
+            assert op.pending is first, "Enter answered a ring check whose fail was withdrawn"
+            await pilot.press("y")  # an explicit pass goes through
+            await until(pilot, lambda: op.pending is not first, "the answer")
+            # the first shot: fire it, then accept the review with Enter (passes the next checks ahead)
+            await until(
+                pilot,
+                lambda: op.pending is not None and op.pending.is_fire and not screen.fire_block(),
+                "fire",
+            )
+            await pilot.press("f")
+            await until(
+                pilot, lambda: op.pending is not None and op.pending.prompt_id.startswith("review-"), "review"
+            )
+            await pilot.press("p")  # pause first: the bat may be handled now
+            await pilot.press("enter")
+            await pilot.press("p")  # go on
+            await until(
+                pilot,
+                lambda: op.pending is not None and op.pending.prompt_id.startswith("ring-after-"),
+                "asked",
+            )  # asked again, not answered ahead
+            screen.stop("test over")
+
+    asyncio.run(body())
