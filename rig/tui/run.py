@@ -45,7 +45,7 @@ class RunScreen(RunKeys, Screen[None]):
     RunScreen .box { border: round $primary; padding: 0 1; height: 6; }
     RunScreen #wide { display: none; height: 12; }
     RunScreen #wide .box { width: 1fr; height: 12; }
-    RunScreen #prompt { height: auto; max-height: 2; padding: 0 1; background: $warning 30%; }
+    RunScreen #prompt { height: auto; max-height: 4; padding: 0 1; background: $warning 30%; }
     RunScreen #message { height: auto; max-height: 4; padding: 0 1; }
     RunScreen #bottom { height: 1fr; min-height: 3; }
     RunScreen #log { height: 1fr; width: 1fr; border: round $primary-darken-2; padding: 0 1; }

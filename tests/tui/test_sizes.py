@@ -151,3 +151,37 @@ def test_at_120x40_the_scan_the_hits_the_budget_and_the_traffic_show(
     assert f"shot {last['index']} bbcor {last['metric']:.4f}" in shown
     assert re.search(r"(cannon|gates|clamp) > \S", shown) and re.search(r"(cannon|gates|clamp) < \S", shown)
     assert "SIMULATED: ideal" in shown and "PASS" in shown
+
+
+def test_at_80x24_the_scan_edge_question_is_shown_whole(
+    make_settings: Callable[..., ConsoleSettings],
+) -> None:
+    """Review of issue 14: 'the maximum is not bracketed. Certify at 8.5 in anyway?' runs to four
+    lines at 80 columns and was cut to two: the one question that needs thought lost its ending."""
+    settings = make_settings()
+
+    async def body() -> tuple[str, str]:
+        app = RigConsole(settings)
+        async with app.run_test(size=(80, 24)) as pilot:
+            screen = await start_run(pilot)
+            op = screen.operator
+            deadline = time.monotonic() + 90
+            while True:
+                assert time.monotonic() < deadline and screen.running, "no edge question came"
+                await until(
+                    pilot,
+                    lambda: op.pending is not None and (not op.pending.is_fire or not screen.fire_block()),
+                    "a prompt",
+                )
+                prompt = op.pending
+                assert prompt is not None
+                if prompt.prompt_id == "edge-location":
+                    await pilot.pause()
+                    text = screen_text(app)
+                    screen.stop("test over")
+                    return prompt.text, text
+                await pilot.press("f" if prompt.is_fire else "enter")
+                await until(pilot, lambda p=prompt: op.pending is not p, "the answer")
+
+    question, shown = asyncio.run(body())
+    assert flat(question) in shown and "y: yes" in flat(shown)
