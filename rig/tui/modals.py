@@ -98,6 +98,8 @@ class TooSmallScreen(ModalScreen[None]):
     the rig, the prompt and the metric, refreshed, and closes itself when the terminal grows.
     """
 
+    BINDINGS: ClassVar[list[BindingType]] = [Binding("q", "app.quit", "Quit")]  # as the notice says
+
     DEFAULT_CSS = """
     TooSmallScreen { background: $surface; padding: 0 1; }
     TooSmallScreen #need { text-style: bold; color: $warning; height: auto; }

@@ -185,3 +185,18 @@ def test_at_80x24_the_scan_edge_question_is_shown_whole(
 
     question, shown = asyncio.run(body())
     assert flat(question) in shown and "y: yes" in flat(shown)
+
+
+def test_q_quits_under_the_size_notice(make_settings: Callable[..., ConsoleSettings]) -> None:
+    """Review of issue 14: the notice says '(q quits)', but q did nothing at 60x20."""
+    settings = make_settings()
+
+    async def body() -> bool:
+        app = RigConsole(settings)
+        async with app.run_test(size=(60, 20)) as pilot:
+            await until(pilot, lambda: isinstance(app.screen, TooSmallScreen), "the size notice")
+            await pilot.press("q")
+            await pilot.pause(0.2)
+            return app.is_running
+
+    assert asyncio.run(body()) is False
