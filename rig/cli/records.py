@@ -206,10 +206,9 @@ def _rigs(store: Any) -> dict[str, dict[str, Any] | None]:
 
 def _stopped(store: Any, run: Any) -> bool:
     """An open run whose last entry records its interruption: nothing is running it."""
-    if run.status != "running":
-        return False
-    last = store.entry(run.last_seq)
-    return last is not None and last.kind == ev.RUN_INTERRUPTED
+    from rig.store import shown_status
+
+    return shown_status(store, run) == "interrupted"
 
 
 def cmd_report(args: argparse.Namespace) -> int:

@@ -18,6 +18,7 @@ from rig.store._records import (
     VerifyReport,
 )
 from rig.store._schema import SCHEMA_VERSION
+from rig.store._status import shown_status
 from rig.store._store import DEFAULT_LEASE_S, EntrySpec, Store
 
 __all__ = [
@@ -45,4 +46,5 @@ __all__ = [
     "entry_hash",
     "is_url",
     "safe_url",
+    "shown_status",
 ]

@@ -17,7 +17,7 @@ from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.errors import RigError
 from rig.report.record import run_record
-from rig.store import RunSummary, Store
+from rig.store import RunSummary, Store, shown_status
 from rig.tui.messages import StartRun
 from rig.tui.report import record_summary
 from rig.tui.rigs import LOADING, ConsoleSettings, RigChoice, RunJob
@@ -70,13 +70,14 @@ class HistoryScreen(Screen[None]):
         try:
             with Store.open(self.settings.db) as store:
                 self.runs = list(reversed(store.runs()))
+                status = {r.run_id: shown_status(store, r) for r in self.runs}  # as `rig runs` shows it
         except RigError as exc:
             self.query_one("#report-text", Markdown).update(f"**Cannot read the records:** {exc}")
             return
         for r in self.runs:
             started = r.started_utc[:16].replace("T", " ")
             table.add_row(
-                r.run_id[:8], r.procedure, r.bat_id, started, r.status, r.verdict or "", key=r.run_id
+                r.run_id[:8], r.procedure, r.bat_id, started, status[r.run_id], r.verdict or "", key=r.run_id
             )
         if not self.runs:
             self.query_one("#report-text", Markdown).update(f"No runs recorded yet in `{self.settings.db}`.")

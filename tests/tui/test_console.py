@@ -7,7 +7,7 @@ from collections.abc import Callable
 from pathlib import Path
 from urllib.parse import parse_qs, urlsplit
 
-from textual.widgets import Input, Static
+from textual.widgets import DataTable, Input, Static
 
 from rig.store import Store
 from rig.tui import ConsoleSettings, RigChoice, RigConsole
@@ -232,6 +232,9 @@ def test_quit_during_a_run_asks_and_leaves_it_resumable(
             await until(pilot, lambda: app.screen.query("#devices"), "the set-up screen")
             await pilot.press("h")
             await until(pilot, lambda: isinstance(app.screen, HistoryScreen), "the history")
+            table = app.screen.query_one("#runs", DataTable)
+            # as `rig runs` shows it (the review of issue 14 found 'running' here)
+            assert str(table.get_row_at(0)[4]) == "interrupted"
             await pilot.press("r")
             await until(pilot, lambda: isinstance(app.screen, RunScreen), "the resumed run")
             screen = app.screen
