@@ -309,6 +309,20 @@ def analyze_hits(rec: Recording, hits: Hits, settings: ModalSettings) -> ModalRe
                 + ("absent" if hoop is None else f"at {hoop.frequency_hz:.1f} Hz")
                 + "; record longer per hit"
             )
+    on_two = [m for m in modes if m.magnitude_ratio <= 1.0 / s.bending_ratio]
+    if on_two and not any(m.kind == "bending" for m in modes):
+        warnings.append(
+            f"{len(on_two)} mode(s) show mainly on accelerometer 2 and none on accelerometer 1"
+            f" ({', '.join(f'{m.frequency_hz:.0f}' for m in on_two[:LISTED])} Hz): are the accelerometer"
+            f" columns swapped? Accelerometer 1 must be the one in line with the hammer"
+        )
+    if s.f_min_hz is not None:
+        lo_default = max(BAND_MIN_BINS * frf.df, BAND_FLOOR_HZ)
+        if s.f_min_hz > lo_default:
+            warnings.append(
+                f"the band starts at {band[0]:.0f} Hz as set (default {lo_default:.0f} Hz): a hoop mode"
+                f" below it would not be seen, and the first hoop reported is the first in the band"
+            )
     if hoop is None:
         listed = ", ".join(f"{m.frequency_hz:.0f} Hz (|H1|/|H2| {m.magnitude_ratio:.3g})" for m in modes)
         warnings.append(

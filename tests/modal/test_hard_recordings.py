@@ -194,3 +194,17 @@ def test_a_window_longer_than_the_hit_spacing_is_named_not_blamed_on_the_hammer(
     rec = simulate(SimSettings(hits=3, hit_interval_s=0.2, seed=2))
     with pytest.raises(RecordTooShort, match=r"inside the window of 5 s asked for: give a window shorter"):
         analyze(rec, ModalSettings(window_s=5.0))
+
+
+def test_swapped_accelerometers_and_a_raised_band_are_said() -> None:
+    """Review of issue 13: with accelerometer 2 in line with the hammer every bending mode read
+    'unclassified' and bending_hz was empty, silently; --band-min 2000 reported the second hoop
+    mode as the first without a word."""
+    rec = simulate(SimSettings(hits=3, hit_interval_s=0.2, seed=4))
+    swapped = Recording.build(rec.time_s, rec.force, rec.accel2, rec.accel1, source="swapped")
+    res = analyze(swapped)
+    assert res.bending_hz == [] and any("columns swapped?" in w for w in res.warnings), res.warnings
+    assert not any("columns swapped?" in w for w in analyze(rec).warnings)
+    high = analyze(rec, ModalSettings(f_min_hz=2000.0))
+    assert high.hoop_hz == pytest.approx(1.7 * 1800.0, abs=1.0)
+    assert any("a hoop mode below it would not be seen" in w for w in high.warnings)
