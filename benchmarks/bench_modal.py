@@ -39,8 +39,24 @@ QUIET_S = 0.005  # quiet lead-in of each block before its hit
 BENDING_HZ = 175.0  # bat_modes' first bending mode
 
 
+class ErrorStats:
+    """RMS and largest error of a cell's recordings (the cells keep `errors`)."""
+
+    errors: list[float]
+
+    @property
+    def ok(self) -> int:
+        return len(self.errors)
+
+    def rms(self) -> float:
+        return float(np.sqrt(np.mean(np.square(self.errors)))) if self.errors else float("nan")
+
+    def worst(self) -> float:
+        return float(np.max(np.abs(self.errors))) if self.errors else float("nan")
+
+
 @dataclass
-class Cell:
+class Cell(ErrorStats):
     """The outcome of one (T, n, noise) setting over many bats."""
 
     window_s: float
@@ -52,16 +68,6 @@ class Cell:
     seconds: list[float]
     diagnoses: Counter[str]
     bending_errors: list[float]
-
-    @property
-    def ok(self) -> int:
-        return len(self.errors)
-
-    def rms(self) -> float:
-        return float(np.sqrt(np.mean(np.square(self.errors)))) if self.errors else float("nan")
-
-    def worst(self) -> float:
-        return float(np.max(np.abs(self.errors))) if self.errors else float("nan")
 
     def coverage(self) -> float:
         pairs = zip(self.errors, self.u_expanded, strict=True)
@@ -111,7 +117,7 @@ CLOSE_HITS = 3
 
 
 @dataclass
-class CloseCell:
+class CloseCell(ErrorStats):
     """Hoop frequency with a bending mode `offset_hz` from it, one record length, many bats."""
 
     offset_hz: float
@@ -122,16 +128,6 @@ class CloseCell:
     neighbour_found: int  # the neighbour reported as its own bending mode
     warned: int  # a warning names the hoop as too close to a neighbour to separate
     diagnoses: Counter[str]
-
-    @property
-    def ok(self) -> int:
-        return len(self.errors)
-
-    def rms(self) -> float:
-        return float(np.sqrt(np.mean(np.square(self.errors)))) if self.errors else float("nan")
-
-    def worst(self) -> float:
-        return float(np.max(np.abs(self.errors))) if self.errors else float("nan")
 
     def covered(self) -> int:
         return sum(abs(e) <= u for e, u in zip(self.errors, self.u_expanded, strict=True))
