@@ -7,8 +7,9 @@ use: `rig.modal.link` (what certify needs) does not bring in the analysis and sc
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from rig.core.lazy import lazy_names
 
 # Eager (numpy only): the function `simulate` shares its name with its module, and a lazy name
 # would be shadowed by the module once anything imports rig.modal.simulate.
@@ -58,11 +59,7 @@ _WHERE = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    module = _WHERE.get(name)
-    if module is None:
-        raise AttributeError(f"module 'rig.modal' has no attribute {name!r}")
-    return getattr(importlib.import_module(f"rig.modal.{module}"), name)
+__getattr__ = lazy_names(__name__, _WHERE)
 
 
 __all__ = [

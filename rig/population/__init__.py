@@ -6,8 +6,9 @@ import the collision model.
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from rig.core.lazy import lazy_names
 
 if TYPE_CHECKING:
     from rig.population.binning import Bin, bin_by_hoop
@@ -27,11 +28,7 @@ _WHERE = {
 }
 
 
-def __getattr__(name: str) -> Any:
-    module = _WHERE.get(name)
-    if module is None:
-        raise AttributeError(f"module 'rig.population' has no attribute {name!r}")
-    return getattr(importlib.import_module(f"rig.population.{module}"), name)
+__getattr__ = lazy_names(__name__, _WHERE)
 
 
 __all__ = [
