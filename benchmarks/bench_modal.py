@@ -29,7 +29,16 @@ import scipy
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks.modal_cases
 from benchmarks.modal_cases import cases, run_case
 from benchmarks.modal_cases import table as case_table
-from rig.modal import ModalError, ModalSettings, SimMode, SimSettings, analyze, bat_modes, simulate
+from rig.modal import (
+    ModalError,
+    ModalResult,
+    ModalSettings,
+    SimMode,
+    SimSettings,
+    analyze,
+    bat_modes,
+    simulate,
+)
 from rig.modal.analysis import RESOLUTION_SHARE
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "modal.md"
@@ -74,6 +83,34 @@ class Cell(ErrorStats):
         return sum(abs(e) <= u for e, u in pairs) / self.ok if self.ok else float("nan")
 
 
+def settled(hits: int, window_s: float, noise: float, seed: int, modes: tuple[SimMode, ...]) -> SimSettings:
+    """A simulated test of one block per hit, each `window_s` long after a quiet lead-in: the bat at
+    rest before every hit."""
+    return SimSettings(
+        hits=hits,
+        hit_interval_s=window_s + QUIET_S,
+        first_hit_s=QUIET_S,
+        settle=True,
+        noise=noise,
+        seed=seed,
+        modes=modes,
+    )
+
+
+def timed_analysis(sim: SimSettings, modal: ModalSettings, cell: Cell | CloseCell) -> ModalResult | None:
+    """Simulate, then analyse with the analysis alone timed into `cell.seconds`; None (the
+    diagnosis counted in `cell.diagnoses`) where the analysis refuses the recording."""
+    rec = simulate(sim)
+    t0 = time.perf_counter()
+    try:
+        res = analyze(rec, modal)
+    except ModalError as exc:
+        cell.diagnoses[type(exc).__name__] += 1
+        return None
+    cell.seconds.append(time.perf_counter() - t0)
+    return res
+
+
 def run_cell(window_s: float, hits: int, noise: float, bats: int, seed0: int) -> Cell:
     """Analyse `bats` simulated recordings at this setting; the analysis alone is timed."""
     cell = Cell(window_s, hits, noise, [], [], [], [], Counter(), [])
@@ -83,23 +120,10 @@ def run_cell(window_s: float, hits: int, noise: float, bats: int, seed0: int) ->
     for k in range(bats):
         hoop = float(rng.uniform(1400.0, 2800.0))
         damping = float(rng.uniform(0.003, 0.015))
-        sim = SimSettings(
-            hits=hits,
-            hit_interval_s=window_s + QUIET_S,  # one block per hit: the bat at rest before each
-            first_hit_s=QUIET_S,
-            settle=True,
-            noise=noise,
-            seed=seed0 * 1000 + k,
-            modes=bat_modes(hoop, BENDING_HZ, hoop_damping=damping),
-        )
-        rec = simulate(sim)
-        t0 = time.perf_counter()
-        try:
-            res = analyze(rec, modal)
-        except ModalError as exc:
-            cell.diagnoses[type(exc).__name__] += 1
+        modes = bat_modes(hoop, BENDING_HZ, hoop_damping=damping)
+        res = timed_analysis(settled(hits, window_s, noise, seed0 * 1000 + k, modes), modal, cell)
+        if res is None:
             continue
-        cell.seconds.append(time.perf_counter() - t0)
         if res.hoop is None:
             cell.diagnoses["no hoop mode"] += 1
             continue
@@ -142,23 +166,10 @@ def close_mode_cell(offset_hz: float, window_s: float, bats: int, seed0: int) ->
         hoop = float(rng.uniform(1400.0, 2800.0))
         damping = float(rng.uniform(0.003, 0.015))
         neighbour = SimMode(hoop + offset_hz, 0.006, 0.22, 1.0, 0.08, "bending")
-        sim = SimSettings(
-            hits=CLOSE_HITS,
-            hit_interval_s=window_s + QUIET_S,
-            first_hit_s=QUIET_S,
-            settle=True,
-            noise=NOISE,
-            seed=seed0 * 1000 + k,
-            modes=(*bat_modes(hoop, BENDING_HZ, hoop_damping=damping), neighbour),
-        )
-        rec = simulate(sim)
-        t0 = time.perf_counter()
-        try:
-            res = analyze(rec, modal)
-        except ModalError as exc:
-            cell.diagnoses[type(exc).__name__] += 1
+        modes = (*bat_modes(hoop, BENDING_HZ, hoop_damping=damping), neighbour)
+        res = timed_analysis(settled(CLOSE_HITS, window_s, NOISE, seed0 * 1000 + k, modes), modal, cell)
+        if res is None:
             continue
-        cell.seconds.append(time.perf_counter() - t0)
         if any("too close" in w or "close modes" in w for w in res.warnings):
             cell.warned += 1
         if res.hoop is None:
