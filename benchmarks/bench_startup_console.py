@@ -23,10 +23,8 @@ ROOT = Path(__file__).resolve().parents[1]
 TARGET = 1.2  # first paint <= 1.2 B (issue 14)
 BASELINE = "import numpy, scipy.integrate; print('ready', flush=True)"
 
-# The child: `rig tui --sim --db DB`, headless, printing 'ready' once the first screen is drawn.
-CONSOLE = """
-import sys
-import rig.tui.app as app
+# Both children: the set-up screen prints 'ready' once it has been drawn, then the app exits.
+PAINTED_HOOK = """
 import rig.tui.setup as setup
 
 on_mount = setup.SetupScreen.on_mount
@@ -37,29 +35,25 @@ def hooked(screen):
     screen.call_after_refresh(painted, screen)  # first: before the work the screen defers past its paint
     on_mount(screen)
 setup.SetupScreen.on_mount = hooked
-run = app.RigConsole.run
+"""
+
+# The child: `rig tui --sim --db DB`, headless, printing 'ready' once the first screen is drawn.
+CONSOLE = (
+    "import sys\nimport rig.tui.app as app\n"
+    + PAINTED_HOOK
+    + """run = app.RigConsole.run
 app.RigConsole.run = lambda self, *a, **k: run(self, *a, **{**k, "headless": True})
 from rig.cli import main
 sys.exit(main(["tui", "--sim", "--db", sys.argv[1]]))
 """
-
+)
 
 # The same console started without the command line (rig.tui directly): what the console costs alone.
-CONSOLE_ALONE = """
-import sys
-from rig.tui import ConsoleSettings, RigConsole
-import rig.tui.setup as setup
-
-on_mount = setup.SetupScreen.on_mount
-def painted(screen):
-    print("ready", flush=True)
-    screen.app.exit()
-def hooked(screen):
-    screen.call_after_refresh(painted, screen)  # first: before the work the screen defers past its paint
-    on_mount(screen)
-setup.SetupScreen.on_mount = hooked
-RigConsole(ConsoleSettings.from_args("ideal", None, sys.argv[1])).run(headless=True)
-"""
+CONSOLE_ALONE = (
+    "import sys\nfrom rig.tui import ConsoleSettings, RigConsole\n"
+    + PAINTED_HOOK
+    + 'RigConsole(ConsoleSettings.from_args("ideal", None, sys.argv[1])).run(headless=True)\n'
+)
 
 
 def time_to_ready(code: str, *args: str) -> float:
