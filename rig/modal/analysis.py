@@ -317,7 +317,7 @@ def analyze_hits(rec: Recording, hits: Hits, settings: ModalSettings) -> ModalRe
             f" columns swapped? Accelerometer 1 must be the one in line with the hammer"
         )
     if s.f_min_hz is not None:
-        lo_default = max(BAND_MIN_BINS * frf.df, BAND_FLOOR_HZ)
+        lo_default = default_band_min(frf.df)
         if s.f_min_hz > lo_default:
             warnings.append(
                 f"the band starts at {band[0]:.0f} Hz as set (default {lo_default:.0f} Hz): a hoop mode"
@@ -363,11 +363,16 @@ def analyze_hits(rec: Recording, hits: Hits, settings: ModalSettings) -> ModalRe
     )
 
 
+def default_band_min(df: float) -> float:
+    """The band's default lower edge for resolution `df`: BAND_MIN_BINS bins, at least BAND_FLOOR_HZ."""
+    return max(BAND_MIN_BINS * df, BAND_FLOOR_HZ)
+
+
 def analysis_band(frf: frf_mod.FrfEstimate, s: ModalSettings, fs: float) -> tuple[float, float]:
     """The band searched for modes: from f_min_hz (default BAND_MIN_BINS resolutions, at least
     BAND_FLOOR_HZ) to f_max_hz (default where the hammer's spectrum has dropped force_drop_db),
     never below two resolutions nor above 0.45 fs."""
-    lo = s.f_min_hz if s.f_min_hz is not None else max(BAND_MIN_BINS * frf.df, BAND_FLOOR_HZ)
+    lo = s.f_min_hz if s.f_min_hz is not None else default_band_min(frf.df)
     hi = s.f_max_hz if s.f_max_hz is not None else frf_mod.force_band(frf, s.force_drop_db)
     return max(lo, 2.0 * frf.df), min(hi, 0.45 * fs)
 
