@@ -52,6 +52,19 @@ def integer(lo: int, hi: int) -> ArgCheck:
     return check
 
 
+def token(max_len: int) -> ArgCheck:
+    """An argument check: a name of letters, digits, '.', '_' and '-' (1 to `max_len` characters)."""
+
+    def check(text: str) -> str:
+        if not 1 <= len(text) <= max_len or not all(
+            c.isascii() and (c.isalnum() or c in "._-") for c in text
+        ):
+            raise ValueError(f"{text!r} is not a name of 1-{max_len} letters, digits, '.', '_' or '-'")
+        return text
+
+    return check
+
+
 @dataclass(frozen=True)
 class CommandSpec:
     """One command a device accepts: its verb, argument checks and what it does."""

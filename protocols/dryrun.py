@@ -75,7 +75,12 @@ class CheckingRig:
         self._stage(impact_from_pivot_m)
 
     def fire(
-        self, config: RigConfig, aim_speed_m_s: float, gates: GateConfig, live: Callable[[GateCrossing], None]
+        self,
+        config: RigConfig,
+        aim_speed_m_s: float,
+        gates: GateConfig,
+        live: Callable[[GateCrossing], None],
+        ball: str | None = None,
     ) -> Fired:
         """Check the aim; a nominal record (six beam breaks, so the ball's hits count)."""
         self.fired.append((config.impact_from_pivot_m, aim_speed_m_s))

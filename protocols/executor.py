@@ -38,6 +38,7 @@ from protocols.state import RunState, fold
 from rig.core import events as ev
 from rig.core.config import RigConfig
 from rig.core.devices import (
+    BallLoader,
     Cannon,
     CannonState,
     Clamp,
@@ -64,7 +65,12 @@ class Backend(Protocol):
     def prepare(self, impact_from_pivot_m: float) -> GateConfig: ...
     def move(self, impact_from_pivot_m: float) -> None: ...
     def fire(
-        self, config: RigConfig, aim_speed_m_s: float, gates: GateConfig, live: Callable[[GateCrossing], None]
+        self,
+        config: RigConfig,
+        aim_speed_m_s: float,
+        gates: GateConfig,
+        live: Callable[[GateCrossing], None],
+        ball: str | None = None,
     ) -> Fired: ...
     def recover(self, exc: DeviceError) -> None: ...
     def evaluate(self, ctx: PlanContext, fired: Fired) -> dict[str, Any]: ...
@@ -100,9 +106,17 @@ class LiveRig:
         self.clamp.move_to(impact_from_pivot_m * 1000.0)
 
     def fire(
-        self, config: RigConfig, aim_speed_m_s: float, gates: GateConfig, live: Callable[[GateCrossing], None]
+        self,
+        config: RigConfig,
+        aim_speed_m_s: float,
+        gates: GateConfig,
+        live: Callable[[GateCrossing], None],
+        ball: str | None = None,
     ) -> Fired:
-        """Aim, fire, collect; a shot without usable data still returns its raw record."""
+        """Name the ball (to a cannon that takes it), aim, fire, collect; a shot without usable data
+        still returns its raw record."""
+        if ball is not None and isinstance(self.cannon, BallLoader):
+            self.cannon.load_ball(ball)
         try:
             return Fired(fire_shot(self.cannon, self.gates, self.clamp, config, aim_speed_m_s, gates, live))
         except ShotFailed as exc:
@@ -321,9 +335,11 @@ class Executor:
         self._move(msg.location_in)  # never fire where this session did not put the stage
         config = self.ctx.config.model_copy(update={"impact_from_pivot_m": self.ctx.q(msg.location_in)})
         try:
-            fired = self.backend.fire(config, msg.aim_speed_m_s, self.gate_config, self._live(index))
+            fired = self.backend.fire(
+                config, msg.aim_speed_m_s, self.gate_config, self._live(index), msg.ball
+            )
         except ShotFailed as exc:  # nothing at all came back: no raw record to keep
-            self._record_fired(index, None)
+            self._record_fired(index, None, msg.ball)
             self.emit(ev.ShotLost(index=index, reason=str(exc)))
             return None
         except DeviceError as exc:
@@ -332,12 +348,14 @@ class Executor:
             self.emit(ev.ShotLost(index=index, reason=f"{type(exc).__name__}: {exc}"))
             self.backend.recover(exc)
             return None
-        self._record_fired(index, fired)
+        self._record_fired(index, fired, msg.ball)
         return fired
 
-    def _record_fired(self, index: int, fired: Fired | None) -> None:
+    def _record_fired(self, index: int, fired: Fired | None, ball: str | None) -> None:
         raw = fired.record.as_dict() if fired is not None else {"crossings": []}
-        self.emit(ev.event(ev.SHOT_FIRED, index=index, ball_number=self.state.ball_number, **raw))
+        st = self.state
+        named = {"ball": ball, "ball_hits": st.ball_hits} if ball is not None else {}
+        self.emit(ev.event(ev.SHOT_FIRED, index=index, ball_number=st.ball_number, **named, **raw))
         self.emit(ev.Traffic(index=index, chunks=self.drain_traffic()))
 
     def _live(self, index: int) -> Callable[[GateCrossing], None]:

@@ -104,6 +104,7 @@ class Fire(Msg):
     index: int
     location_in: float
     aim_speed_m_s: float
+    ball: str | None = None  # the ball to LOAD first (its id); None: whatever is in the breech
 
 
 @dataclass(frozen=True)
@@ -140,6 +141,12 @@ class PlanContext:
     rig_check: dict[str, str] | None = None  # {who, why}: the rig was checked, budget starts again
     plan_name: str | None = None  # a lab's own plan (module.function), recorded in RunStarted
     options: dict[str, Any] = field(default_factory=dict)  # for a lab's own plans
+
+    def ball_id(self, number: int | None = None) -> str:
+        """The id of the run's ball `number` (default: the one in use): the lot's id and its number."""
+        recorded = (self.state.setup or {}).get("ball") or self.options.get("ball") or {}
+        lot = str(recorded.get("lot") or "ball")
+        return f"{lot}-{self.state.ball_number if number is None else number:02d}"
 
     def q(self, location_in: float) -> float:
         """The impact point's distance from the pivot (m) for a location from the tip (in)."""

@@ -57,6 +57,7 @@ class Runner:
         review_shots: bool = False,
         rig_check: dict[str, str] | None = None,
         plan: PlanFactory = certification,
+        options: dict[str, Any] | None = None,
     ) -> None:
         self.p, self.bat, self.config, self.plan = procedure, bat, config, plan
         self.history = list(history or [])
@@ -71,6 +72,7 @@ class Runner:
             review_shots=review_shots,
             rig_check=rig_check,
             plan_name=plan_name(plan),
+            options=dict(options or {}),
         )
         self.executor = Executor(
             self.ctx, LiveRig(cannon, gates, clamp), emit, operator, control, drain_traffic

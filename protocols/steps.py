@@ -11,6 +11,7 @@ import platform
 from typing import Any
 
 from protocols import evaluate
+from protocols.ball_terms import BallTerms
 from protocols.control import BudgetExceeded, RunAborted
 from protocols.plan import (
     Ask,
@@ -89,6 +90,7 @@ def start(ctx: PlanContext) -> Plan[None]:
                 extra={
                     "software": {"rig": __version__, "python": platform.python_version()},
                     **({"calibration": calibration} if calibration else {}),
+                    "ball": BallTerms.model_validate(ctx.options.get("ball") or {}).model_dump(mode="json"),
                     **({"plan": ctx.plan_name} if ctx.plan_name else {}),
                 },
             )
@@ -354,15 +356,19 @@ def shoot(ctx: PlanContext, loc_in: float, purpose: str) -> Plan[None]:
     ):
         raise RunAborted(f"the operator declined to fire shot {index}")
     yield Checkpoint()
+    air: dict[str, float] = {}
+    if (st.setup or {}).get("ball", {}).get("measured"):  # measured sensitivities: the air at each shot
+        env = yield ReadEnvironment()
+        air = {"temperature_c": env.temperature_c, "humidity_pct": env.humidity_pct}
     yield Record(
         ev.ShotRequested(
             index=index,
             purpose=purpose,
             location_in=loc_in,
-            extra={"target_speed_m_s": p.target_speed_m_s, "aim_speed_m_s": aim_speed},
+            extra={"target_speed_m_s": p.target_speed_m_s, "aim_speed_m_s": aim_speed, **air},
         )
     )
-    fired = yield Fire(index, loc_in, aim_speed)
+    fired = yield Fire(index, loc_in, aim_speed, ctx.ball_id())
     if fired is None:
         return  # lost: recorded by the executor, never fired again
     result = yield Evaluate(fired)

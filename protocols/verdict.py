@@ -13,10 +13,12 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from protocols.ball_terms import BallAdjustment, BallTerms, adjust, hit_balls, law_params, ratio
 from protocols.procedure import Metric, Procedure
 from protocols.run_inputs import air_density, uncertainty_model
 from protocols.state import RunState
@@ -61,6 +63,14 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> d
         u = per_bat.u_of(name)
     if p.standard is Metric.BBS:
         u *= hits[0].measured["metrics"]["v_bat"] + DEFAULT_SWING.pitch_speed_m_s
+    q = bat.impact_from_pivot_m(loc) if loc is not None else config.impact_from_pivot_m
+    moi = float(state.moi["moi_kgm2"]) if state.moi else float(bat.moi_kgm2 or 0.0)
+    ball = ball_part(p, bat, state, hits, q, moi)
+    u_measured = u
+    if ball is not None:
+        values = [v + c for v, c in zip(values, ball.corrections, strict=True)]
+        mean = sum(values) / n
+        u = math.hypot(u, ball.u)
     k = p.decision.coverage_k
     big_u = k * u
     if p.decision.rule == "guarded":
@@ -75,8 +85,6 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> d
     v_in_mean = (
         sum(h.measured.get("inbound_at_impact_m_s", h.measured["inbound_speed_m_s"]) for h in hits) / n
     )
-    q = bat.impact_from_pivot_m(loc) if loc is not None else config.impact_from_pivot_m
-    moi = float(state.moi["moi_kgm2"]) if state.moi else float(bat.moi_kgm2 or 0.0)
     return {
         "verdict": Verdict.PASS if passed else Verdict.FAIL,
         "zone": zone,
@@ -95,6 +103,7 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> d
         "moi_kgm2": moi,
         "edition": p.edition,
         "budget": per_bat.as_dict(),
+        **({"ball": {**ball.as_dict(), "u_measurement": u_measured}} if ball is not None else {}),
         "drag": drag_summary(config, state, inputs, name, per_bat.value(name)),
         "cross_check": cross_check(p, bat, v_in_mean, q, moi, mean, u, state.calibration),
         "tradeoff": [
@@ -186,6 +195,19 @@ def _uncalibrated(
         "consistent": None,
         "note": note,
     }
+
+
+def ball_part(
+    p: Procedure, bat: BatSpec, state: RunState, hits: list[Any], q: float, moi: float
+) -> BallAdjustment | None:
+    """The ball's corrections and budget terms, for a run that recorded its ball terms (else None)."""
+    recorded = (state.setup or {}).get("ball")
+    if recorded is None or moi <= 0.0:
+        return None
+    terms = BallTerms.model_validate(recorded)
+    name = p.standard.value if p.standard is not Metric.BBS else "bbs"
+    g = ratio(law_params(terms, p.ball.mass_kg), name, p.target_speed_m_s, q, moi, bat.length_m)
+    return adjust(terms, hit_balls(hits, state.environment, terms), g)
 
 
 def cross_check(

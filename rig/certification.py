@@ -141,13 +141,16 @@ def certify(
     on_open: Callable[[RigSession], None] | None = None,
     rig_checked: Signoff | None = None,
     plan: PlanFactory = certification,
+    ball: dict[str, Any] | None = None,
 ) -> Outcome:
     """Run (or with `run_id`, resume) a certification; returns its outcome.
 
     `on_open` sees the open session before the runner starts: an operator console uses it to read
     device status on the runner's thread while the runner waits for the operator. `rig_checked`
     records that the rig was checked (who, why): the re-shoot budget starts again. `plan` is the
-    procedure's plan (protocols.steps.certification, or a lab's own from the same steps).
+    procedure's plan (protocols.steps.certification, or a lab's own from the same steps). `ball`:
+    the ball terms (protocols.ball_terms.BallTerms fields: the lot, its measured wear, spread and
+    sensitivities, the ball law), recorded in RunStarted; None: assumed defaults, budgeted whole.
     """
     listeners = list(subscribers)
     resuming = run_id is not None
@@ -155,7 +158,8 @@ def certify(
         _running(store, run_id, "--resume")
     # rehearse the plan (a resumed run: what is left of it) before anything is recorded or opened
     past = history(store, run_id) if run_id is not None else None
-    problems = rehearse(procedure, bat, config, plan, past).problems
+    options = {"ball": ball} if ball is not None else {}
+    problems = rehearse(procedure, bat, config, plan, past, options=options).problems
     if problems:
         raise ConfigError("; ".join(problems), source="dry run")
     identity = config.identity_record(__version__)
@@ -213,6 +217,7 @@ def certify(
                 review_shots=review_shots,
                 rig_check=None if rig_checked is None else rig_checked.as_dict(),
                 plan=plan,
+                options=options,
             )
             try:
                 verdict = runner.run(rehearse_first=False)  # rehearsed above, before the lock

@@ -48,15 +48,23 @@ def sim_config(scene: str = "ideal", rig_name: str | None = None, bat: BatSpec |
 
 
 def scene_with_bat(scene: Scene, bat: BatSpec) -> Scene:
-    """`scene` whose simulated bat has the bat file's properties, except those the scene's [bat] sets."""
-    return scene.with_bat(
+    """`scene` whose simulated bat has the bat file's properties, except those the scene's [bat] sets.
+
+    The file's [simulated] table (true MOI, true hoop frequency, an alteration) wins over its [bat]
+    table: it is what the simulated bat really is, and the controller never reads it.
+    """
+    truth = bat.simulated
+    out = scene.with_bat(
         id=bat.id,
         length_m=bat.length_m,
         mass_kg=bat.mass_kg,
-        moi_kgm2=bat.moi_kgm2,
+        moi_kgm2=truth.moi_kgm2 if truth is not None and truth.moi_kgm2 is not None else bat.moi_kgm2,
         balance_point_m=None if bat.balance_point_in is None else bat.balance_point_in * INCH,
-        hoop_hz=bat.hoop_hz,
+        hoop_hz=truth.hoop_hz if truth is not None and truth.hoop_hz is not None else bat.hoop_hz,
     )
+    if truth is not None and truth.alteration_bbcor > 0.0:
+        out = out.with_alteration(truth.alteration_bbcor)
+    return out
 
 
 @dataclass

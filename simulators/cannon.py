@@ -104,6 +104,9 @@ class SimCannon(SimDevice):
             self.setpoint = float(cmd.values[0])  # type: ignore[arg-type]
             self.ok(cmd)
             self._refill(self.world.clock, p_now)
+        elif verb == "LOAD":
+            self.world.load_ball(str(cmd.values[0]))
+            self.ok(cmd)
         elif verb == "ARM":
             self._arm(cmd)
         elif verb == "FIRE":

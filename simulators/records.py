@@ -15,6 +15,20 @@ class Crossing:
 
 
 @dataclass(frozen=True)
+class SimBall:
+    """One physical ball of the scene's lot: its id, hits before this one, and its own offsets.
+
+    `c1_scale` and `k1_scale` multiply the lot's nominal damping and stiffness: the ball-to-ball
+    spread, drawn once per ball from the scene's seed and the ball's id.
+    """
+
+    id: str
+    hits: int = 0
+    c1_scale: float = 1.0
+    k1_scale: float = 1.0
+
+
+@dataclass(frozen=True)
 class Outgoing:
     """One framed message a device is about to send; what link faults see and may spoil."""
 
@@ -47,3 +61,5 @@ class ShotTruth:
     recoil_rad_s: float | None  # the bat's angular speed after impact, if the recoil effect is on
     crossings: tuple[Crossing, ...]
     ticks: tuple[tuple[int, int], ...]  # (gate, counter value) as streamed, in time order
+    ball_id: str = ""  # the ball fired (the id the host LOADed, else the world's first ball)
+    ball_hits: int = 0  # hits that ball had taken before this shot

@@ -100,6 +100,21 @@ class SimBat(BaseModel):
     )
 
 
+class SimBallLot(BaseModel):
+    """The lot the simulated balls come from: the scene's `ball` is its nominal new ball at the
+    nominal condition (21 C, 50 % RH); each ball differs from it by its own draw of the spread."""
+
+    model_config = _FROZEN
+
+    id: str = Field("SIM-LOT", min_length=1, max_length=32, pattern=r"^[A-Za-z0-9._-]+$")
+    c1_spread_rel: float = Field(
+        0.0, ge=0.0, le=0.2, description="ball-to-ball standard deviation of the damping c1, relative"
+    )
+    k1_spread_rel: float = Field(
+        0.0, ge=0.0, le=0.2, description="ball-to-ball standard deviation of the stiffness k1, relative"
+    )
+
+
 class CannonModel(BaseModel):
     """The cannon's physics: muzzle speed v(P) = v_max sqrt(1 - exp(-P/P0)), filling and valves."""
 
@@ -143,6 +158,7 @@ class Scene(BaseModel):
     rig: RigGeometry = RigGeometry()
     bat: SimBat = SimBat()
     ball: CollisionParams = CollisionParams()
+    lot: SimBallLot = SimBallLot()
     cannon: CannonModel = CannonModel()
     effects: tuple[EffectSpec, ...] = ()
 

@@ -14,6 +14,7 @@ import threading
 from collections.abc import Callable
 
 from rig.core.devices import Interlocks
+from rig.physics import CollisionParams
 from simulators.cannon import SimCannon
 from simulators.clamp import SimClamp
 from simulators.device import SimDevice
@@ -29,11 +30,12 @@ from simulators.physics import (
     drop_m,
     pendulum_period,
 )
-from simulators.records import Crossing, Outgoing, ShotTruth
+from simulators.records import Crossing, Outgoing, ShotTruth, SimBall
 from simulators.scene import Scene
 from simulators.timeline import Schedule
 
 RECOIL_REPORT_S = 0.01  # the encoder reports the peak angular speed this long after contact
+FIRST_BALL = "ball-01"  # the ball in the breech until the host LOADs one
 
 
 class SimWorld:
@@ -67,6 +69,8 @@ class SimWorld:
         self._pending_ilk: list[tuple[float, str, bool]] = []
         self.attempts = 0  # FIRE commands accepted (misfires included): the faults' shot number
         self.shots: list[ShotTruth] = []
+        self.balls: dict[str, SimBall] = {}  # every ball fired or loaded, by id, with its hits so far
+        self.ball_id = FIRST_BALL
         self.cannon = SimCannon(self)
         self.gates = SimGates(self)
         self.clamp = SimClamp(self)
@@ -171,6 +175,37 @@ class SimWorld:
                     self.at(when, lambda d=device: setattr(d, "unplugged", True), tag=f"unplug-{name}")
                     break
 
+    # -- balls ------------------------------------------------------------------------------
+    def load_ball(self, ball_id: str) -> SimBall:
+        """Put ball `ball_id` in the breech: a ball seen before keeps its hits, a new one starts fresh."""
+        self.ball_id = ball_id
+        return self.ball(ball_id)
+
+    def ball(self, ball_id: str) -> SimBall:
+        """The ball `ball_id` as it is now; a new one draws its offsets from the lot's spread."""
+        ball = self.balls.get(ball_id)
+        if ball is None:
+            lot = self.scene.lot
+            c1 = k1 = 1.0
+            if lot.c1_spread_rel or lot.k1_spread_rel:  # the spread costs nothing when the scene has none
+                # balls a lab picks for one bat are not the next bat's: the draw is the bat's too
+                rng = random.Random(f"{self.scene.seed}/{self.scene.bat.id}/ball/{ball_id}")
+                c1 = max(0.5, 1.0 + rng.gauss(0.0, lot.c1_spread_rel))
+                k1 = max(0.5, 1.0 + rng.gauss(0.0, lot.k1_spread_rel))
+            ball = self.balls[ball_id] = SimBall(ball_id, 0, c1, k1)
+        return ball
+
+    def _hit_ball(self) -> tuple[SimBall, CollisionParams]:
+        """The ball in the breech before this hit, its constants for it; its count goes up by one."""
+        ball = self.ball(self.ball_id)
+        params = self.scene.ball
+        if ball.c1_scale != 1.0 or ball.k1_scale != 1.0:
+            params = params.model_copy(
+                update={"c1": params.c1 * ball.c1_scale, "k1": params.k1 * ball.k1_scale}
+            )
+        self.balls[ball.id] = SimBall(ball.id, ball.hits + 1, ball.c1_scale, ball.k1_scale)
+        return ball, params
+
     # -- physics ----------------------------------------------------------------------------
     def counter(self, ticks: int) -> int:
         """The gates' counter register after `ticks` ticks since the world started."""
@@ -202,10 +237,11 @@ class SimWorld:
         t_impact = t_exit + flight.time_to(muzzle, v0)
         e_a = contact = v_out = 0.0
         omega = None
+        ball = self.ball(self.ball_id)
         if hit:
-            params = scene.ball
+            ball, params = self._hit_ball()
             for hook in self.hooks["ball_params"]:
-                params = hook(params, t_impact)  # type: ignore[assignment]
+                params = hook(params, t_impact, ball)  # type: ignore[assignment]
             e_a, contact = self.collision.collide(params, v_in, q)
             v_out = e_a * v_in
             t_leave = t_impact + contact
@@ -236,6 +272,8 @@ class SimWorld:
             recoil_rad_s=omega,
             crossings=tuple(crossings),
             ticks=ticks,
+            ball_id=ball.id,
+            ball_hits=ball.hits,
         )
         self.shots.append(record)
         return record

@@ -6,11 +6,12 @@ sending it, and the simulator treats it as authoritative.
 
 from __future__ import annotations
 
-from drivers.codec import CommandSpec, flag, number
+from drivers.codec import CommandSpec, flag, number, token
 from drivers.wire import Event, Reply
 from rig.core.devices import CannonState, CannonStatus, Environment, Interlocks
 
 MAX_PRESSURE_KPA = 1000.0
+BALL_ID_MAX = 40  # characters of a ball id (lot id, '-', ball number)
 READY_BAND = 0.01  # pressure within 1 % of the setpoint counts as ready to arm
 
 _S, _A, _F, _X = CannonState.SAFE, CannonState.ARMED, CannonState.FIRED, CannonState.FAULT
@@ -19,6 +20,7 @@ _S, _A, _F, _X = CannonState.SAFE, CannonState.ARMED, CannonState.FIRED, CannonS
 # own: FIRED -> SAFE when the valve closes, ARMED -> SAFE when an interlock opens, -> FAULT on a fault.
 STATE_TABLE: dict[str, dict[CannonState, CannonState]] = {
     "PSET": {_S: _S},
+    "LOAD": {_S: _S},
     "ARM": {_S: _A},
     "FIRE": {_A: _F},
     "VENT": {_S: _S, _A: _S, _F: _S, _X: _X},
@@ -95,6 +97,7 @@ SPECS = {
         CommandSpec(
             "PSET", (number(0.0, MAX_PRESSURE_KPA),), "set the tank pressure setpoint, kPa (SAFE only)"
         ),
+        CommandSpec("LOAD", (token(BALL_ID_MAX),), "the ball now in the breech, by its id (SAFE only)"),
         CommandSpec("ARM", (), "SAFE -> ARMED; needs every interlock closed and the pressure ready"),
         CommandSpec("FIRE", (), "ARMED -> FIRED; needs every interlock closed"),
         CommandSpec("VENT", (), "dump the tank and return to SAFE"),

@@ -59,6 +59,15 @@ class CannonDriver(LineDriver):
         event = self.transport.wait_event(("READY", "FAULT"), self.ready_timeout_s, ready)
         self._raise_fault(event, "PSET")
 
+    def load_ball(self, ball_id: str) -> None:
+        """Tell the cannon which ball is in the breech (SAFE only): its id names one physical ball."""
+        try:
+            codec.SPECS["LOAD"].check(ball_id)
+        except ValueError as exc:
+            raise ParameterError(f"{self.name} LOAD", (ball_id,), str(exc)) from None
+        self._check_state("LOAD")
+        self.transport.request("LOAD", ball_id)
+
     def arm(self) -> None:
         """SAFE -> ARMED; refused without sending ARM unless the state table allows it now."""
         reason = codec.refuse_arm(self.status())

@@ -6,7 +6,7 @@ from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, field_validator
 
 from rig.core.tomlfile import read_toml, table, validate
 from rig.core.units import INCH, OUNCE
@@ -33,6 +33,18 @@ class Barrel(StrEnum):
     WOOD = "wood"
 
 
+class SimulatedTruth(BaseModel):
+    """A bat file's [simulated] table: the simulated bat's true properties where they differ from,
+    or are missing in, its [bat] table. Only the simulated rig reads them (rig.session); the
+    controller never does, and they are not part of the bat's record."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+    moi_kgm2: Annotated[float, Field(ge=MOI_KGM2[0], le=MOI_KGM2[1])] | None = None
+    hoop_hz: Annotated[float, Field(ge=HOOP_HZ[0], le=HOOP_HZ[1])] | None = None
+    alteration_bbcor: Annotated[float, Field(ge=0.0, le=0.1)] = 0.0
+
+
 class BatSpec(BaseModel):
     """Identity and properties of a bat; optional values are measured or left to the model."""
 
@@ -48,6 +60,21 @@ class BatSpec(BaseModel):
     moi_u_kgm2: Annotated[float, Field(gt=0.0, lt=0.1)] | None = None  # standard u of an entered moi_kgm2
     # from the knob end, on the bat past the pivot
     balance_point_in: Annotated[float, Field(gt=PIVOT_FROM_KNOB_IN, lt=LENGTH_IN[1])] | None = None
+    _simulated: SimulatedTruth | None = PrivateAttr(default=None)
+
+    def __eq__(self, other: object) -> bool:
+        """Equal bat properties (the simulated truth, which is not the bat's record, aside)."""
+        if not isinstance(other, BatSpec):
+            return NotImplemented
+        return self.model_dump() == other.model_dump()
+
+    def __hash__(self) -> int:
+        return hash(tuple(self.model_dump().items()))
+
+    @property
+    def simulated(self) -> SimulatedTruth | None:
+        """The file's [simulated] table (the simulated bat's true properties), if it has one."""
+        return self._simulated
 
     @field_validator("balance_point_in")
     @classmethod
@@ -90,4 +117,9 @@ class BatSpec(BaseModel):
     def load(cls, path: str | Path) -> BatSpec:
         """Read table [bat] of a TOML file; errors name the file and the field."""
         data = read_toml(path)
-        return validate(cls, table(data, "bat", str(path)), str(path), prefix="bat.")
+        bat = validate(cls, table(data, "bat", str(path)), str(path), prefix="bat.")
+        if "simulated" in data:
+            bat._simulated = validate(
+                SimulatedTruth, table(data, "simulated", str(path)), str(path), "simulated."
+            )
+        return bat

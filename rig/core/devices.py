@@ -130,6 +130,13 @@ class Cannon(Protocol):
 
 
 @runtime_checkable
+class BallLoader(Protocol):
+    """A cannon told which ball is in its breech (LOAD), so its record names the ball of each shot."""
+
+    def load_ball(self, ball_id: str) -> None: ...
+
+
+@runtime_checkable
 class Gates(Protocol):
     """Light gates streaming timestamped beam breaks."""
 

@@ -45,7 +45,8 @@ class SimulatedBat:
         s = self.spec
         lines = [
             f"# Simulated bat {self.index} of population seed {seed} (rig study --certify, scene {scene}).",
-            f"# True MOI about the pivot {self.moi_kgm2:.5f} kg m^2: the rig measures it on the pivot.",
+            "# The [simulated] table holds the simulated bat's true properties: only the simulated rig",
+            "# reads it; the controller measures the MOI on the pivot.",
         ]
         if self.altered:
             lines.append(
@@ -60,7 +61,12 @@ class SimulatedBat:
             f'barrel = "{s.barrel.value}"',
             f"hoop_hz = {s.hoop_hz!r}",
             f"balance_point_in = {s.balance_point_in!r}",
+            "",
+            "[simulated]",
+            f"moi_kgm2 = {self.moi_kgm2!r}",
         ]
+        if self.altered:
+            lines.append(f"alteration_bbcor = {self.alteration_bbcor!r}")
         return "\n".join(lines) + "\n"
 
 

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Annotated, ClassVar
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from rig.physics import CollisionParams
-from simulators.records import Crossing, Outgoing
+from simulators.records import Crossing, Outgoing, SimBall
 
 if TYPE_CHECKING:
     from simulators.scene import Scene
@@ -75,8 +75,10 @@ class Effect:
         """The muzzle speed of this shot, m/s."""
         return speed
 
-    def ball_params(self, params: CollisionParams, time_s: float) -> CollisionParams:
-        """The ball's model constants for this shot."""
+    def ball_params(
+        self, params: CollisionParams, time_s: float, ball: SimBall | None = None
+    ) -> CollisionParams:
+        """The ball's model constants for this shot (`ball`: the ball fired, with its hits so far)."""
         return params
 
     def crossings(self, crossings: list[Crossing], shot: int) -> list[Crossing]:

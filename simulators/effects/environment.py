@@ -1,6 +1,6 @@
 """Lab temperature and humidity: ENV readings that drift, and their small effect on the ball.
 
-Temperature follows temp_c + temp_swing_c sin(2 pi t / period_s) and humidity moves the opposite
+Temperature follows temp_c + temp_swing_c sin(2 pi (start_s + t) / period_s) and humidity moves the opposite
 way (a warming room dries), each reading with Gaussian sensor noise. The ball's damping c1 scales
 by 1 + damping_per_c (T - 21) + damping_per_pct_rh (RH - 50), using the true (noise-free) values:
 a warm, dry ball is livelier (Kagan's humidor studies show the sign, not these sizes). Without this
@@ -18,6 +18,7 @@ from pydantic import Field
 from rig.physics import CollisionParams
 from simulators.effects.base import Effect, EffectConfig
 from simulators.physics import NOMINAL_RH_PCT, NOMINAL_TEMP_C
+from simulators.records import SimBall
 
 if TYPE_CHECKING:
     from simulators.scene import Scene
@@ -35,6 +36,11 @@ class EnvironmentConfig(EffectConfig):
     period_s: float = Field(
         3600.0, ge=1.0, le=1e6, description="period of the swing, virtual s (1 s-12 days)"
     )
+    start_s: float = Field(0.0, ge=0.0, le=1e6, description="where in the swing the world starts, virtual s")
+    random_start: bool = Field(
+        False,
+        description="start where the seed and the bat's id put it in the swing (runs start at any hour)",
+    )
     noise_c: float = Field(0.05, ge=0.0, le=5.0, description="sensor noise, one sigma")
     noise_pct: float = Field(0.3, ge=0.0, le=10.0)
     damping_per_c: float = Field(-0.005, ge=-0.1, le=0.1, description="relative change of c1 per C")
@@ -50,10 +56,18 @@ class LabEnvironment(Effect):
 
     config: EnvironmentConfig
 
+    def __init__(self, config: EnvironmentConfig, scene: Scene, rng: random.Random) -> None:
+        super().__init__(config, scene, rng)
+        # a lab's runs start at any hour: each bat (and seed) then meets its own point of the swing
+        self.start_s = config.start_s
+        if config.random_start:
+            draw = random.Random(f"{scene.seed}/{scene.bat.id}/environment-start")
+            self.start_s = draw.uniform(0.0, config.period_s)
+
     def true_conditions(self, time_s: float) -> tuple[float, float]:
         """(temperature C, RH %) without sensor noise."""
         c = self.config
-        s = math.sin(2.0 * math.pi * time_s / c.period_s)
+        s = math.sin(2.0 * math.pi * (self.start_s + time_s) / c.period_s)
         return c.temp_c + c.temp_swing_c * s, min(100.0, max(0.0, c.rh_pct - c.rh_swing_pct * s))
 
     def environment(self, time_s: float) -> tuple[float, float]:
@@ -63,7 +77,9 @@ class LabEnvironment(Effect):
         rh = min(100.0, max(0.0, rh + self.rng.gauss(0.0, self.config.noise_pct)))
         return temp, rh
 
-    def ball_params(self, params: CollisionParams, time_s: float) -> CollisionParams:
+    def ball_params(
+        self, params: CollisionParams, time_s: float, ball: SimBall | None = None
+    ) -> CollisionParams:
         """The ball's damping at the lab's conditions now."""
         temp, rh = self.true_conditions(time_s)
         c = self.config

@@ -1,8 +1,10 @@
 """Ball wear: the ball softens with every hit, so its COR drifts down over a run.
 
 Modelled as the ball's damping coefficient c1 rising by `damping_per_hit` (relative) per previous
-hit: c1_n = c1 (1 + damping_per_hit n) for the (n+1)-th hit. With the paper's constants a 1 %
-rise of c1 lowers e_A by about 1 %. Ball replacement is not modelled: the count never resets.
+hit of that ball: c1_n = c1 (1 + damping_per_hit n) for its (n+1)-th hit. With the paper's
+constants a 1 % rise of c1 lowers e_A by about 1 %. Each ball counts its own hits: a ball the host
+LOADs for the first time starts fresh (the world keeps the count). A host that never names its
+balls fires one ball all along, whose count never resets.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from pydantic import Field
 
 from rig.physics import CollisionParams
 from simulators.effects.base import Effect, EffectConfig
+from simulators.records import SimBall
 
 if TYPE_CHECKING:
     from simulators.scene import Scene
@@ -31,16 +34,18 @@ class BallWearConfig(EffectConfig):
 
 
 class BallWear(Effect):
-    """Counts hits and raises c1 accordingly."""
+    """Raises c1 with the fired ball's hit count."""
 
     config: BallWearConfig
 
     def __init__(self, config: BallWearConfig, scene: Scene, rng: random.Random) -> None:
         super().__init__(config, scene, rng)
-        self.hits = 0
+        self.hits = 0  # for a call without a ball: one ball all along
 
-    def ball_params(self, params: CollisionParams, time_s: float) -> CollisionParams:
+    def ball_params(
+        self, params: CollisionParams, time_s: float, ball: SimBall | None = None
+    ) -> CollisionParams:
         """The worn ball's constants for this hit (called once per impact)."""
-        worn = params.model_copy(update={"c1": params.c1 * (1.0 + self.config.damping_per_hit * self.hits)})
+        hits = ball.hits if ball is not None else self.hits
         self.hits += 1
-        return worn
+        return params.model_copy(update={"c1": params.c1 * (1.0 + self.config.damping_per_hit * hits)})

@@ -98,8 +98,8 @@ def test_certify_a_small_population_into_a_store_that_verifies_and_studies(
             fin["location_in"],
             tramp.offset_bbcor + bat.alteration_bbcor,  # type: ignore[attr-defined]
         )
-        # measured within the rig's noise and bias (ball wear, drag correction): 0.003 +- 0.0003 low
-        assert row.bbcor == pytest.approx(expected, abs=0.005)
+        # measured within its stated U: the ball's wear, spread and the lab's air are in the budget
+        assert abs(row.bbcor - expected) <= fin["U"]
     assert sum(1 for r in rows if r.bat_id.startswith("ALT-")) == 1
     # run again: nothing is certified twice
     assert main(flags) == 0

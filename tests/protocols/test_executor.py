@@ -44,7 +44,7 @@ class FakeRig:
     def move(self, q: float) -> None:
         self.moves.append(q)
 
-    def fire(self, config: Any, aim: float, gates: GateConfig, live: Any) -> Fired:
+    def fire(self, config: Any, aim: float, gates: GateConfig, live: Any, ball: str | None = None) -> Fired:
         if self.fail_fire is not None:
             raise self.fail_fire
         raise AssertionError("these tests fire only to fail")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import copy
+import math
 import re
 from html.parser import HTMLParser
 from pathlib import Path
@@ -101,7 +102,8 @@ def test_markdown_certificate_of_a_passing_bat(records: dict[str, dict[str, Any]
     assert md.startswith("# Bat performance certificate: NCAA BBCOR — bat SAMPLE-AL-33")
     assert rec["procedure"]["edition"] in md
     assert "> **PASS: BBCOR" in md
-    assert f"{v['mean']:.4f} ± {v['U']:.4f}" in md and "| limit | 0.5 |" in md
+    d = 1 - math.floor(math.log10(v["U"]))  # U to two significant digits, the mean to match (GUM 7.2.6)
+    assert f"{v['mean']:.{d}f} ± {v['U']:.{d}f}" in md and "| limit | 0.5 |" in md
     assert "Guarded acceptance (k = 2)" in md
     assert _shot_rows(md) == {s["index"] for s in rec["shots"]}  # every shot, nothing hidden
     assert f"rig verify --anchor {anchor['seq']}:{anchor['hash']}" in md

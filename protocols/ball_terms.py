@@ -1,0 +1,150 @@
+"""The ball's part of a verdict: what is corrected with a sensitivity the lab measured, what is budgeted.
+
+A certified value is meant for a new ball of the lot's nominal condition (its conditioning
+temperature and humidity). The balls the rig fires differ from it in three ways:
+- wear: a ball softens with its hits (the lot's ball-cor test measures COR per hit on the plate);
+- conditions: a warm, dry ball is livelier (sensitivities per C and per % RH, measured or assumed);
+- ball-to-ball spread within the lot (the ball-cor test's standard deviation between balls).
+Each is first expressed as a change of the ball's COR on the flat plate, then carried to the metric
+by the collision model's ratio g = d(metric)/d(plate COR) for a change of the ball's damping (the
+model's own sensitivity, with a relative uncertainty stated here). Measured sensitivities correct
+each hit and budget their own uncertainty; assumed ones correct nothing and budget the whole effect.
+The lot's spread is never corrected (a ball's own COR is not known): it is budgeted per ball used.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from rig.measure.metrics import compute_metrics
+from rig.physics import CollisionParams, PivotedBat, predict_bat, rigid_cor
+
+PLATE_SPEED_M_S = 26.8  # ASTM F1887: 60 mph onto a rigid flat surface
+G_U_REL = 0.15  # [U] relative u of the model's ratio g (rigid barrel against a hollow one: 6 % seen)
+DAMPING_STEP = 0.01  # relative step of c1 for the ratio
+
+
+class BallTerms(BaseModel):
+    """What the lab knows of the balls of a run: recorded whole in RunStarted (`ball`)."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
+
+    lot: str | None = None
+    source: str = "assumed defaults [U]: no qualified lot named"
+    measured: bool = False  # True: the sensitivities were measured on this lot -> correct each hit
+    plate_cor: float | None = None  # the lot's COR on the plate at 60 mph, if measured
+    wear_per_hit: float = Field(-0.0003, description="plate COR change per hit of a ball")
+    wear_per_hit_u: float = Field(0.0003, ge=0.0)
+    sd_between_balls: float = Field(0.003, ge=0.0, description="plate COR SD between the lot's balls")
+    cor_per_c: float = Field(0.0015, description="plate COR change per C above the nominal")
+    cor_per_c_u: float = Field(0.0015, ge=0.0)
+    cor_per_pct_rh: float = Field(-0.0006, description="plate COR change per % RH above the nominal")
+    cor_per_pct_rh_u: float = Field(0.0006, ge=0.0)
+    temp_c: float = 21.0  # the lot's nominal (conditioning) temperature
+    rh_pct: float = 50.0
+    law: dict[str, float] | None = None  # the ball law's constants (BALL.json), else the paper's
+
+
+@dataclass(frozen=True)
+class HitBall:
+    """One valid hit's ball: which, its hits before this one, the lab's air at the shot."""
+
+    ball: str
+    hits: int
+    temp_c: float
+    rh_pct: float
+
+
+@dataclass(frozen=True)
+class BallAdjustment:
+    """Per-hit corrections (added to each hit's metric) and the budget's ball terms (standard u)."""
+
+    g: float
+    corrections: tuple[float, ...]
+    u_wear: float
+    u_conditions: float
+    u_spread: float
+    u_ratio: float
+    balls: tuple[str, ...]
+
+    @property
+    def u(self) -> float:
+        """The ball's combined standard uncertainty."""
+        return math.sqrt(self.u_wear**2 + self.u_conditions**2 + self.u_spread**2 + self.u_ratio**2)
+
+    def as_dict(self) -> dict[str, Any]:
+        """For the record."""
+        return {**asdict(self), "u": self.u}
+
+
+def law_params(terms: BallTerms, m_ball: float) -> CollisionParams:
+    """The ball law the ratio is computed with: the recorded ball file's, else the paper's with m_ball."""
+    values = dict(terms.law or {})
+    values.setdefault("m1", m_ball)
+    return CollisionParams.build(**{k: v for k, v in values.items() if k in CollisionParams.model_fields})
+
+
+def ratio(params: CollisionParams, metric: str, speed: float, q: float, moi: float, length_m: float) -> float:
+    """g = d(metric)/d(plate COR) for a change of the ball's damping c1, on the rigid-barrel pivoted bat."""
+
+    def both(p: CollisionParams) -> tuple[float, float]:
+        e_a = predict_bat(p, speed, None, PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q)).e_a
+        m = compute_metrics(speed, e_a * speed, q, moi, p.m1, length_m)
+        return float(getattr(m, metric)), rigid_cor(p, PLATE_SPEED_M_S)
+
+    m0, c0 = both(params)
+    m1, c1 = both(params.model_copy(update={"c1": params.c1 * (1.0 + DAMPING_STEP)}))
+    return (m1 - m0) / (c1 - c0)
+
+
+def adjust(terms: BallTerms, hits: list[HitBall], g: float) -> BallAdjustment:
+    """Corrections and budget terms for these valid hits, given the model's ratio g."""
+    n = len(hits)
+    mean_hits = sum(h.hits for h in hits) / n
+    d_t = sum(h.temp_c - terms.temp_c for h in hits) / n
+    d_rh = sum(h.rh_pct - terms.rh_pct for h in hits) / n
+    balls = tuple(dict.fromkeys(h.ball for h in hits))
+    if terms.measured:
+        corrections = tuple(
+            -g
+            * (
+                terms.wear_per_hit * h.hits
+                + terms.cor_per_c * (h.temp_c - terms.temp_c)
+                + terms.cor_per_pct_rh * (h.rh_pct - terms.rh_pct)
+            )
+            for h in hits
+        )
+        u_wear = abs(g) * terms.wear_per_hit_u * mean_hits
+        u_cond = abs(g) * math.hypot(terms.cor_per_c_u * d_t, terms.cor_per_pct_rh_u * d_rh)
+    else:  # assumed sizes: nothing corrected, the whole effect budgeted
+        corrections = (0.0,) * n
+        u_wear = abs(g) * math.hypot(terms.wear_per_hit, terms.wear_per_hit_u) * mean_hits
+        u_cond = abs(g) * math.hypot(
+            math.hypot(terms.cor_per_c, terms.cor_per_c_u) * d_t,
+            math.hypot(terms.cor_per_pct_rh, terms.cor_per_pct_rh_u) * d_rh,
+        )
+    shares = [sum(1 for h in hits if h.ball == b) / n for b in balls]  # hits on one ball share its offset
+    u_spread = abs(g) * terms.sd_between_balls * math.sqrt(sum(s * s for s in shares))
+    u_ratio = G_U_REL * abs(sum(corrections) / n)
+    return BallAdjustment(g, corrections, u_wear, u_cond, u_spread, u_ratio, balls)
+
+
+def hit_balls(hits: list[Any], environment: dict[str, Any] | None, terms: BallTerms) -> list[HitBall]:
+    """Each valid hit's ball, its hits before, and the air at its shot (else at the run's check)."""
+    env = environment or {}
+    out = []
+    for h in hits:
+        raw, asked = h.raw or {}, (h.requested or {})
+        out.append(
+            HitBall(
+                ball=str(raw.get("ball") or f"ball-{raw.get('ball_number', 1):02d}"),
+                hits=int(raw.get("ball_hits", 0)),
+                temp_c=float(asked.get("temperature_c", env.get("temperature_c", terms.temp_c))),
+                rh_pct=float(asked.get("humidity_pct", env.get("humidity_pct", terms.rh_pct))),
+            )
+        )
+    return out
