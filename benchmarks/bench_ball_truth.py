@@ -84,7 +84,8 @@ def main() -> None:
     for bat, m, t, u in rows:
         print(f"  {bat}: certified {m:.5f}  truth {t:.5f}  error {m - t:+.5f}  U {u:.5f}")
     print(f"mean error {mean:+.5f} (standard error {se:.5f}; target within +-0.0005)")
-    print(f"|error| <= U for {covered} of {len(rows)} bats ({100 * covered / len(rows):.0f} %; target >= 95 %)")
+    share = 100 * covered / len(rows)
+    print(f"|error| <= U for {covered} of {len(rows)} bats ({share:.0f} %; target >= 95 %)")
     print(f"median U {statistics.median(u for *_, u in rows):.5f}; {time.perf_counter() - t0:.1f} s")
 
 
