@@ -7,7 +7,7 @@ import json
 import sys
 from typing import Any
 
-from rig.cli import calibrate, crosscheck
+from rig.cli import calibrate, crosscheck, fit_ball
 from rig.cli.common import (
     Bounds,
     check_flags,
@@ -293,7 +293,7 @@ MODEL_DOC = "The ball-barrel collision model (founding paper, Eqs. 1-2)."
 
 
 def add_parsers(sub: Any) -> None:
-    """`rig model cor|curve|bat|accuracy|calibrate|crosscheck`."""
+    """`rig model cor|curve|bat|accuracy|calibrate|crosscheck|fit-ball`."""
     model = sub.add_parser(
         "model",
         help="the ball-barrel collision model",
@@ -348,3 +348,4 @@ def add_parsers(sub: Any) -> None:
 
     calibrate.add_parser(msub)
     crosscheck.add_parser(msub)
+    fit_ball.add_parser(msub)
