@@ -95,6 +95,41 @@ def cmd_fit_ball(args: argparse.Namespace) -> int:
     return 0
 
 
+def load_ball(path: str) -> tuple[Any, str]:
+    """A ball file (`--ball`) and its sha256; ConfigError names the file and the cause."""
+    from rig.physics.ball_law import BallLaw
+
+    return BallLaw.read(path)
+
+
+def _same_constants(x: dict[str, float], y: dict[str, float]) -> bool:
+    return set(x) == set(y) and all(abs(x[n] - y[n]) <= 1e-12 * max(abs(x[n]), 1.0) for n in x)
+
+
+def check_calibration_ball(cal: Any, ball: str, who: str) -> None:
+    """Refuse a ball other than the one the calibration was made with (the paper's when it names none).
+
+    The calibration's m2, c2 (and k1 scale or offset) were fitted with its ball's constants; a
+    prediction with another ball would mix a barrel fitted for one ball law with another law, an
+    error no interval covers. Recalibrate with the new ball instead.
+    """
+    law, sha = load_ball(ball)
+    recorded = cal.ball
+    if recorded is None:
+        raise ConfigError(
+            f"--ball {ball}: the calibration was made with the paper's ball, not this one;"
+            " recalibrate with --ball or drop --ball",
+            source=who,
+        )
+    if not _same_constants(dict(recorded["constants"]), dict(law.constants)):
+        raise ConfigError(
+            f"--ball {ball} (lot {law.lot or '-'}, sha256 {sha[:12]}) differs from the calibration's ball"
+            f" (lot {recorded.get('lot') or '-'}, sha256 {str(recorded.get('sha256'))[:12]});"
+            " recalibrate with this ball or drop --ball",
+            source=who,
+        )
+
+
 def why_chosen(law: Any) -> str:
     """Why the chosen variant was chosen, in one sentence."""
     identified = [v for v in law.variants if v["identified"]]
