@@ -145,7 +145,7 @@ class BallFit:
 
     def errors(self) -> dict[str, float]:
         """One-sigma uncertainty of each fitted constant."""
-        return {n: float(math.sqrt(self.covariance[i, i])) for i, n in enumerate(self.names)}
+        return {n: float(math.sqrt(max(self.covariance[i, i], 0.0))) for i, n in enumerate(self.names)}
 
     def correlation(self, x: str, y: str) -> float | None:
         """The correlation of two fitted constants (None when either is not fitted or not identified)."""
@@ -202,7 +202,9 @@ def fit_variant(
         # stated u: (J^T W J)^-1, inflated by the Birge ratio when the scatter exceeds them;
         # no u: the residual scatter s^2 (J^T J)^-1
         factor = max(1.0, chi2_dof) if data.weighted else chi2_dof
-        cov = factor * np.linalg.inv(J.T @ J) * np.outer(scale, scale)
+        # (J^T J)^-1 from the SVD of J: a sum of positive terms, so no negative variance from round-off
+        _, sv, vt = np.linalg.svd(J, full_matrices=False)
+        cov = factor * (vt.T / sv**2) @ vt * np.outer(scale, scale)
     return BallFit(variant, names, values, cov, scatter, chi2_dof, -raw, cond, dof)
 
 
