@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rig.ball.data import CcorPoint
+from rig.ball.limits import MIN_SPEED_RATIO, MIN_SPEEDS, SPEED_GROUP_M_S
 from rig.core.errors import RigError
 from rig.physics import DEFAULT_PARAMS, CollisionParams, Impact, solve_batch
 
@@ -33,9 +34,6 @@ VARIANTS: dict[str, tuple[str, ...]] = {
 }
 BOUNDS = {"a": (0.0, 1.0), "b": (0.0, 1.0), "k1": (1e4, 1e10), "c1": (0.0, 1e6)}
 UNITS = {"m1": "kg", "k1": "N/m^(1+a)", "c1": "N s/m^(1+b)", "a": "", "b": ""}
-MIN_SPEEDS = 5  # distinct inbound speeds, as the paper's test
-SPEED_GROUP_M_S = 1.0  # speeds closer than this to the next one count as one speed
-MIN_SPEED_RATIO = 2.0  # highest / lowest speed: below it a and b are not separated (docs/ball.md)
 MAX_CONDITION = 1e8  # of the column-scaled Jacobian, as rig.population.calibrate
 FIT_RTOL = 1e-10  # the collision solves inside the fit
 DIFF_STEP = 1e-5

@@ -194,7 +194,7 @@ def _print(law: Any) -> None:
 
 def add_parser(msub: Any) -> None:
     """`rig model fit-ball` under the `rig model` subcommands."""
-    from rig.ball.fit import MIN_SPEED_RATIO, MIN_SPEEDS
+    from rig.ball.limits import MIN_SPEED_RATIO, MIN_SPEEDS
 
     p = msub.add_parser(
         "fit-ball",

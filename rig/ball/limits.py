@@ -1,0 +1,5 @@
+"""What a ball fit needs of its design: plain numbers, importable without the model (the CLI's help)."""
+
+MIN_SPEEDS = 5  # distinct inbound speeds, as the paper's test
+SPEED_GROUP_M_S = 1.0  # speeds closer than this to the next one count as one speed
+MIN_SPEED_RATIO = 2.0  # highest / lowest speed: below it a and b are not separated (docs/ball.md)
