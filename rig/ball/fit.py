@@ -3,7 +3,8 @@
 The model's CCOR at speed v is the COR of the ball (Eq. 1) on a rigid, immovable surface:
 `rig.physics.rigid_cor`, solved here for all speeds in one batch. Least squares (scipy
 `least_squares`, bounded) fits the variants in VARIANTS; each is scored by leave-one-out error
-(leave one ball out when every point names its ball, else one point) and the simplest variant
+(leave one ball out when every point names its ball, else one point; in MAX_FOLDS folds
+when there are more) and the simplest variant
 whose mean squared LOO error lies within one standard error of the best one's is chosen, as
 `rig model calibrate` chooses. A variant whose column-scaled Jacobian has a condition number
 above MAX_CONDITION, a parameter at a bound, or a standard uncertainty larger than the parameter
@@ -23,7 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rig.ball.data import CcorPoint
-from rig.ball.limits import MIN_SPEED_RATIO, MIN_SPEEDS, SPEED_GROUP_M_S
+from rig.ball.limits import MAX_FOLDS, MAX_POINTS, MIN_SPEED_RATIO, MIN_SPEEDS, SPEED_GROUP_M_S
 from rig.core.errors import RigError
 from rig.physics import DEFAULT_PARAMS, CollisionParams, Impact, solve_batch
 
@@ -40,7 +41,8 @@ DIFF_STEP = 1e-5
 MAX_RELATIVE_SIGMA = 1.0  # a fitted constant less certain than its own size is not identified
 POOR_RELATIVE_SIGMA = 0.25  # one this uncertain (relative) gets a note
 SELECTION = (
-    "leave-one-out error (one ball out when every point names its ball, else one point); the simplest"
+    "leave-one-out error (one ball out when every point names its ball, else one point; 50 folds when"
+    " there are more); the simplest"
     " identified variant whose mean squared LOO error lies within one standard error of the best one's"
 )
 
@@ -79,8 +81,9 @@ class FitData:
     weight: np.ndarray
     weighted: bool
     groups: np.ndarray  # group index of each point
-    group_names: tuple[str, ...]
+    group_names: tuple[str, ...]  # what each leave-out group leaves out (a ball, a point, or a fold)
     by_ball: bool
+    n_balls: int  # distinct ball ids (the number of points when the file names no balls)
 
     @property
     def n(self) -> int:
@@ -92,6 +95,8 @@ def fit_data(points: Sequence[CcorPoint]) -> FitData:
     """Check the design and build the arrays; BallFitRefused names the cause."""
     if not points:
         raise BallFitRefused("no CCOR points")
+    if len(points) > MAX_POINTS:
+        raise BallFitRefused(f"too many points: {len(points)}; a CCOR fit takes at most {MAX_POINTS}")
     speeds = [p.speed_m_s for p in points]
     levels = speed_levels(speeds)
     if len(levels) < MIN_SPEEDS:
@@ -115,7 +120,12 @@ def fit_data(points: Sequence[CcorPoint]) -> FitData:
     by_ball = all(p.ball_id is not None for p in points) and len({p.ball_id for p in points}) >= 3
     keys = [p.ball_id if by_ball else f"point {i + 1}" for i, p in enumerate(points)]
     names = tuple(dict.fromkeys(str(k) for k in keys))
-    groups = np.array([names.index(str(k)) for k in keys])
+    index = {name: i for i, name in enumerate(names)}
+    groups = np.array([index[str(k)] for k in keys])
+    n_balls = len(names) if by_ball else len({p.ball_id for p in points if p.ball_id} or points)
+    if len(names) > MAX_FOLDS:  # leave one fold of balls (points) out at a time, not each one
+        groups = groups % MAX_FOLDS
+        names = tuple(f"fold {i + 1} of {MAX_FOLDS}" for i in range(MAX_FOLDS))
     return FitData(
         speed=np.array(speeds, dtype=float),
         ccor=np.array([p.ccor for p in points], dtype=float),
@@ -124,6 +134,7 @@ def fit_data(points: Sequence[CcorPoint]) -> FitData:
         groups=groups,
         group_names=names,
         by_ball=by_ball,
+        n_balls=n_balls,
     )
 
 

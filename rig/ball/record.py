@@ -52,7 +52,6 @@ def ball_law(
     ]
     sources = dict(fixed_sources or {})
     fixed = {n: sources.get(n, PAPER) for n in BALL_NAMES if n not in fit.names}
-    balls = {data.group_names[g] for g in data.groups} if data.by_ball else set()
     return BallLaw(
         constants={n: float(getattr(params, n)) for n in BALL_NAMES},
         variant=result.chosen,
@@ -86,7 +85,7 @@ def ball_law(
             data_sha256=hashlib.sha256(blob).hexdigest(),
             lot=lot,
             n_points=data.n,
-            n_balls=len(balls) if balls else data.n,
+            n_balls=data.n_balls,
             n_speeds=len(speed_levels(data.speed.tolist())),
             speed_min_m_s=float(data.speed.min()),
             speed_max_m_s=float(data.speed.max()),

@@ -49,8 +49,8 @@ class BallLaw(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
-    kind: Literal["rig-ball-law"] = KIND
-    format: Literal[1] = FORMAT
+    kind: Literal["rig-ball-law"] = "rig-ball-law"
+    format: Literal[1] = 1
     constants: dict[str, float]  # m1, k1, c1, a, b: what the model solves with
     variant: str
     parameters: dict[str, float]  # the fitted ones, in the variant's order

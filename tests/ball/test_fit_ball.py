@@ -50,7 +50,8 @@ def test_recovers_a_and_b_within_two_sigma_and_says_which_variant() -> None:
     sig = fit.errors()
     for n in ("a", "b"):
         assert abs(fit.values[n] - TRUE[n]) <= 2.0 * sig[n], (n, fit.values[n], sig[n])
-    assert fit.correlation("a", "b") > 0.99  # a and b trade off along one line (docs/ball.md)
+    corr = fit.correlation("a", "b")
+    assert corr is not None and corr > 0.99  # a and b trade off along one line (docs/ball.md)
     assert not result.reports["a+b+k1+c1"].identified
     assert math.isfinite(result.reports["a+b"].loo_rmse)
     assert result.fit.scatter == pytest.approx(5e-4, rel=0.5)
@@ -114,3 +115,11 @@ def test_refuses_u_for_some_points_only() -> None:
     pts[3] = CcorPoint(pts[3].speed_m_s, pts[3].ccor, 0.001, pts[3].ball_id)
     with pytest.raises(BallFitRefused, match="u_ccor is given for some points but not all"):
         fit_ball(pts)
+
+
+def test_many_balls_are_left_out_in_folds_and_too_many_points_refused() -> None:
+    pts = ccor_points(seed=5, balls=30)  # 150 balls
+    data = fit_data(pts)
+    assert data.n_balls == 150 and len(data.group_names) == 50 and set(data.groups) == set(range(50))
+    with pytest.raises(BallFitRefused, match="too many points: 2005; a CCOR fit takes at most 2000"):
+        fit_data(ccor_points(seed=5, balls=401))
