@@ -62,8 +62,18 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     bats, blob, names, store_notes = gather(args.data, args.db, "rig model calibrate")
     for note in store_notes:
         print(f"rig: {note}", file=sys.stderr)
-    cal = calibrate(bats, metric=args.metric)
-    record = calibration_record(cal, blob, names)
+    ball = None
+    kwargs: dict[str, Any] = {}
+    if args.ball:
+        from rig.cli.fit_ball import load_ball
+        from rig.physics.ball_law import ball_record
+        from rig.population.calibrate import PAPER_BASE
+
+        law, sha = load_ball(args.ball)
+        ball = ball_record(law, sha, args.ball)
+        kwargs["base"] = law.apply(PAPER_BASE)
+    cal = calibrate(bats, metric=args.metric, **kwargs)
+    record = calibration_record(cal, blob, names, ball=ball)
     write_calibration(record, output)
     if args.json:
         json.dump(record, sys.stdout, indent=2, allow_nan=False)
@@ -104,6 +114,14 @@ def _print(record: dict[str, Any]) -> None:
     console.print(cov)
     for note in record["notes"]:
         console.print(f"note: {note}")
+    ball = record.get("ball")
+    if ball:
+        console.print(
+            f"ball: {ball['file']} (lot {ball['lot'] or '-'}, {ball['variant']},"
+            f" sha256 {ball['sha256'][:12]}...)"
+        )
+    else:
+        console.print("ball: the paper's constants (no --ball)")
     console.print(
         f"chosen: {record['variant']}; bat-to-bat scatter after the fit {record['scatter']:.4f},"
         f" leave-one-out prediction RMSE {record['loo_rmse']:.4f}"
@@ -132,5 +150,10 @@ def add_parser(msub: Any) -> None:
     p.add_argument("--db", metavar="STORE", help="also (or only) the certified bats of this record store")
     p.add_argument("--metric", choices=("bbcor", "besr", "bbs"), default="bbcor", help="metric to fit")
     p.add_argument("--output", required=True, metavar="CAL.json", help="where to write the calibration")
+    p.add_argument(
+        "--ball",
+        metavar="BALL.json",
+        help="a fitted ball (rig model fit-ball): its m1, k1, c1, a, b replace the paper's; recorded",
+    )
     p.add_argument("--json", action="store_true", help="print the calibration record as JSON")
     p.set_defaults(handler=cmd_calibrate)

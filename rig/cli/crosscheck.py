@@ -27,6 +27,10 @@ def cmd_crosscheck(args: argparse.Namespace) -> int:
     from rig.population.crosscheck import crosscheck_bats, dof, t_factor
 
     cal = load_calibration(args.calibration)
+    if args.ball:
+        from rig.cli.fit_ball import check_calibration_ball
+
+        check_calibration_ball(cal, args.ball, "rig model crosscheck")
     t = t_factor(cal, args.coverage)
     bats = load_population(args.data)
     if not bats:
@@ -81,6 +85,10 @@ def _print(checks: list[Any], cal: Any, rule: str) -> None:
             f"note: {len(outside)} bats lie outside the calibration's hoop range (first {outside[0]}):"
             " predicted by extrapolation"
         )
+    ball = cal.ball or {}
+    sha = str(ball.get("sha256"))[:12]
+    which = f"{ball.get('file')} (lot {ball.get('lot') or '-'}, sha256 {sha}...)" if ball else "the paper's"
+    console.print(f"ball: {which}")
     flagged = sum(bool(c.flagged) for c in checks)
     console.print(f"{flagged} of {len(checks)} bats flagged")
 
@@ -107,5 +115,10 @@ def add_parser(msub: Any) -> None:
     p.add_argument("--data", required=True, metavar="BATS", help="population file (.csv or .toml)")
     p.add_argument("--calibration", required=True, metavar="CAL.json", help="from `rig model calibrate`")
     p.add_argument("--coverage", type=_coverage, default=0.95, help="the interval's coverage (default 0.95)")
+    p.add_argument(
+        "--ball",
+        metavar="BALL.json",
+        help="the ball the bats were tested with: refused unless it is the calibration's ball",
+    )
     p.add_argument("--json", action="store_true", help="print a JSON list, one object per bat")
     p.set_defaults(handler=cmd_crosscheck)

@@ -7,7 +7,7 @@ import json
 import sys
 from typing import Any
 
-from rig.cli import calibrate, crosscheck
+from rig.cli import calibrate, crosscheck, fit_ball
 from rig.cli.common import (
     Bounds,
     check_flags,
@@ -48,6 +48,11 @@ def _model_parent() -> argparse.ArgumentParser:
         default=[],
         help="override a model constant (m1, k1, c1, a, b, m2, c2), e.g. --set m2=0.1",
     )
+    parent.add_argument(
+        "--ball",
+        metavar="BALL.json",
+        help="a fitted ball (rig model fit-ball): its m1, k1, c1, a, b replace the paper's",
+    )
     parent.add_argument("--rtol", type=float, default=None, help="solver relative tolerance")
     parent.add_argument("--json", action="store_true", help="print JSON instead of a table")
     return parent
@@ -57,7 +62,31 @@ def _params(args: argparse.Namespace) -> Any:
     from rig.physics.params import CollisionParams, check_physical
 
     check_flags(args, BOUNDS)
-    return check_physical(CollisionParams.build(**dict(args.overrides)))
+    params = check_physical(CollisionParams.build(**dict(args.overrides)))
+    if getattr(args, "ball", None):
+        from rig.cli.fit_ball import load_ball
+
+        law, _ = load_ball(args.ball)
+        clash = [n for n, _ in args.overrides if n in law.constants]
+        if clash:
+            raise ConfigError(
+                f"--set {clash[0]} and --ball exclude each other: the ball file sets {clash[0]}",
+                source=f"rig model {args.model_command}",
+            )
+        params = law.apply(params)
+    return params
+
+
+def _ball_payload(args: argparse.Namespace, payload: dict[str, Any], params: Any) -> dict[str, Any]:
+    """With --ball: the payload with the constants solved with and the ball file's identity."""
+    if getattr(args, "ball", None):
+        from rig.cli.fit_ball import load_ball
+        from rig.physics.ball_law import ball_record
+
+        law, sha = load_ball(args.ball)
+        payload.setdefault("params", params.model_dump())
+        payload["ball"] = ball_record(law, sha, args.ball)
+    return payload
 
 
 def _rtol(args: argparse.Namespace, default: float) -> float:
@@ -88,7 +117,7 @@ def cmd_cor(args: argparse.Namespace) -> int:
         "nfev": res.nfev,
         "params": params.model_dump(),
     }
-    emit(args, payload, "Ball-barrel collision")
+    emit(args, _ball_payload(args, payload, params), "Ball-barrel collision")
     return 0
 
 
@@ -119,10 +148,14 @@ def cmd_curve(args: argparse.Namespace) -> int:
         "contact_time_s": curve.contact_time_s.tolist(),
         "contacts": [] if curve.contacts is None else curve.contacts.tolist(),
     }
+    _ball_payload(args, payload, params)
     if args.json:
         emit(args, payload, "")
     else:
         _print_curve(curve)
+        if "ball" in payload:
+            b = payload["ball"]
+            out().print(f"ball: {b['file']} (lot {b['lot'] or '-'}, sha256 {b['sha256'][:12]}...)")
     return 0
 
 
@@ -180,6 +213,7 @@ def cmd_bat(args: argparse.Namespace) -> int:
             "besr": "e_a + 1/2",
         },
     }
+    _ball_payload(args, payload, params)
     if args.calibration:
         payload["calibrated"] = _calibrated(args, bat)
     elif args.measured is not None or args.u_measured is not None or args.length is not None:
@@ -207,6 +241,10 @@ def _calibrated(args: argparse.Namespace, bat: Any) -> dict[str, Any]:
             "--set and --calibration exclude each other: the calibration sets m2, c2", source="rig model bat"
         )
     cal = load_calibration(args.calibration)
+    if args.ball:
+        from rig.cli.fit_ball import check_calibration_ball
+
+        check_calibration_ball(cal, args.ball, "rig model bat")
     if abs(args.speed - cal.speed_m_s) > 1e-9:
         raise ConfigError(
             f"--speed {args.speed:g}: the calibration predicts at {cal.speed_m_s:g} m/s",
@@ -293,7 +331,7 @@ MODEL_DOC = "The ball-barrel collision model (founding paper, Eqs. 1-2)."
 
 
 def add_parsers(sub: Any) -> None:
-    """`rig model cor|curve|bat|accuracy|calibrate|crosscheck`."""
+    """`rig model cor|curve|bat|accuracy|calibrate|crosscheck|fit-ball`."""
     model = sub.add_parser(
         "model",
         help="the ball-barrel collision model",
@@ -348,3 +386,4 @@ def add_parsers(sub: Any) -> None:
 
     calibrate.add_parser(msub)
     crosscheck.add_parser(msub)
+    fit_ball.add_parser(msub)

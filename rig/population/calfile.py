@@ -21,6 +21,7 @@ from rig.core.errors import ConfigError
 from rig.physics import CollisionParams
 from rig.population.calibrate import (
     DEFAULT_LOCATION_IN,
+    PAPER_BASE,
     UNITS,
     VARIANTS,
     Calibration,
@@ -74,6 +75,9 @@ class CalibrationFile(BaseModel):
     bats: list[dict[str, Any]]
     notes: list[str] = []
     provenance: Provenance
+    # the fitted ball the calibration solved with (file name, sha256, lot, variant, constants);
+    # None: the paper's ball
+    ball: dict[str, Any] | None = None
 
     @model_validator(mode="before")
     @classmethod
@@ -105,10 +109,20 @@ def _num(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
-def calibration_record(cal: Calibration, data: bytes, data_file: str) -> dict[str, Any]:
-    """The JSON record of a calibration, with the data's hash and the software's version."""
+def calibration_base(cal: CalibrationFile) -> CollisionParams:
+    """The ball's constants a calibration was made with: its recorded ball's, else the paper's."""
+    if cal.ball is None:
+        return PAPER_BASE
+    return PAPER_BASE.model_copy(update=dict(cal.ball["constants"]))
+
+
+def calibration_record(
+    cal: Calibration, data: bytes, data_file: str, ball: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """The JSON record of a calibration, with the data's hash, the software's version and the
+    fitted ball it was made with (`ball`: rig.physics.ball_law.ball_record; None: the paper's)."""
     fit = cal.fit
-    predicted = predict(cal.bats, fit.values)
+    predicted = predict(cal.bats, fit.values, base=cal.base)
     loo = cal.reports[cal.chosen].loo_errors
     hoops = [b.hoop_hz for b in cal.bats]
     variants = []
@@ -137,7 +151,7 @@ def calibration_record(cal: Calibration, data: bytes, data_file: str) -> dict[st
         "covariance": fit.covariance.tolist(),
         "scatter": fit.scatter,
         "loo_rmse": cal.reports[cal.chosen].loo_rmse,
-        "model_params": model_params(fit.values).model_dump(),
+        "model_params": model_params(fit.values, cal.base).model_dump(),
         "selection": SELECTION,
         "variants": variants,
         "bats": [
@@ -161,6 +175,7 @@ def calibration_record(cal: Calibration, data: bytes, data_file: str) -> dict[st
             "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
             "software": f"rig {rig.__version__}",
         },
+        "ball": ball,
     }
 
 

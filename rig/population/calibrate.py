@@ -93,20 +93,28 @@ def fit_bats(bats: Sequence[PopulationBat], metric: str) -> list[FitBat]:
     return out
 
 
-def model_params(values: dict[str, float], base: CollisionParams = DEFAULT_PARAMS) -> CollisionParams:
-    """The collision constants for fitted values (the ball's from the paper, m1 the rig's ball)."""
-    update = {"m1": BALL_MASS_KG, "m2": values.get("m2", base.m2), "c2": values.get("c2", base.c2)}
+# the ball the calibration solves with unless a fitted ball (BALL.json, `--ball`) replaces it:
+# the paper's constants, m1 the rig's ball
+PAPER_BASE = DEFAULT_PARAMS.model_copy(update={"m1": BALL_MASS_KG})
+
+
+def model_params(values: dict[str, float], base: CollisionParams = PAPER_BASE) -> CollisionParams:
+    """The collision constants for fitted values: the ball's from `base` (k1 times any k1_scale)."""
+    update = {"m2": values.get("m2", base.m2), "c2": values.get("c2", base.c2)}
     update["k1"] = base.k1 * values.get("k1_scale", 1.0)
     return base.model_copy(update=update)
 
 
 def predict_many(
-    bats: Sequence[FitBat], sets: Sequence[dict[str, float]], rtol: float = FIT_RTOL
+    bats: Sequence[FitBat],
+    sets: Sequence[dict[str, float]],
+    rtol: float = FIT_RTOL,
+    base: CollisionParams = PAPER_BASE,
 ) -> np.ndarray:
     """The metric predicted for each bat (columns) under each set of values (rows): one batch."""
     impacts = []
     for values in sets:
-        params = model_params(values)
+        params = model_params(values, base)
         impacts += [impact_for(params, SPEED_M_S, b.hoop_hz, b.pivoted) for b in bats]
     e_a, _ = solve_batch(impacts, rtol=rtol)
     alpha = np.array([b.alpha for b in bats])
@@ -115,9 +123,14 @@ def predict_many(
     return alpha + beta * e_a.reshape(len(sets), len(bats)) + offsets
 
 
-def predict(bats: Sequence[FitBat], values: dict[str, float], rtol: float = FIT_RTOL) -> np.ndarray:
+def predict(
+    bats: Sequence[FitBat],
+    values: dict[str, float],
+    rtol: float = FIT_RTOL,
+    base: CollisionParams = PAPER_BASE,
+) -> np.ndarray:
     """The metric the model predicts for each bat, in one batch of compiled solves."""
-    return predict_many(bats, [values], rtol)[0]
+    return predict_many(bats, [values], rtol, base)[0]
 
 
 @dataclass(frozen=True)
@@ -145,7 +158,11 @@ def _upper(bats: Sequence[FitBat], name: str) -> float:
 
 
 def fit_variant(
-    bats: Sequence[FitBat], variant: str, start: dict[str, float] | None = None, covariance: bool = True
+    bats: Sequence[FitBat],
+    variant: str,
+    start: dict[str, float] | None = None,
+    covariance: bool = True,
+    base: CollisionParams = PAPER_BASE,
 ) -> Fit:
     """Least squares of the measured metric on the model's prediction for one variant."""
     names = VARIANTS[variant]
@@ -156,7 +173,7 @@ def fit_variant(
     scale = np.array([max(abs(START[n]), 1e-2) for n in names])
 
     def residuals(x: np.ndarray) -> np.ndarray:
-        return predict(bats, dict(zip(names, x, strict=True))) - measured
+        return predict(bats, dict(zip(names, x, strict=True)), base=base) - measured
 
     tol = 1e-10 if covariance else 1e-7  # a leave-one-out refit starts at the full fit's optimum
     from scipy.optimize import least_squares  # on first use: reading a calibration needs no fit
@@ -197,13 +214,13 @@ class VariantReport:
         return float(np.sqrt(np.mean(self.loo_errors**2)))
 
 
-def leave_one_out(bats: Sequence[FitBat], full: Fit) -> np.ndarray:
+def leave_one_out(bats: Sequence[FitBat], full: Fit, base: CollisionParams = PAPER_BASE) -> np.ndarray:
     """For each bat: its measured value minus the prediction of a fit to the others."""
     out = np.empty(len(bats))
     for i in range(len(bats)):
         rest = [b for j, b in enumerate(bats) if j != i]
-        fit = fit_variant(rest, full.variant, start=full.values, covariance=False)
-        out[i] = bats[i].measured - float(predict([bats[i]], fit.values)[0])
+        fit = fit_variant(rest, full.variant, start=full.values, covariance=False, base=base)
+        out[i] = bats[i].measured - float(predict([bats[i]], fit.values, base=base)[0])
     return out
 
 
@@ -232,6 +249,7 @@ class Calibration:
     reports: dict[str, VariantReport]
     chosen: str
     notes: tuple[str, ...] = field(default=())
+    base: CollisionParams = PAPER_BASE  # the ball's constants the fit solved with
 
     @property
     def fit(self) -> Fit:
@@ -263,9 +281,15 @@ def _at_bounds(bats: Sequence[FitBat], fit: Fit) -> list[tuple[str, float, float
 
 
 def calibrate(
-    bats: Sequence[PopulationBat], metric: str = "bbcor", variants: Sequence[str] = tuple(VARIANTS)
+    bats: Sequence[PopulationBat],
+    metric: str = "bbcor",
+    variants: Sequence[str] = tuple(VARIANTS),
+    base: CollisionParams = PAPER_BASE,
 ) -> Calibration:
-    """Fit every variant, score each by leave-one-out prediction error, choose one."""
+    """Fit every variant, score each by leave-one-out prediction error, choose one.
+
+    `base` gives the ball's constants (m1, k1, c1, a, b: the paper's, or a fitted ball's).
+    """
     rows = fit_bats(bats, metric)
     check_identifiable(rows)
     reports, notes = {}, []
@@ -273,7 +297,7 @@ def calibrate(
     for name in variants:
         # each further variant starts from the first identified one's optimum (its extra parameter
         # neutral), so it fits at least as well in sample and cannot stall in a worse local minimum
-        fit = fit_variant(rows, name, start={**START, **start})
+        fit = fit_variant(rows, name, start={**START, **start}, base=base)
         identified = bool(np.all(np.isfinite(fit.covariance)))
         bounded = _at_bounds(rows, fit)
         if not identified:
@@ -289,11 +313,11 @@ def calibrate(
             notes.append(
                 f"variant {name}: {n} = {v:.4g} at its bound ({lo:g}-{hi:.4g}); its sigma is unreliable"
             )
-        reports[name] = VariantReport(fit, leave_one_out(rows, fit), True)
+        reports[name] = VariantReport(fit, leave_one_out(rows, fit, base), True)
     if not any(r.identified for r in reports.values()):
         first = reports[variants[0]].fit
         raise CalibrationRefused(
             f"singular Jacobian: the data cannot separate {', '.join(first.names)}"
             f" (condition number {first.condition:.3g}); no variant is identified"
         )
-    return Calibration(metric, tuple(rows), reports, choose(reports), tuple(notes))
+    return Calibration(metric, tuple(rows), reports, choose(reports), tuple(notes), base)

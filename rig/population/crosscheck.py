@@ -28,7 +28,7 @@ from rig.core.bat import PIVOT_FROM_KNOB_M
 from rig.core.errors import ConfigError
 from rig.core.units import INCH
 from rig.physics import PivotedBat
-from rig.population.calfile import CalibrationFile, covariance_matrix
+from rig.population.calfile import CalibrationFile, calibration_base, covariance_matrix
 from rig.population.calibrate import BOUNDS, FitBat, _metric_line, predict_many
 from rig.population.dataset import PopulationBat, missing_column
 from rig.population.model import SPEED_M_S
@@ -156,7 +156,7 @@ def _predict(cal: CalibrationFile, rows: Sequence[FitBat]) -> tuple[np.ndarray, 
     """Predictions and u_model for each row, in one batch of solves (centre and +-step per parameter)."""
     steps = _steps(cal, rows)
     sets = [dict(cal.parameters)] + [s for up, down, _ in steps for s in (up, down)]
-    values = predict_many(rows, sets)
+    values = predict_many(rows, sets, base=calibration_base(cal))
     centre = values[0]
     grad = np.array([(values[1 + 2 * i] - values[2 + 2 * i]) / span for i, (_, _, span) in enumerate(steps)])
     cov = covariance_matrix(cal)

@@ -127,9 +127,10 @@ def calibrated_curves(
     calibration puts each bat: its own location_in, else the calibration's default location. The
     offset of an offset variant is in the calibration's metric and is added to that metric only.
     """
+    from rig.population.calfile import calibration_base
     from rig.population.calibrate import model_params
 
-    params = model_params(cal.parameters)
+    params = model_params(cal.parameters, calibration_base(cal))
     curves: dict[str, Any] = population_curves(
         bats, hoop_hz, cal.speed_m_s, params, location_in=cal.default_location_in
     )
