@@ -51,7 +51,7 @@ def rehearse_test(
     return rehearse(procedure, None, config, ball_test, past, context=BallContext, lot=lot)  # type: ignore[arg-type]
 
 
-def test_lot(
+def run_ball_test(
     store: Store,
     procedure: BallProcedure,
     lot: BallLot,

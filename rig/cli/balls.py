@@ -33,7 +33,7 @@ def cmd_test(args: argparse.Namespace) -> int:
     """rig balls test: run a ball test (ccor, ball-cor) on a registered lot, recording everything."""
     from protocols.ball_procedure import BallProcedure
     from protocols.runner import RunControl, ScriptedOperator
-    from rig.balls import recorded_test, rehearse_test, test_lot
+    from rig.balls import recorded_test, rehearse_test, run_ball_test
     from rig.core import events as ev
     from rig.report.live import LiveConsole
     from rig.run_signals import stop_on_signals
@@ -68,7 +68,7 @@ def cmd_test(args: argparse.Namespace) -> int:
                 raise ConfigError("; ".join(rehearsal.problems), source="dry run")
             return 0
         live = LiveConsole(quiet=args.json)
-        outcome = test_lot(
+        outcome = run_ball_test(
             store,
             procedure,
             lot,
