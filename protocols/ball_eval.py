@@ -53,13 +53,19 @@ def shot(
         passes = split_passes(record.crossings, record.gate_config)
         speeds = shot_speeds(passes, record.gate_positions_m, record.gate_config)
     except ShotDataError as exc:
-        return {**out, "valid": False, "reasons": [{"code": "NO_DATA", "message": str(exc), "invalidates": True}]}
+        return {
+            **out,
+            "valid": False,
+            "reasons": [{"code": "NO_DATA", "message": str(exc), "invalidates": True}],
+        }
     air = air_density(config, state)
     drag = drag_inputs(config, air)
     q = record.impact_from_pivot_m
     v_at_target = None
     if speeds.inbound is not None:
-        v_at_target = inbound_at_impact(passes, record.gate_positions_m, record.gate_config, p.ball.mass_kg, drag)
+        v_at_target = inbound_at_impact(
+            passes, record.gate_positions_m, record.gate_config, p.ball.mass_kg, drag
+        )
         aimed = target_speed / state.aim_factor
         out["aim_factor"] = 0.5 * state.aim_factor + 0.5 * (v_at_target / aimed)
     limits = ValidityLimits(speed_tolerance_m_s=p.speed_tolerance_m_s)
@@ -90,7 +96,13 @@ def shot(
             budget=hit.as_dict(),
         )
     out["reasons"] = [
-        {"code": r.code.value, "message": r.message, "invalidates": r.invalidates, "measured": r.measured, "limit": r.limit}
+        {
+            "code": r.code.value,
+            "message": r.message,
+            "invalidates": r.invalidates,
+            "measured": r.measured,
+            "limit": r.limit,
+        }
         for r in reasons
     ]
     if failure:

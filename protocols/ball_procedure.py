@@ -85,7 +85,9 @@ class BallProcedure(_Model):
             if len(speeds) != 1:
                 raise ValueError("a ball-cor test has one speed (ASTM F1887: 60 mph = 26.8 m/s)")
             if self.hits_per_ball < 2:
-                raise ValueError("hits_per_ball must be at least 2: the wear per hit is measured within a ball")
+                raise ValueError(
+                    "hits_per_ball must be at least 2: the wear per hit is measured within a ball"
+                )
         if self.balls_needed > 999:
             raise ValueError(f"the test needs {self.balls_needed} balls; at most 999")
         return self

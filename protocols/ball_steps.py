@@ -149,7 +149,9 @@ def slot_done(ctx: BallContext, slot: Slot) -> bool:
 
 def ball_hits(ctx: BallContext, ball_id: str) -> int:
     """The impacts the record gives ball `ball_id` so far (shots of it that the gates saw)."""
-    return sum(1 for s in ctx.state.shots if s.requested.get("ball") == ball_id and s.raw and s.raw.get("crossings"))
+    return sum(
+        1 for s in ctx.state.shots if s.requested.get("ball") == ball_id and s.raw and s.raw.get("crossings")
+    )
 
 
 def loaded_ball(ctx: BallContext) -> str | None:

@@ -73,7 +73,9 @@ def run_ball_test(
         _running(store, run_id, "--resume")
     registered = store.ball_lots().get(lot.id)
     if registered is None:
-        raise ConfigError(f"ball lot {lot.id} is not registered: rig balls register LOT.toml first", source="--lot")
+        raise ConfigError(
+            f"ball lot {lot.id} is not registered: rig balls register LOT.toml first", source="--lot"
+        )
     if registered != lot:
         raise ConfigError(f"ball lot {lot.id} is registered with other values", source="--lot")
     past = history(store, run_id) if run_id is not None else None
@@ -175,7 +177,8 @@ def recomputed_problems(store: Store) -> list[str]:
         if not _same(again, recorded):
             problems.append(
                 f"run {run.run_id}: the recorded lot result of lot {lot.id} is not what its shots give "
-                f"(recorded {recorded.get('quantity')} {recorded.get('mean')!r}, recomputed {again['mean']!r})"
+                f"(recorded {recorded.get('quantity')} {recorded.get('mean')!r}, "
+                f"recomputed {again['mean']!r})"
             )
     return problems
 

@@ -27,7 +27,7 @@ DEVICES = ("cannon", "gates", "clamp")
 
 
 # A lab that tests balls (60 mph, 25 m/s) calibrates its cannon's aim down to low pressures too.
-BALL_AIM_PRESSURES_KPA = (20.0, 30.0, 40.0, 50.0, 60.0, 80.0, 100.0, 150.0, 200.0, 300.0, 400.0, 500.0, 600.0, 800.0)
+BALL_AIM_PRESSURES_KPA = (20.0, 30.0, 40.0, 50.0, 60.0, 80.0, 100.0, 150.0, 200.0, 300.0, 400.0, 500.0, 600.0)
 
 
 def sim_config(

@@ -83,11 +83,15 @@ def cmd_test(args: argparse.Namespace) -> int:
         where = ("--config", args.config) if args.config else ("--sim", args.sim)
         db = f" --db {shlex.quote(shown_db(args.db))}" if args.db else ""
         resume = f"rig balls test --resume {outcome.run_id} {where[0]} {shlex.quote(str(where[1]))}{db}"
-        print(f"rig: run {outcome.run_id} interrupted: {outcome.reason}; resume with: {resume}", file=sys.stderr)
+        print(
+            f"rig: run {outcome.run_id} interrupted: {outcome.reason}; resume with: {resume}", file=sys.stderr
+        )
         return 3
     result = outcome.verdict["lot_result"] if outcome.verdict else {}
     if args.json:
-        json.dump({"run_id": outcome.run_id, **(outcome.verdict or {})}, sys.stdout, indent=2, allow_nan=False)
+        json.dump(
+            {"run_id": outcome.run_id, **(outcome.verdict or {})}, sys.stdout, indent=2, allow_nan=False
+        )
         sys.stdout.write("\n")
     else:
         print(_result_line(lot.id, outcome.run_id, result))
@@ -139,7 +143,9 @@ def cmd_list(args: argparse.Namespace) -> int:
         sys.stdout.write("\n")
         return 0
     table = new_table(title=f"Ball lots in {shown_db(args.db or store.location)}")
-    add_columns(table, "lot", "maker", "model", "balls", "nominal COR", "measured COR", "measured CCOR", "tests")
+    add_columns(
+        table, "lot", "maker", "model", "balls", "nominal COR", "measured COR", "measured CCOR", "tests"
+    )
     for lot, results in lots.values():
         latest = {r.procedure: r for r in results}
         cor, ccor = latest.get("ball-cor"), latest.get("ccor")
@@ -167,8 +173,14 @@ def cmd_show(args: argparse.Namespace) -> int:
         return 0
     spec, cond = lot.specification, lot.conditioning
     print(f"lot {lot.id}: {lot.maker} {lot.model}, {lot.balls} balls")
-    print("  specification: " + (", ".join(f"{k} {v:g}" for k, v in spec.model_dump().items() if v is not None) or "none entered"))
-    print("  conditioning: " + (", ".join(f"{k} {v:g}" for k, v in cond.model_dump().items() if v is not None) or "not stated"))
+    print(
+        "  specification: "
+        + (", ".join(f"{k} {v:g}" for k, v in spec.model_dump().items() if v is not None) or "none entered")
+    )
+    print(
+        "  conditioning: "
+        + (", ".join(f"{k} {v:g}" for k, v in cond.model_dump().items() if v is not None) or "not stated")
+    )
     if not results:
         print("  no results yet: rig balls test --procedure ball-cor|ccor --lot " + lot.id)
     for r in results:
@@ -181,7 +193,9 @@ def add_parsers(sub: Any) -> None:
     balls = sub.add_parser("balls", help="ball lots and ball tests (ccor, ball-cor)")
     bsub = balls.add_subparsers(dest="balls_command", required=True, metavar="BALLS_COMMAND")
 
-    p = bsub.add_parser("register", help="record a ball lot (LOT.toml, table [lot])", description=cmd_register.__doc__)
+    p = bsub.add_parser(
+        "register", help="record a ball lot (LOT.toml, table [lot])", description=cmd_register.__doc__
+    )
     p.add_argument("lot_file", metavar="LOT.toml", help="the lot's file (table [lot])")
     p.add_argument("--db", metavar="FILE", help=DB_HELP)
     p.set_defaults(handler=cmd_register)

@@ -47,7 +47,11 @@ def _rows(record: dict[str, Any]) -> tuple[list[tuple[str, str]], list[list[str]
     lot, r = record.get("lot") or {}, record.get("lot_result")
     name = "CCOR" if record.get("test") == "ccor" else "COR"
     summary = [
-        ("Lot", f"{lot.get('id', '-')} ({lot.get('maker', '-')} {lot.get('model', '-')}, {lot.get('balls', '-')} balls)"),
+        (
+            "Lot",
+            f"{lot.get('id', '-')} ({lot.get('maker', '-')} {lot.get('model', '-')}, "
+            f"{lot.get('balls', '-')} balls)",
+        ),
         ("Test", str(record.get("test"))),
         ("Procedure", str((record.get("procedure") or {}).get("name", "-"))),
         ("Edition", str((record.get("procedure") or {}).get("edition", "-"))),
@@ -63,19 +67,49 @@ def _rows(record: dict[str, Any]) -> tuple[list[tuple[str, str]], list[list[str]
     hits: list[list[str]] = []
     if r is not None:
         summary += [
-            (f"{name} (mean of the balls' means)", f"{_f(r['mean'])} +- {_f(r['U'])} (U, k = {r['coverage_k']:g}; u = {_f(r['u'], 5)})"),
+            (
+                f"{name} (mean of the balls' means)",
+                f"{_f(r['mean'])} +- {_f(r['U'])} (U, k = {r['coverage_k']:g}; u = {_f(r['u'], 5)})",
+            ),
             ("Ball-to-ball SD", _f(r.get("sd_between_balls"))),
-            ("Wear per hit", "-" if r.get("wear_per_hit") is None else f"{r['wear_per_hit']:+.5f} +- {r['wear_per_hit_u']:.5f} (u)"),
-            ("Balls x hits", f"{r['n_balls']} x {r['hits_per_ball']} ({r['n_hits']} valid hits, mean hit count {r['mean_hit']:.2f})"),
+            (
+                "Wear per hit",
+                "-"
+                if r.get("wear_per_hit") is None
+                else f"{r['wear_per_hit']:+.5f} +- {r['wear_per_hit_u']:.5f} (u)",
+            ),
+            (
+                "Balls x hits",
+                f"{r['n_balls']} x {r['hits_per_ball']} ({r['n_hits']} valid hits, "
+                f"mean hit count {r['mean_hit']:.2f})",
+            ),
             ("Lab during the test", f"{_f(r.get('temp_c'), 1)} C, {_f(r.get('rh_pct'), 0)} % RH"),
-            ("Meets its specification", {True: "yes", False: "NO", None: "no tolerance stated"}[record.get("meets_specification")]),
+            (
+                "Meets its specification",
+                {True: "yes", False: "NO", None: "no tolerance stated"}[record.get("meets_specification")],
+            ),
         ]
         speeds = [
-            [_f(p["target_speed_m_s"], 2), _f(p["speed_m_s"], 2), _f(p["mean"]), _f(p["u"], 5), _f(p.get("sd")), str(p["n"])]
+            [
+                _f(p["target_speed_m_s"], 2),
+                _f(p["speed_m_s"], 2),
+                _f(p["mean"]),
+                _f(p["u"], 5),
+                _f(p.get("sd")),
+                str(p["n"]),
+            ]
             for p in r.get("per_speed", [])
         ]
         hits = [
-            [str(p["shot"]), p["ball_id"], str(p["ball_hit"]), _f(p["target_speed_m_s"], 2), _f(p["speed_m_s"], 3), _f(p["cor"]), _f(p["u"], 5)]
+            [
+                str(p["shot"]),
+                p["ball_id"],
+                str(p["ball_hit"]),
+                _f(p["target_speed_m_s"], 2),
+                _f(p["speed_m_s"], 3),
+                _f(p["cor"]),
+                _f(p["u"], 5),
+            ]
             for p in r.get("points", [])
         ]
     return summary, speeds, hits
@@ -104,12 +138,18 @@ def render(record: dict[str, Any], fmt: str) -> str:
 
     def table(head: list[str] | None, body: list[list[str]]) -> str:
         top = "" if head is None else "<tr>" + "".join(f"<th>{e(h)}</th>" for h in head) + "</tr>"
-        return "<table>" + top + "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>" for row in body) + "</table>"
+        return (
+            "<table>"
+            + top
+            + "".join("<tr>" + "".join(f"<td>{e(c)}</td>" for c in row) + "</tr>" for row in body)
+            + "</table>"
+        )
 
     parts = [
         "<!DOCTYPE html><html><head><meta charset='utf-8'>",
         f"<title>{e(title)}</title>",
-        "<style>body{font-family:sans-serif}td,th{border:1px solid #999;padding:2px 6px}table{border-collapse:collapse}</style>",
+        "<style>body{font-family:sans-serif}td,th{border:1px solid #999;padding:2px 6px}"
+        "table{border-collapse:collapse}</style>",
         f"</head><body><h1>{e(title)}</h1>",
         table(None, [[k, v] for k, v in summary]),
     ]

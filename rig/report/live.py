@@ -27,7 +27,10 @@ class LiveConsole:
             p, b = d["procedure"], d["bat"]
             if "target" in b:  # a ball test: the clamp holds a rigid target, the cannon a lot's balls
                 lot = d.get("lot") or {}
-                return f"[bold]{p['name']}[/] of lot {lot.get('id')} on the {b['target']} ({b['id']}); edition: {p['edition']}"
+                return (
+                    f"[bold]{p['name']}[/] of lot {lot.get('id')} on the {b['target']} ({b['id']}); "
+                    f"edition: {p['edition']}"
+                )
             return (
                 f"[bold]{p['name']}[/] on bat {b['id']} ({b['length_in']:g} in, {b['weight_oz']:g} oz, "
                 f"{b['barrel']}); edition: {p['edition']}"

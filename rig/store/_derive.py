@@ -91,7 +91,8 @@ def derive(conn: sqlite3.Connection) -> Deriver:
     """Replay the whole log (reserved kinds decoded only) into a Deriver."""
     deriver = Deriver()
     rows = conn.execute(
-        "SELECT seq, run_id, kind, CASE WHEN kind IN (?, ?, ?, ?) THEN payload END, t_utc FROM log ORDER BY seq",
+        "SELECT seq, run_id, kind, CASE WHEN kind IN (?, ?, ?, ?) THEN payload END, t_utc "
+        "FROM log ORDER BY seq",
         (BAT_REGISTERED, RUN_CREATED, RUN_STATUS_CHANGED, BALL_LOT_REGISTERED),
     )
     for seq, run_id, kind, payload, t_utc in rows:

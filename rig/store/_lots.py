@@ -63,9 +63,15 @@ def results(store: Any, lot_id: str) -> list[LotResult]:
 
 def points(found: list[LotResult]) -> list[CcorPoint]:
     """The valid hits of the lot's ccor tests as (speed_m_s, ccor, u_ccor, ball_id)."""
-    return [
-        (p.speed_m_s, p.cor, p.u, p.ball_id) for r in found if r.procedure == "ccor" for p in r.points
-    ]
+    return [(p.speed_m_s, p.cor, p.u, p.ball_id) for r in found if r.procedure == "ccor" for p in r.points]
 
 
-__all__ = ["BALL_LOT_REGISTERED", "RecordRefused", "checked_lot", "points", "registered", "results", "unknown"]
+__all__ = [
+    "BALL_LOT_REGISTERED",
+    "RecordRefused",
+    "checked_lot",
+    "points",
+    "registered",
+    "results",
+    "unknown",
+]

@@ -166,7 +166,7 @@ class Store:
         spec = _lots.checked_lot(lot)
         with self._write() as conn:
             if self.engine != "sqlite":
-                conn.lock_chain(LAB_CHAIN)  # two rigs registering the same lot: the second waits, then sees it
+                conn.lock_chain(LAB_CHAIN)  # two rigs registering one lot: the second waits, then sees it
             if spec["id"] in _lots.registered(conn):
                 raise RecordRefused(f"ball lot {spec['id']} is already registered")
             return self._append(conn, None, BALL_LOT_REGISTERED, {"lot_id": spec["id"], "lot": spec})

@@ -259,8 +259,11 @@ def test_math_of_the_wear_slope() -> None:
     from rig.core.ball import CcorPoint
 
     pts = [
-        CcorPoint(speed_m_s=26.8, target_speed_m_s=26.8, cor=base - 0.001 * n, u=1e-4, ball_id=b, ball_hit=n, shot=i)
-        for i, (b, base) in enumerate((("A", 0.52), ("B", 0.50))) for n in (1, 2, 3)
+        CcorPoint(
+            speed_m_s=26.8, target_speed_m_s=26.8, cor=base - 0.001 * n, u=1e-4, ball_id=b, ball_hit=n, shot=i
+        )
+        for i, (b, base) in enumerate((("A", 0.52), ("B", 0.50)))
+        for n in (1, 2, 3)
     ]
     slope, u, _ = wear_slope(pts)
     assert slope == pytest.approx(-0.001) and u == pytest.approx(0.0, abs=1e-12)

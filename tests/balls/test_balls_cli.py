@@ -84,25 +84,71 @@ def test_register_twice_is_refused(db: Path, tmp_path: Path) -> None:
 
 def test_a_dry_run_writes_nothing(db: Path) -> None:
     before = entries(db)
-    result = run_cli(["balls", "test", "--procedure", "ball-cor", "--lot", "ACME-1", "--sim", "lab", "--db", str(db), "--dry-run"])
+    result = run_cli(
+        [
+            "balls",
+            "test",
+            "--procedure",
+            "ball-cor",
+            "--lot",
+            "ACME-1",
+            "--sim",
+            "lab",
+            "--db",
+            str(db),
+            "--dry-run",
+        ]
+    )
     assert result.code == 0 and "dry run: the test fits" in result.err, result.err
     assert entries(db) == before
 
 
 def test_a_dry_run_names_what_the_rig_cannot_do(db: Path, tmp_path: Path) -> None:
     rig = tmp_path / "rig.toml"
-    rig.write_text('[ports]\ncannon = "sim://cannon"\ngates = "sim://gates"\nclamp = "sim://clamp"\n', encoding="utf-8")
-    result = run_cli(["balls", "test", "--procedure", "ccor", "--lot", "ACME-1", "--config", str(rig), "--db", str(db), "--dry-run"])
+    rig.write_text(
+        '[ports]\ncannon = "sim://cannon"\ngates = "sim://gates"\nclamp = "sim://clamp"\n', encoding="utf-8"
+    )
+    result = run_cli(
+        [
+            "balls",
+            "test",
+            "--procedure",
+            "ccor",
+            "--lot",
+            "ACME-1",
+            "--config",
+            str(rig),
+            "--db",
+            str(db),
+            "--dry-run",
+        ]
+    )
     assert result.code == 2 and "outside the aim calibration" in result.err
 
 
 def test_an_unregistered_lot_is_named(db: Path) -> None:
-    result = run_cli(["balls", "test", "--procedure", "ball-cor", "--lot", "NOPE", "--sim", "lab", "--db", str(db)])
+    result = run_cli(
+        ["balls", "test", "--procedure", "ball-cor", "--lot", "NOPE", "--sim", "lab", "--db", str(db)]
+    )
     assert result.code == 2 and "ACME-1" in result.err and "register" in result.err
 
 
 def test_ball_cor_on_the_lab_rig_then_list_show_report_verify(db: Path, tmp_path: Path) -> None:
-    code, text = stdout_of(["balls", "test", "--procedure", "ball-cor", "--lot", "ACME-1", "--sim", "lab", "--db", str(db), "--json"])
+    code, text = stdout_of(
+        [
+            "balls",
+            "test",
+            "--procedure",
+            "ball-cor",
+            "--lot",
+            "ACME-1",
+            "--sim",
+            "lab",
+            "--db",
+            str(db),
+            "--json",
+        ]
+    )
     assert code == 0
     done = json.loads(text)
     r = done["lot_result"]
@@ -113,7 +159,11 @@ def test_ball_cor_on_the_lab_rig_then_list_show_report_verify(db: Path, tmp_path
     assert listed[0]["lot"]["id"] == "ACME-1" and listed[0]["latest"]["mean"] == r["mean"]
     code, text = stdout_of(["balls", "show", "ACME-1", "--db", str(db)])
     assert "ACME-1" in text and done["run_id"] in text
-    for fmt, mark in (("md", "# Ball-lot report: ACME-1"), ("html", "<h1>Ball-lot report"), ("json", '"lot_result"')):
+    for fmt, mark in (
+        ("md", "# Ball-lot report: ACME-1"),
+        ("html", "<h1>Ball-lot report"),
+        ("json", '"lot_result"'),
+    ):
         out = tmp_path / f"report.{fmt}"
         result = run_cli(["report", "last", "--db", str(db), "--format", fmt, "--output", str(out)])
         assert result.code == 0, result.err
