@@ -21,6 +21,7 @@ from protocols.shot import ShotRecord
 from protocols.state import RunState, ShotEntry
 from rig.core.ball import CcorPoint, LotResult, SpeedPoint
 from rig.core.config import RigConfig
+from rig.core.events import Verdict
 from rig.measure.model import ShotInputs, inbound_at_impact
 from rig.measure.speeds import ShotDataError, shot_speeds, split_passes
 from rig.measure.uncertainty import budget
@@ -264,7 +265,7 @@ def verdict(p: BallProcedure, lot: dict[str, Any], state: RunState) -> dict[str,
     if nominal is not None and tolerance is not None:
         meets = abs(result.mean - nominal) <= tolerance + result.U
     return {
-        "verdict": "FAIL" if meets is False else "PASS",
+        "verdict": Verdict.FAIL if meets is False else Verdict.PASS,
         "metric": result.quantity,
         "limit": None,
         "lot": lot["id"],

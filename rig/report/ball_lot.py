@@ -9,6 +9,7 @@ from __future__ import annotations
 import html
 from typing import Any
 
+from rig.core import events as ev
 from rig.core.ball import BALL_TESTS
 from rig.report.record import run_record
 from rig.store import Anchor, Store
@@ -22,7 +23,7 @@ def is_ball_test(store: Store, run_id: str) -> bool:
 def lot_record(store: Store, run_id: str, anchor: Anchor | None = None) -> dict[str, Any]:
     """The ball test's record: the run's record, the lot, the test and the lot's result."""
     record = run_record(store, run_id, anchor)
-    started = store.entries(run_id, kinds=["RunStarted"])
+    started = store.entries(run_id, kinds=[ev.RUN_STARTED])
     setup = started[0].payload if started else {}
     verdict = record.get("verdict") or {}
     result = verdict.get("lot_result")
