@@ -141,11 +141,17 @@ class LiveRig:
             raise RunAborted(f"device failure: {exc}; then {again}") from exc
 
     def evaluate(self, ctx: PlanContext, fired: Fired) -> dict[str, Any]:
-        """The shot's measurement (protocols.evaluate)."""
+        """The shot's measurement (protocols.evaluate; a context of its own kind measures its own)."""
+        own = getattr(ctx, "evaluate_shot", None)
+        if own is not None:
+            return own(fired)
         return evaluate.shot(fired.record, ctx.procedure, ctx.bat, ctx.state, fired.failure, ctx.config)
 
     def decide(self, ctx: PlanContext) -> dict[str, Any]:
-        """The verdict (protocols.evaluate)."""
+        """The verdict (protocols.evaluate; a context of its own kind decides its own)."""
+        own = getattr(ctx, "decide_run", None)
+        if own is not None:
+            return own()
         return evaluate.verdict(ctx.procedure, ctx.bat, ctx.state, ctx.config)
 
     def problem(self, text: str) -> None:

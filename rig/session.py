@@ -26,12 +26,24 @@ if TYPE_CHECKING:
 DEVICES = ("cannon", "gates", "clamp")
 
 
-def sim_config(scene: str = "ideal", rig_name: str | None = None, bat: BatSpec | None = None) -> RigConfig:
+# A lab that tests balls (60 mph, 25 m/s) calibrates its cannon's aim down to low pressures too.
+BALL_AIM_PRESSURES_KPA = (20.0, 30.0, 40.0, 50.0, 60.0, 80.0, 100.0, 150.0, 200.0, 300.0, 400.0, 500.0, 600.0)
+
+
+def sim_config(
+    scene: str = "ideal",
+    rig_name: str | None = None,
+    bat: BatSpec | None = None,
+    target: tuple[str, float | None] | None = None,
+) -> RigConfig:
     """A rig config whose ports are simulated devices of `scene` (a built-in name or a TOML path).
 
     The gate positions and the aim table come from the scene, as a lab would measure them on
     its own rig; everything else is the controller's default. With `bat`, the simulated bat takes
-    the bat file's properties as its true ones, unless the scene's [bat] table sets them.
+    the bat file's properties as its true ones, unless the scene's [bat] table sets them. With
+    `target` (kind, diameter in m), the simulated clamp holds the rigid cylinder or plate a ball
+    test names, as the lab clamps it (the scene's own [target] table wins), and the aim table
+    reaches down to ball-test speeds.
     """
     from simulators.scene import Scene
     from simulators.urlhandler import install_world, register
@@ -41,9 +53,13 @@ def sim_config(scene: str = "ideal", rig_name: str | None = None, bat: BatSpec |
     rig = rig_name or f"session-{uuid.uuid4().hex[:8]}"
     if bat is not None:
         loaded = scene_with_bat(loaded, bat)
+    if target is not None:
+        loaded = loaded.with_target(*target)
+    if bat is not None or target is not None:
         install_world(rig, scene, loaded)
     ports = {dev: f"sim://{dev}?scene={quote(scene, safe='')}&rig={rig}" for dev in DEVICES}
-    data = {"name": f"simulated rig ({loaded.name})", "ports": ports, **loaded.rig_config_fragment()}
+    fragment = loaded.rig_config_fragment(BALL_AIM_PRESSURES_KPA) if target else loaded.rig_config_fragment()
+    data = {"name": f"simulated rig ({loaded.name})", "ports": ports, **fragment}
     return RigConfig.from_dict(data, source=f"scene {scene}")
 
 

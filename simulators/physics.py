@@ -10,7 +10,7 @@ import math
 from typing import Protocol
 
 from rig.core.units import G_STANDARD
-from rig.physics import CollisionParams, PivotedBat, predict_bat
+from rig.physics import CollisionParams, Impact, PivotedBat, predict_bat, solve
 
 NOMINAL_TEMP_C = 21.0
 NOMINAL_RH_PCT = 50.0
@@ -72,6 +72,7 @@ class StraightFlight:
         return speed
 
 
+RIGID_RTOL = 1e-12  # as rig.physics.rigid_cor, so the simulated truth is that function's value
 CACHE_SIZE = 256  # distinct impacts remembered; scatter makes every shot distinct, so bound it
 
 
@@ -105,6 +106,34 @@ class RigidCollision:
         hit = self._cache.get(key)
         if hit is None:
             hit = solve_pivoted(params, speed, None, self.moi_kgm2, q)
+            self._cache.put(key, hit)
+        return hit
+
+
+class RigidTarget:
+    """A rigid target in the clamp (cylinder or plate): the model's rigid-surface COR, no recoil.
+
+    rig.physics.rigid_cor is the ball on a rigid clamped barrel (the founding paper's CCOR model);
+    on a plate the ball's k1 is scaled by the scene's contact factor. One solve per distinct impact.
+    """
+
+    def __init__(self, contact_factor: float = 1.0) -> None:
+        self.contact_factor = contact_factor
+        self._cache = SolveCache()
+
+    def surface(self, params: CollisionParams) -> CollisionParams:
+        """The ball's constants against this surface."""
+        if self.contact_factor == 1.0:
+            return params
+        return params.model_copy(update={"k1": params.k1 * self.contact_factor})
+
+    def collide(self, params: CollisionParams, speed: float, q: float) -> tuple[float, float]:
+        """(COR, contact time); the impact point does not matter on a fixed rigid target."""
+        key = (params, speed, 0.0)
+        hit = self._cache.get(key)
+        if hit is None:
+            result = solve(Impact(self.surface(params), speed), rtol=RIGID_RTOL)
+            hit = (result.cor, result.contact_time_s)
             self._cache.put(key, hit)
         return hit
 

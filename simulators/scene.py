@@ -11,7 +11,7 @@ import itertools
 import math
 import tomllib
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
@@ -114,6 +114,39 @@ class SimBallLot(BaseModel):
         0.0, ge=0.0, le=0.2, description="ball-to-ball standard deviation of the stiffness k1, relative"
     )
 
+class Target(BaseModel):
+    """What the clamp holds: the bat (default), or a rigid target for ball tests.
+
+    `cylinder` is a rigid solid cylinder of `diameter_m` (the founding paper's CCOR test, ASTM
+    F2845's dynamic counterpart); `plate` a rigid flat plate (ASTM F1887's wall). Against either the
+    collision is the model's rigid-surface COR (rig.physics.rigid_cor): no recoil, no trampoline,
+    no bat MOI. The model has no curvature term, so the diameter is stated, not simulated; on the
+    plate the ball's stiffness k1 is scaled by `contact_factor` (1.0: the same contact law as on
+    the cylinder, an assumption).
+    """
+
+    model_config = _FROZEN
+
+    kind: Literal["bat", "cylinder", "plate"] = Field("bat", description="what the clamp holds")
+    # a rod of a few mm is no target; a 0.5 m drum is no cylinder the stage can carry
+    diameter_m: float | None = Field(None, ge=0.005, le=0.5, description="cylinder diameter, m")
+    contact_factor: float = Field(
+        1.0, ge=0.1, le=10.0, description="plate: factor on k1 [assumed 1.0: the same contact law]"
+    )
+
+    @model_validator(mode="after")
+    def _check(self) -> Target:
+        if self.kind == "cylinder" and self.diameter_m is None:
+            raise ValueError("a cylinder target needs diameter_m")
+        if self.kind != "plate" and self.contact_factor != 1.0:
+            raise ValueError("contact_factor belongs to a plate target")
+        return self
+
+    @property
+    def rigid(self) -> bool:
+        """True for a rigid target (no bat in the clamp)."""
+        return self.kind != "bat"
+
 
 class CannonModel(BaseModel):
     """The cannon's physics: muzzle speed v(P) = v_max sqrt(1 - exp(-P/P0)), filling and valves."""
@@ -157,6 +190,7 @@ class Scene(BaseModel):
     seed: int = Field(0, ge=0, lt=2**64)
     rig: RigGeometry = RigGeometry()
     bat: SimBat = SimBat()
+    target: Target = Target()
     ball: CollisionParams = CollisionParams()
     lot: SimBallLot = SimBallLot()
     cannon: CannonModel = CannonModel()
@@ -200,6 +234,22 @@ class Scene(BaseModel):
         except ValidationError as exc:
             error = _config_error("", exc)
             where = f"simulated rig {self.name!r} with this bat"
+            raise ConfigError(error.reason, source=where, field=error.field) from None
+
+    def with_target(self, kind: str, diameter_m: float | None = None) -> Scene:
+        """This scene with the clamp holding `kind` (bat, cylinder, plate), as the lab says.
+
+        A value the scene's own [target] table gives wins (its contact factor always does).
+        """
+        pinned = self.target.model_fields_set
+        update: dict[str, Any] = {"kind": kind, "diameter_m": diameter_m}
+        update = {k: v for k, v in update.items() if k not in pinned}
+        try:
+            target = Target.model_validate({**self.target.model_dump(), **update})
+            return self.model_validate({**self.model_dump(exclude_unset=True), "target": target.model_dump()})
+        except ValidationError as exc:
+            error = _config_error("", exc)
+            where = f"simulated rig {self.name!r} with this target"
             raise ConfigError(error.reason, source=where, field=error.field) from None
 
     def with_alteration(self, bbcor: float) -> Scene:

@@ -25,6 +25,7 @@ from simulators.physics import (
     NominalEnvironment,
     RecoilSensor,
     RigidCollision,
+    RigidTarget,
     RoundingTicks,
     StraightFlight,
     drop_m,
@@ -61,8 +62,12 @@ class SimWorld:
         slots: dict[str, object] = {e.slot: e for e in self.effects if e.slot}
         self.flight = slots.get("flight") or StraightFlight()
         self.collision = slots.get("collision") or RigidCollision(scene.bat.moi_kgm2)
+        if scene.target.rigid:  # a rigid target in the clamp: no bat, so no trampoline and no recoil
+            self.collision = RigidTarget(scene.target.contact_factor)
         self.ticker = slots.get("ticks") or RoundingTicks(scene.rig.tick_ns * 1e-9)
-        self.recoil_sensor: RecoilSensor | None = slots.get("recoil")  # type: ignore[assignment]
+        self.recoil_sensor: RecoilSensor | None = (
+            None if scene.target.rigid else slots.get("recoil")  # type: ignore[assignment]
+        )
         self.lab: EnvironmentSensor = slots.get("environment") or NominalEnvironment()  # type: ignore[assignment]
         self.door = True
         self.estop = True
@@ -232,7 +237,7 @@ class SimWorld:
             for i, d in enumerate(rig.gate_positions_m)
         ]
         q = self.clamp.position_mm(t0) / 1000.0
-        hit = q <= bat.length_m - rig.pivot_from_knob_m
+        hit = scene.target.rigid or q <= bat.length_m - rig.pivot_from_knob_m
         v_in = flight.speed_at(muzzle, v0)
         t_impact = t_exit + flight.time_to(muzzle, v0)
         e_a = contact = v_out = 0.0

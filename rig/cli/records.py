@@ -224,10 +224,18 @@ def cmd_report(args: argparse.Namespace) -> int:
         args.format = "json"
     args.format = args.format or "md"
     anchor = Anchor.parse(args.anchor) if args.anchor else None
+    from rig.report.ball_lot import is_ball_test, lot_record
+
     with open_db(args) as store:
-        record = run_record(store, resolve_run(store, args.run), anchor)
+        run_id = resolve_run(store, args.run)
+        ball = is_ball_test(store, run_id)
+        record = lot_record(store, run_id, anchor) if ball else run_record(store, run_id, anchor)
     if args.format == "json":
         text = json.dumps(record, indent=2, allow_nan=False) + "\n"
+    elif ball:  # a ball test's report: the lot-result tables, no figures
+        from rig.report.ball_lot import render as render_lot
+
+        text = render_lot(record, args.format)
     else:
         from rig.progress import steps
         from rig.report.certificate import render
@@ -277,6 +285,10 @@ def cmd_verify(args: argparse.Namespace) -> int:
         else:
             report = store.verify(anchors)
         distrusted = untrusted(keys_in(store), pins) if pins else []
+        if report.ok or report.first_broken_seq is None:  # the chain holds: do the results follow from it?
+            from rig.balls import recomputed_problems
+
+            distrusted += recomputed_problems(store)
     if distrusted:
         report = dataclasses.replace(report, ok=False, problems=report.problems + tuple(distrusted))
     signatures = (

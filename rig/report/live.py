@@ -25,6 +25,12 @@ class LiveConsole:
     def _line(self, kind: str, d: dict[str, Any]) -> str | None:
         if kind == ev.RUN_STARTED:
             p, b = d["procedure"], d["bat"]
+            if "target" in b:  # a ball test: the clamp holds a rigid target, the cannon a lot's balls
+                lot = d.get("lot") or {}
+                return (
+                    f"[bold]{p['name']}[/] of lot {lot.get('id')} on the {b['target']} ({b['id']}); "
+                    f"edition: {p['edition']}"
+                )
             return (
                 f"[bold]{p['name']}[/] on bat {b['id']} ({b['length_in']:g} in, {b['weight_oz']:g} oz, "
                 f"{b['barrel']}); edition: {p['edition']}"
@@ -50,7 +56,7 @@ class LiveConsole:
         if kind == ev.SHOT_LOST:
             return f"  shot {d['index']:>2} [red]lost[/]: {d['reason']}"
         if kind == ev.BALL_REPLACED:
-            return f"ball replaced: ball {d['ball_number']}"
+            return f"ball replaced: ball {d.get('ball') or d['ball_number']}"
         if kind == ev.LOCATION_CHOSEN:
             edge = "" if d.get("bracketed", True) else f" (NOT bracketed; accepted by {d.get('accepted_by')})"
             return f"location of maximum performance: {d['from_barrel_end_in']:g} in from the tip{edge}"

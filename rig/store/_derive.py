@@ -8,6 +8,7 @@ from typing import Any
 from rig.core.errors import StoreError
 from rig.store._codec import canonical_json, decode_payload
 from rig.store._records import (
+    BALL_LOT_REGISTERED,
     BAT_REGISTERED,
     CLOSED_STATUSES,
     RUN_CREATED,
@@ -26,6 +27,7 @@ class Deriver:
         self.bats: dict[str, str] = {}  # id -> spec as canonical JSON
         self.runs: dict[str, list[Any]] = {}  # run_id -> a RUN_COLUMNS row
         self.sealed: dict[str, int] = {}  # run_id -> seq of the entry that closed it
+        self.lots: set[str] = set()  # ball lots registered (they have no table: the log is theirs)
         self.problems: list[str] = []
 
     def feed(self, seq: int, run_id: str | None, kind: str, payload: str | None, t_utc: str) -> None:
@@ -38,6 +40,11 @@ class Deriver:
     def _apply(self, seq: int, run_id: str | None, kind: str, payload: str | None, t_utc: str) -> None:
         if kind == BAT_REGISTERED:
             self._bat(seq, _decoded(payload))
+        elif kind == BALL_LOT_REGISTERED:
+            lot_id = _decoded(payload)["lot_id"]
+            if lot_id in self.lots:
+                self.problems.append(f"seq {seq}: ball lot {lot_id} registered twice")
+            self.lots.add(lot_id)
         elif kind == RUN_CREATED:
             self._created(seq, run_id, _decoded(payload), t_utc)
         if run_id is None:
@@ -84,8 +91,9 @@ def derive(conn: sqlite3.Connection) -> Deriver:
     """Replay the whole log (reserved kinds decoded only) into a Deriver."""
     deriver = Deriver()
     rows = conn.execute(
-        "SELECT seq, run_id, kind, CASE WHEN kind IN (?, ?, ?) THEN payload END, t_utc FROM log ORDER BY seq",
-        (BAT_REGISTERED, RUN_CREATED, RUN_STATUS_CHANGED),
+        "SELECT seq, run_id, kind, CASE WHEN kind IN (?, ?, ?, ?) THEN payload END, t_utc "
+        "FROM log ORDER BY seq",
+        (BAT_REGISTERED, RUN_CREATED, RUN_STATUS_CHANGED, BALL_LOT_REGISTERED),
     )
     for seq, run_id, kind, payload, t_utc in rows:
         deriver.feed(seq, run_id, kind, payload, t_utc)

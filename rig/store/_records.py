@@ -23,8 +23,18 @@ RUN_LOCK_BROKEN = "RunLockBroken"  # a stale runner's lock was broken by the nex
 RUN_OPENED = "RunOpened"
 RUN_SEALED = "RunSealed"
 RUN_SYNCED = "RunSynced"  # rig sync copied entries of a run from another store
+BALL_LOT_REGISTERED = "BallLotRegistered"  # lab-level: a ball lot (rig balls register)
 RESERVED_KINDS = frozenset(
-    {BAT_REGISTERED, RUN_CREATED, RUN_STATUS_CHANGED, RUN_LOCK_BROKEN, RUN_OPENED, RUN_SEALED, RUN_SYNCED}
+    {
+        BAT_REGISTERED,
+        RUN_CREATED,
+        RUN_STATUS_CHANGED,
+        RUN_LOCK_BROKEN,
+        RUN_OPENED,
+        RUN_SEALED,
+        RUN_SYNCED,
+        BALL_LOT_REGISTERED,
+    }
 )
 LAB_CHAIN = "lab"  # format 2: the chain of entries that belong to no run (bats, run anchors)
 CLOSED_STATUSES: tuple[str, ...] = ("finished", "aborted")  # a run in one of these is sealed

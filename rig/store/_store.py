@@ -25,10 +25,11 @@ from types import TracebackType
 from typing import Any, Self
 
 from rig.core.errors import RecordRefused, StoreError, StoreFileError, UnknownRecord
-from rig.store import _derive, _lock, _signed, _sync, _verify, _views
+from rig.store import _derive, _lock, _lots, _signed, _sync, _verify, _views
 from rig.store._codec import GENESIS_HASH, check_kind, check_payload, decode_payload, entry_hash
 from rig.store._pg import connect_pg, db_error_text, is_db_error, is_url, safe_url
 from rig.store._records import (
+    BALL_LOT_REGISTERED,
     BAT_REGISTERED,
     CLOSED_STATUSES,
     LAB_CHAIN,
@@ -155,6 +156,47 @@ class Store:
             entry = self._append(conn, None, BAT_REGISTERED, {"bat_id": bat_id, "spec": spec})
             conn.execute("INSERT INTO bats (id, spec) VALUES (?, ?)", (bat_id, check_payload(spec)))
         return entry
+
+    def register_lot(self, lot: Any) -> LogEntry:
+        """Record a ball lot (a rig.core.ball.BallLot or its dict; lab-level 'BallLotRegistered').
+
+        An id is registered once only (RecordRefused); a lot that does not validate is refused
+        naming its first bad field.
+        """
+        spec = _lots.checked_lot(lot)
+        with self._write() as conn:
+            if self.engine != "sqlite":
+                conn.lock_chain(LAB_CHAIN)  # two rigs registering one lot: the second waits, then sees it
+            if spec["id"] in _lots.registered(conn):
+                raise RecordRefused(f"ball lot {spec['id']} is already registered")
+            return self._append(conn, None, BALL_LOT_REGISTERED, {"lot_id": spec["id"], "lot": spec})
+
+    def ball_lots(self) -> dict[str, Any]:
+        """Every registered ball lot (rig.core.ball.BallLot) by id, in registration order."""
+        with self._read() as conn:
+            return _lots.registered(conn)
+
+    def ball_lot(self, lot_id: str) -> tuple[Any, list[Any]]:
+        """(BallLot, its LotResults oldest first); an unknown id raises UnknownRecord naming known ones.
+
+        A result is the `lot_result` of a finished ball-test run of the lot (RunFinished), with
+        that run's id: it is covered by the run's chain, and derived from the run's shots.
+        """
+        lots = self.ball_lots()
+        if lot_id not in lots:
+            raise _lots.unknown(lot_id, lots)
+        return lots[lot_id], _lots.results(self, lot_id)
+
+    def ccor_points(self, lot_id: str) -> list[tuple[float, float, float, str]]:
+        """The lot's CCOR points for fitting the ball law: (speed_m_s, ccor, u_ccor, ball_id).
+
+        One point per valid hit of every finished `ccor` test of the lot, oldest run first:
+        speed_m_s is the measured inbound speed at the cylinder's face (drag corrected), ccor the
+        rebound over the inbound speed there, u_ccor that hit's standard uncertainty (its GUM
+        budget: timing, gate positions, drag; the lot's ball-to-ball spread is not in it), ball_id
+        the ball (LOT-01, ...). An unknown lot raises UnknownRecord; a lot with no ccor test gives [].
+        """
+        return _lots.points(self.ball_lot(lot_id)[1])
 
     def create_run(self, procedure: str, bat_id: str, meta: dict[str, Any]) -> str:
         """Start a run of `procedure` on a registered bat ('RunCreated' entry); returns its id."""

@@ -1,0 +1,276 @@
+"""A ball test's measurement: each hit's COR (CCOR) at the impact point, and the lot's result.
+
+A hit's COR is the rebound speed over the inbound speed at the target's face, both corrected for
+air drag from the gates to the impact point exactly as the bat procedures correct them
+(rig.measure.model), with the hit's GUM budget (timing per hit; gate positions, drag and air
+shared by every hit of the run). The lot's result (`lot_result`) is derived from the valid hits
+alone, so anyone can recompute it from the run's record (`rig verify` does).
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from collections import defaultdict
+from collections.abc import Sequence
+from typing import Any
+
+from protocols.ball_procedure import BallProcedure
+from protocols.run_inputs import air_density, drag_inputs, uncertainty_model
+from protocols.shot import ShotRecord
+from protocols.state import RunState, ShotEntry
+from rig.core.ball import CcorPoint, LotResult, SpeedPoint
+from rig.core.config import RigConfig
+from rig.core.events import Verdict
+from rig.measure.model import ShotInputs, inbound_at_impact
+from rig.measure.speeds import ShotDataError, shot_speeds, split_passes
+from rig.measure.uncertainty import budget
+from rig.measure.validity import ValidityLimits, check_shot, is_valid
+
+NO_MOI = 1.0  # a rigid fixed target has no MOI; the budget's e_A does not depend on it
+
+
+def quantity(p: BallProcedure) -> str:
+    """What the test measures: "ccor" on the cylinder, "cor" on the plate."""
+    return "ccor" if p.test == "ccor" else "cor"
+
+
+def shot(
+    record: ShotRecord, p: BallProcedure, state: RunState, failure: str, config: RigConfig
+) -> dict[str, Any]:
+    """Speeds at the impact point, COR (CCOR) with its u, and validity of one fired ball (JSON-ready)."""
+    requested = state.shots[-1].requested if state.shots else {}
+    target_speed = float(requested.get("target_speed_m_s", p.speeds_m_s[0]))
+    out: dict[str, Any] = {
+        "metric_name": quantity(p),
+        "metric": None,
+        "u": None,
+        "ball": requested.get("ball"),
+        "ball_hit": requested.get("ball_hit"),
+        "target_speed_m_s": target_speed,
+        "aim_factor": state.aim_factor,
+    }
+    try:
+        passes = split_passes(record.crossings, record.gate_config)
+        speeds = shot_speeds(passes, record.gate_positions_m, record.gate_config)
+    except ShotDataError as exc:
+        return {
+            **out,
+            "valid": False,
+            "reasons": [{"code": "NO_DATA", "message": str(exc), "invalidates": True}],
+        }
+    air = air_density(config, state)
+    drag = drag_inputs(config, air)
+    q = record.impact_from_pivot_m
+    v_at_target = None
+    if speeds.inbound is not None:
+        v_at_target = inbound_at_impact(
+            passes, record.gate_positions_m, record.gate_config, p.ball.mass_kg, drag
+        )
+        aimed = target_speed / state.aim_factor
+        out["aim_factor"] = 0.5 * state.aim_factor + 0.5 * (v_at_target / aimed)
+    limits = ValidityLimits(speed_tolerance_m_s=p.speed_tolerance_m_s)
+    reasons = check_shot(
+        speeds,
+        passes,
+        target_speed,
+        None,  # a fixed target does not recoil
+        q,
+        NO_MOI,
+        p.ball.mass_kg,
+        limits,
+        positions_m=record.gate_positions_m,
+        inbound_at_impact_m_s=v_at_target,
+    )
+    out["inbound_speed_m_s"], out["rebound_speed_m_s"] = speeds.inbound, speeds.rebound
+    if speeds.inbound is not None and speeds.rebound is not None and speeds.rebound > 0:
+        inputs = ShotInputs.from_passes(
+            passes, record.gate_positions_m, record.gate_config, q, NO_MOI, p.ball.mass_kg, drag
+        )
+        hit = budget(inputs, uncertainty_model(p, config, state, air))  # type: ignore[arg-type]
+        out.update(
+            metric=hit.value("e_a"),
+            u=hit.u_of("e_a"),
+            u_systematic=math.sqrt(max(0.0, hit.systematic_variance("e_a"))),
+            inbound_at_impact_m_s=hit.value("v_in"),
+            rebound_at_impact_m_s=hit.value("v_out"),
+            budget=hit.as_dict(),
+        )
+    out["reasons"] = [
+        {
+            "code": r.code.value,
+            "message": r.message,
+            "invalidates": r.invalidates,
+            "measured": r.measured,
+            "limit": r.limit,
+        }
+        for r in reasons
+    ]
+    if failure:
+        out["reasons"].append({"code": "SHOT_FAILED", "message": failure, "invalidates": True})
+    out["valid"] = is_valid(reasons) and not failure and out["metric"] is not None
+    return out
+
+
+def points(shots: Sequence[ShotEntry]) -> list[CcorPoint]:
+    """The valid hits as points (speed at the impact point, COR, u, ball, the ball's hit count)."""
+    found = []
+    for s in shots:
+        if not s.valid or s.metric is None:
+            continue
+        m, r = s.measured, s.requested
+        found.append(
+            CcorPoint(
+                speed_m_s=float(m["inbound_at_impact_m_s"]),
+                target_speed_m_s=float(r["target_speed_m_s"]),
+                cor=float(m["metric"]),
+                u=float(m["u"]),
+                ball_id=str(r["ball"]),
+                ball_hit=int(r["ball_hit"]),
+                shot=s.index,
+            )
+        )
+    return found
+
+
+def wear_slope(hits: Sequence[CcorPoint]) -> tuple[float | None, float | None, float]:
+    """(slope of COR per hit within balls, its standard u, the residual within-ball variance).
+
+    Each ball has its own level; the slope is common (least squares on the deviations from each
+    ball's mean). None where no ball has two hits at different counts.
+    """
+    by_ball: dict[str, list[CcorPoint]] = defaultdict(list)
+    for h in hits:
+        by_ball[h.ball_id].append(h)
+    sxx = sxy = 0.0
+    dev: list[tuple[float, float]] = []
+    for balls in by_ball.values():
+        n_bar = statistics.fmean(h.ball_hit for h in balls)
+        e_bar = statistics.fmean(h.cor for h in balls)
+        for h in balls:
+            dx, dy = h.ball_hit - n_bar, h.cor - e_bar
+            sxx, sxy = sxx + dx * dx, sxy + dx * dy
+            dev.append((dx, dy))
+    dof = len(hits) - len(by_ball) - 1
+    if sxx <= 0.0 or dof < 1:
+        within = _within_variance(by_ball)
+        return None, None, within
+    slope = sxy / sxx
+    residual = sum((dy - slope * dx) ** 2 for dx, dy in dev) / dof
+    return slope, math.sqrt(residual / sxx), residual
+
+
+def _within_variance(by_ball: dict[str, list[CcorPoint]]) -> float:
+    """Pooled variance of the hits about their ball's mean (0 if every ball has one hit)."""
+    ss = sum(sum((h.cor - statistics.fmean(x.cor for x in b)) ** 2 for h in b) for b in by_ball.values())
+    dof = sum(len(b) - 1 for b in by_ball.values())
+    return ss / dof if dof > 0 else 0.0
+
+
+def _between_balls_variance(by_ball: dict[str, list[CcorPoint]]) -> float | None:
+    """Pooled variance of the balls' means about the mean of their speed (None: no speed has two balls)."""
+    groups: dict[float, list[float]] = defaultdict(list)
+    for hs in by_ball.values():
+        groups[hs[0].target_speed_m_s].append(statistics.fmean(h.cor for h in hs))
+    dof = sum(len(g) - 1 for g in groups.values())
+    if dof < 1:
+        return None
+    return sum(sum((x - statistics.fmean(g)) ** 2 for x in g) for g in groups.values()) / dof
+
+
+def _mean_u(values: Sequence[float], u_sys: float) -> tuple[float, float, float | None]:
+    """(mean, u of the mean, sample SD): u^2 = s^2 / n + u_systematic^2."""
+    mean = statistics.fmean(values)
+    sd = statistics.stdev(values) if len(values) > 1 else None
+    return mean, math.sqrt((sd or 0.0) ** 2 / len(values) + u_sys * u_sys), sd
+
+
+def lot_result(p: BallProcedure, lot_id: str, state: RunState, run_id: str = "") -> LotResult:
+    """The lot's result from the run's valid hits (ValueError if there are none).
+
+    Each ball counts once: its mean over its hits. COR (CCOR) = mean of the balls' means, u^2 =
+    s_balls^2 / n_balls + u_systematic^2 (the gates' positions, drag and air are shared by every
+    hit). The ball-to-ball SD removes the within-ball scatter: sqrt(max(0, s_balls^2 - s_w^2 / K)).
+    The wear per hit is the common slope of COR against the ball's hit count within each ball.
+    """
+    hits = points(state.shots)
+    if not hits:
+        raise ValueError("no valid hits: nothing to derive the lot's result from")
+    u_sys = max(float(s.measured.get("u_systematic", 0.0)) for s in state.shots if s.valid)
+    by_ball: dict[str, list[CcorPoint]] = defaultdict(list)
+    for h in hits:
+        by_ball[h.ball_id].append(h)
+    ball_means = {b: statistics.fmean(h.cor for h in hs) for b, hs in by_ball.items()}
+    mean, u, _ = _mean_u(list(ball_means.values()), u_sys)
+    slope, slope_u, within = wear_slope(hits)
+    k_hits = p.hits_per_ball
+    spread = _between_balls_variance(by_ball)  # about each speed's mean: ccor's speeds differ
+    sd_between = None if spread is None else math.sqrt(max(0.0, spread - within / k_hits))
+    per_speed = []
+    for speed in p.speeds_m_s:
+        at = [h for h in hits if h.target_speed_m_s == speed]
+        if not at:
+            continue
+        means = [statistics.fmean(h.cor for h in by_ball[b]) for b in dict.fromkeys(h.ball_id for h in at)]
+        m, u_m, sd = _mean_u(means, u_sys)
+        per_speed.append(
+            SpeedPoint(
+                target_speed_m_s=speed,
+                speed_m_s=statistics.fmean(h.speed_m_s for h in at),
+                mean=m,
+                u=u_m,
+                sd=sd,
+                n=len(at),
+            )
+        )
+    envs = [c.data for c in state.environment_checks]
+    k = p.decision.coverage_k
+    return LotResult(
+        lot_id=lot_id,
+        procedure=p.test,
+        quantity="ccor" if p.test == "ccor" else "cor",
+        target={"kind": p.target.kind, "diameter_m": p.target.diameter_m},
+        speeds_m_s=tuple(p.speeds_m_s),
+        mean=mean,
+        u=u,
+        U=k * u,
+        coverage_k=k,
+        sd_between_balls=sd_between,
+        wear_per_hit=slope,
+        wear_per_hit_u=slope_u,
+        mean_hit=statistics.fmean(h.ball_hit for h in hits),
+        n_balls=len(by_ball),
+        hits_per_ball=k_hits,
+        n_hits=len(hits),
+        temp_c=statistics.fmean(float(e["temperature_c"]) for e in envs) if envs else None,
+        rh_pct=statistics.fmean(float(e["humidity_pct"]) for e in envs) if envs else None,
+        run_id=run_id,
+        per_ball=ball_means,
+        per_speed=tuple(per_speed),
+        points=tuple(hits),
+    )
+
+
+def verdict(p: BallProcedure, lot: dict[str, Any], state: RunState) -> dict[str, Any]:
+    """The RunFinished payload of a ball test: the lot's result, and whether it meets its specification.
+
+    PASS unless the lot states a nominal value with a tolerance that the measured value, with its U,
+    cannot meet (|mean - nominal| > tolerance + U): a ball test measures, it certifies nothing.
+    """
+    result = lot_result(p, lot["id"], state)
+    spec = lot.get("specification") or {}
+    nominal = spec.get("nominal_ccor" if p.test == "ccor" else "nominal_cor")
+    tolerance = spec.get("cor_tolerance") if p.test == "ball-cor" else None
+    meets: bool | None = None
+    if nominal is not None and tolerance is not None:
+        meets = abs(result.mean - nominal) <= tolerance + result.U
+    return {
+        "verdict": Verdict.FAIL if meets is False else Verdict.PASS,
+        "metric": result.quantity,
+        "limit": None,
+        "lot": lot["id"],
+        "meets_specification": meets,
+        "nominal": nominal,
+        "tolerance": tolerance,
+        "lot_result": result.model_dump(mode="json", exclude={"run_id"}),
+    }

@@ -1,0 +1,194 @@
+"""Test a ball lot on the rig: store, devices, the ball test's plan and its executor wired together.
+
+Run like a certification (rig.certification): rehearsed first (a dry run of what is left), every
+persisted event committed before the plan goes on, one runner per run, any error recorded as
+the run's interruption (resumable at the next slot), the run sealed and signed at its end. What the
+clamp holds comes from the procedure (its [target]), never from the simulator: a `--sim` rig is
+built with that target clamped (rig.session.sim_config), a real rig is told by the operator.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+from collections.abc import Iterable
+from typing import Any
+
+from protocols.ball_eval import lot_result
+from protocols.ball_procedure import BallProcedure
+from protocols.ball_steps import BallContext, ball_test
+from protocols.control import BudgetExceeded, Operator, RunControl, ScriptedOperator
+from protocols.dryrun import Rehearsal, rehearse
+from protocols.executor import Executor, LiveRig
+from protocols.state import fold
+from rig import __version__
+from rig.certification import Outcome, _reason, _running, _seal, _traffic_drain, _where, history
+from rig.core import events as ev
+from rig.core.ball import BALL_TESTS, BallLot
+from rig.core.config import RigConfig
+from rig.core.errors import ConfigError, RecordRefused, RigError
+from rig.core.events import RunEvent, Subscriber
+from rig.keys import load_signer, recorded_rig
+from rig.session import RigSession
+from rig.store import Store
+
+log = logging.getLogger(__name__)
+
+
+def recorded_test(store: Store, run_id: str) -> tuple[BallProcedure, BallLot]:
+    """The procedure and lot a ball-test run recorded when it started."""
+    started = store.entries(run_id, kinds=[ev.RUN_STARTED])
+    if not started or started[0].payload.get("test") not in BALL_TESTS:
+        raise ConfigError(f"run {run_id} is not a started ball test", source="--resume")
+    payload = started[0].payload
+    return BallProcedure.model_validate(payload["procedure"]), BallLot.model_validate(payload["lot"])
+
+
+def rehearse_test(
+    procedure: BallProcedure, lot: BallLot, config: RigConfig, past: list[RunEvent] | None = None
+) -> Rehearsal:
+    """A dry run of the test (or of what is left of a resumed one): nothing armed, moved or stored."""
+    return rehearse(procedure, None, config, ball_test, past, context=BallContext, lot=lot)  # type: ignore[arg-type]
+
+
+def run_ball_test(
+    store: Store,
+    procedure: BallProcedure,
+    lot: BallLot,
+    config: RigConfig,
+    *,
+    run_id: str | None = None,
+    operator: Operator | None = None,
+    subscribers: Iterable[Subscriber] = (),
+    control: RunControl | None = None,
+) -> Outcome:
+    """Run (or with `run_id`, resume) a ball test of `lot`; returns its outcome.
+
+    The lot must be registered (Store.register_lot). The target is registered as what the clamp
+    holds (the run's `bat`), so that the store's runs keep naming what was struck.
+    """
+    listeners = list(subscribers)
+    resuming = run_id is not None
+    if run_id is not None:
+        _running(store, run_id, "--resume")
+    registered = store.ball_lots().get(lot.id)
+    if registered is None:
+        raise ConfigError(
+            f"ball lot {lot.id} is not registered: rig balls register LOT.toml first", source="--lot"
+        )
+    if registered != lot:
+        raise ConfigError(f"ball lot {lot.id} is registered with other values", source="--lot")
+    past = history(store, run_id) if run_id is not None else None
+    problems = rehearse_test(procedure, lot, config, past).problems
+    if problems:
+        raise ConfigError("; ".join(problems), source="dry run")
+    identity = config.identity_record(__version__)
+    signer = load_signer((recorded_rig(store, run_id) if run_id else None) or identity["name"])
+    if run_id is None:
+        target = procedure.target
+        spec = target.spec()
+        held = store.bats().get(target.id)
+        if held is None:
+            with contextlib.suppress(RecordRefused):  # another rig registered it meanwhile
+                store.register_bat(target.id, spec)
+            held = store.bats().get(target.id)
+        if held != spec:
+            raise ConfigError(f"target {target.id} is registered with other properties", source="procedure")
+        meta = {"procedure": procedure.name, "rig": identity, "lot": lot.id, "test": procedure.test}
+        run_id = store.create_run(procedure.test, target.id, meta)
+
+    def emit(event: RunEvent) -> None:
+        if event.persisted:
+            store.append(run_id, event.kind, event.data)
+        for listener in listeners:
+            listener(event)
+
+    with store.run_lock(run_id):
+        try:
+            session = RigSession.open(config)
+        except (RigError, OSError) as exc:
+            reason = f"the devices could not be opened: {_reason(exc)}"
+            emit(ev.RunInterrupted(reason=reason, extra={"budget_exceeded": False}))
+            return Outcome(run_id, "interrupted", None, reason)
+        with session:
+            past = history(store, run_id) if resuming else []
+            session.traffic.clear()
+            operator = operator or ScriptedOperator()
+            ctx = BallContext(
+                procedure,  # type: ignore[arg-type]
+                None,  # type: ignore[arg-type]
+                config,
+                fold(past),
+                who=getattr(operator, "who", "operator"),
+                lot=lot,
+            )
+            executor = Executor(
+                ctx,
+                LiveRig(session.cannon, session.gates, session.clamp),
+                emit,
+                operator,
+                control,
+                _traffic_drain(session),
+            )
+            try:
+                verdict = executor.run(ball_test)
+                executor.control.settled = True
+            except BaseException as exc:
+                executor.control.settled = True
+                if not isinstance(exc, Exception | KeyboardInterrupt):
+                    raise
+                reason, budget = _reason(exc), isinstance(exc, BudgetExceeded)
+                detail: dict[str, Any] = {"reason": reason, "budget_exceeded": budget}
+                if not isinstance(exc, RigError | KeyboardInterrupt):
+                    detail["where"] = _where(exc)
+                    log.debug("ball test %s interrupted by an unexpected error", run_id, exc_info=exc)
+                try:
+                    with contextlib.suppress(Exception):
+                        executor.flush_traffic()
+                    emit(ev.event(ev.RUN_INTERRUPTED, **detail))
+                except KeyboardInterrupt:
+                    pass
+                return Outcome(run_id, "interrupted", None, reason, budget)
+            _seal(store, run_id, "finished", str(verdict["verdict"]), signer)
+    return Outcome(run_id, "finished", verdict)
+
+
+def recomputed_problems(store: Store) -> list[str]:
+    """Every finished ball test whose recorded lot result differs from the one its shots give.
+
+    The chain shows a run was not changed after it was written; this shows that what it concluded
+    follows from its shots (the same derivation, protocols.ball_eval.lot_result).
+    """
+    problems = []
+    for run in store.runs():
+        if run.procedure not in BALL_TESTS or run.status != "finished":
+            continue
+        events = ev.parse_log(store.entries(run.run_id))
+        state = fold(events)
+        recorded = (state.verdict or {}).get("lot_result")
+        if recorded is None:
+            continue
+        try:
+            procedure, lot = recorded_test(store, run.run_id)
+            again = lot_result(procedure, lot.id, state).model_dump(mode="json", exclude={"run_id"})
+        except (RigError, ValueError, KeyError) as exc:
+            problems.append(f"run {run.run_id}: its lot result cannot be recomputed from its shots ({exc})")
+            continue
+        if not _same(again, recorded):
+            problems.append(
+                f"run {run.run_id}: the recorded lot result of lot {lot.id} is not what its shots give "
+                f"(recorded {recorded.get('quantity')} {recorded.get('mean')!r}, "
+                f"recomputed {again['mean']!r})"
+            )
+    return problems
+
+
+def _same(a: Any, b: Any, rel: float = 1e-9) -> bool:
+    """Equal JSON values, floats to a relative tolerance (a recomputation may round differently)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k], rel) for k in a)
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(_same(x, y, rel) for x, y in zip(a, b, strict=True))
+    if isinstance(a, float | int) and isinstance(b, float | int) and not isinstance(a, bool):
+        return abs(a - b) <= rel * max(abs(a), abs(b), 1e-300)
+    return a == b

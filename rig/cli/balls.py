@@ -1,0 +1,222 @@
+"""`rig balls register|test|list|show`: ball lots in the store and the ball tests that measure them."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shlex
+import sys
+from typing import Any
+
+from rig.cli.common import add_columns, add_rig_options, new_table, open_db, resolve_run, shown_db
+from rig.cli.common import console as out
+from rig.core.dbpath import DB_HELP
+from rig.core.errors import ConfigError, RecordRefused
+
+
+def cmd_register(args: argparse.Namespace) -> int:
+    """rig balls register: record a ball lot (its [lot] table) in the store."""
+    from rig.core.ball import BallLot
+
+    lot = BallLot.load(args.lot_file)  # a bad file is refused in one line naming the field
+    args.create_db = True
+    with open_db(args) as store:
+        try:
+            entry = store.register_lot(lot)
+        except RecordRefused as exc:
+            raise ConfigError(str(exc), source=args.lot_file) from None
+    print(f"registered ball lot {lot.id} ({lot.maker} {lot.model}, {lot.balls} balls) at seq {entry.seq}")
+    return 0
+
+
+def cmd_test(args: argparse.Namespace) -> int:
+    """rig balls test: run a ball test (ccor, ball-cor) on a registered lot, recording everything."""
+    from protocols.ball_procedure import BallProcedure
+    from protocols.runner import RunControl, ScriptedOperator
+    from rig.balls import recorded_test, rehearse_test, run_ball_test
+    from rig.core import events as ev
+    from rig.report.live import LiveConsole
+    from rig.run_signals import stop_on_signals
+
+    control = RunControl()
+    args.create_db = not args.dry_run  # a dry run writes nothing, not even a new store
+    with stop_on_signals(control), open_db(args) as store:
+        if args.resume:
+            run_id = resolve_run(store, args.resume)
+            procedure, lot = recorded_test(store, run_id)
+        else:
+            if not args.procedure or not args.lot:
+                raise ConfigError("give --procedure and --lot (or --resume RUN)", source="command line")
+            procedure = BallProcedure.load(args.procedure)
+            lots = store.ball_lots()
+            if args.lot not in lots:
+                known = ", ".join(lots) or "none yet"
+                raise ConfigError(
+                    f"no ball lot {args.lot!r} in {shown_db(store.location)} (registered: {known}); "
+                    "rig balls register LOT.toml first",
+                    source="--lot",
+                )
+            lot, run_id = lots[args.lot], None
+        config = _rig_config(args, procedure)
+        past = ev.parse_log(store.entries(run_id)) if run_id is not None else None
+        rehearsal = rehearse_test(procedure, lot, config, past)
+        if rehearsal.problems or args.dry_run:
+            fits = f"dry run: the test fits this rig and this lot ({rehearsal.summary()})"
+            for line in rehearsal.problems or [fits]:
+                print(line, file=sys.stderr)
+            if rehearsal.problems:
+                raise ConfigError("; ".join(rehearsal.problems), source="dry run")
+            return 0
+        live = LiveConsole(quiet=args.json)
+        outcome = run_ball_test(
+            store,
+            procedure,
+            lot,
+            config,
+            run_id=run_id,
+            operator=ScriptedOperator(who="script (--sim or scripted run)"),
+            subscribers=[live],
+            control=control,
+        )
+        live.close()
+    if outcome.status != "finished":
+        where = ("--config", args.config) if args.config else ("--sim", args.sim)
+        db = f" --db {shlex.quote(shown_db(args.db))}" if args.db else ""
+        resume = f"rig balls test --resume {outcome.run_id} {where[0]} {shlex.quote(str(where[1]))}{db}"
+        print(
+            f"rig: run {outcome.run_id} interrupted: {outcome.reason}; resume with: {resume}", file=sys.stderr
+        )
+        return 3
+    result = outcome.verdict["lot_result"] if outcome.verdict else {}
+    if args.json:
+        json.dump(
+            {"run_id": outcome.run_id, **(outcome.verdict or {})}, sys.stdout, indent=2, allow_nan=False
+        )
+        sys.stdout.write("\n")
+    else:
+        print(_result_line(lot.id, outcome.run_id, result))
+    return 0
+
+
+def _rig_config(args: argparse.Namespace, procedure: Any) -> Any:
+    """The rig: a simulated one holds the procedure's target, as the lab clamps it."""
+    from rig.core.config import RigConfig
+
+    if args.sim is not None:
+        from rig.session import sim_config
+
+        return sim_config(args.sim, target=(procedure.target.kind, procedure.target.diameter_m))
+    if args.config:
+        return RigConfig.load(args.config)
+    raise ConfigError("give --sim [SCENE] or --config RIG.toml", source="command line")
+
+
+def _result_line(lot_id: str, run_id: str, r: dict[str, Any]) -> str:
+    name = r.get("quantity", "cor").upper()
+    wear = r.get("wear_per_hit")
+    parts = [
+        f"lot {lot_id}: {name} {r['mean']:.4f} +- {r['U']:.4f} (U, k={r['coverage_k']:g})",
+        f"{r['n_balls']} balls x {r['hits_per_ball']} hits",
+    ]
+    if r.get("sd_between_balls") is not None:
+        parts.append(f"ball-to-ball SD {r['sd_between_balls']:.4f}")
+    if wear is not None:
+        parts.append(f"wear {wear:+.5f} +- {r['wear_per_hit_u']:.5f} per hit")
+    return "; ".join(parts) + f" (run {run_id})"
+
+
+def _lot_row(lot: Any, results: list[Any]) -> dict[str, Any]:
+    last = results[-1] if results else None
+    return {
+        "lot": lot.model_dump(mode="json"),
+        "results": [r.model_dump(mode="json", exclude={"points"}) for r in results],
+        "latest": None if last is None else {"procedure": last.procedure, "mean": last.mean, "U": last.U},
+    }
+
+
+def cmd_list(args: argparse.Namespace) -> int:
+    """rig balls list: the registered ball lots and their latest measured results."""
+    with open_db(args) as store:
+        lots = {lot_id: store.ball_lot(lot_id) for lot_id in store.ball_lots()}
+    if args.json:
+        json.dump([_lot_row(lot, results) for lot, results in lots.values()], sys.stdout, indent=2)
+        sys.stdout.write("\n")
+        return 0
+    table = new_table(title=f"Ball lots in {shown_db(args.db or store.location)}")
+    add_columns(
+        table, "lot", "maker", "model", "balls", "nominal COR", "measured COR", "measured CCOR", "tests"
+    )
+    for lot, results in lots.values():
+        latest = {r.procedure: r for r in results}
+        cor, ccor = latest.get("ball-cor"), latest.get("ccor")
+        table.add_row(
+            lot.id,
+            lot.maker,
+            lot.model,
+            str(lot.balls),
+            "-" if lot.specification.nominal_cor is None else f"{lot.specification.nominal_cor:.3f}",
+            "-" if cor is None else f"{cor.mean:.4f} +- {cor.U:.4f}",
+            "-" if ccor is None else f"{ccor.mean:.4f} +- {ccor.U:.4f}",
+            str(len(results)),
+        )
+    out().print(table)
+    return 0
+
+
+def cmd_show(args: argparse.Namespace) -> int:
+    """rig balls show: one lot, its specification and conditioning, and every result measured."""
+    with open_db(args) as store:
+        lot, results = store.ball_lot(args.lot)
+    if args.json:
+        json.dump(_lot_row(lot, results), sys.stdout, indent=2)
+        sys.stdout.write("\n")
+        return 0
+    spec, cond = lot.specification, lot.conditioning
+    print(f"lot {lot.id}: {lot.maker} {lot.model}, {lot.balls} balls")
+    print(
+        "  specification: "
+        + (", ".join(f"{k} {v:g}" for k, v in spec.model_dump().items() if v is not None) or "none entered")
+    )
+    print(
+        "  conditioning: "
+        + (", ".join(f"{k} {v:g}" for k, v in cond.model_dump().items() if v is not None) or "not stated")
+    )
+    if not results:
+        print("  no results yet: rig balls test --procedure ball-cor|ccor --lot " + lot.id)
+    for r in results:
+        print("  " + _result_line(lot.id, r.run_id, r.model_dump(mode="json")))
+    return 0
+
+
+def add_parsers(sub: Any) -> None:
+    """`rig balls ...`."""
+    balls = sub.add_parser("balls", help="ball lots and ball tests (ccor, ball-cor)")
+    bsub = balls.add_subparsers(dest="balls_command", required=True, metavar="BALLS_COMMAND")
+
+    p = bsub.add_parser(
+        "register", help="record a ball lot (LOT.toml, table [lot])", description=cmd_register.__doc__
+    )
+    p.add_argument("lot_file", metavar="LOT.toml", help="the lot's file (table [lot])")
+    p.add_argument("--db", metavar="FILE", help=DB_HELP)
+    p.set_defaults(handler=cmd_register)
+
+    p = bsub.add_parser("test", help="run a ball test on a registered lot", description=cmd_test.__doc__)
+    p.add_argument("--procedure", help="ccor, ball-cor, or a ball-test TOML file")
+    p.add_argument("--lot", metavar="LOT", help="the registered lot's id")
+    add_rig_options(p)
+    p.add_argument("--db", metavar="FILE", help=DB_HELP)
+    p.add_argument("--resume", metavar="RUN", help="resume an interrupted ball test")
+    p.add_argument("--dry-run", action="store_true", help="check the test against rig and lot only")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.set_defaults(handler=cmd_test)
+
+    p = bsub.add_parser("list", help="the registered lots and their results", description=cmd_list.__doc__)
+    p.add_argument("--db", metavar="FILE", help=DB_HELP)
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(handler=cmd_list)
+
+    p = bsub.add_parser("show", help="one lot and every result", description=cmd_show.__doc__)
+    p.add_argument("lot", metavar="LOT", help="the lot's id")
+    p.add_argument("--db", metavar="FILE", help=DB_HELP)
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.set_defaults(handler=cmd_show)
