@@ -7,8 +7,9 @@ temperature and humidity). The balls the rig fires differ from it in three ways:
 - ball-to-ball spread within the lot (the ball-cor test's standard deviation between balls).
 Each is first expressed as a change of the ball's COR on the flat plate, then carried to the metric
 by the collision model's ratio g = d(metric)/d(plate COR) for a change of the ball's damping (the
-model's own sensitivity, with a relative uncertainty stated here). Measured sensitivities correct
-each hit and budget their own uncertainty; assumed ones correct nothing and budget the whole effect.
+model's own sensitivity, with a relative uncertainty stated here). Sensitivities measured on the
+lot correct each hit and budget their own uncertainty; stated or assumed ones correct nothing and
+budget the whole effect (the hit's own deviation from the lot's nominal condition).
 The lot's spread is never corrected (a ball's own COR is not known): it is budgeted per ball used.
 """
 
@@ -35,7 +36,8 @@ class BallTerms(BaseModel):
 
     lot: str | None = None
     source: str = "assumed defaults [U]: no qualified lot named"
-    measured: bool = False  # True: the sensitivities were measured on this lot -> correct each hit
+    wear_measured: bool = False  # True: wear and spread measured on this lot (ball-cor) -> wear corrected
+    conditions_measured: bool = False  # True: the air sensitivities were measured -> corrected
     plate_cor: float | None = None  # the lot's COR on the plate at 60 mph, if measured
     wear_per_hit: float = Field(-0.0003, description="plate COR change per hit of a ball")
     wear_per_hit_u: float = Field(0.0003, ge=0.0)
@@ -108,21 +110,21 @@ def adjust(terms: BallTerms, hits: list[HitBall], g: float) -> BallAdjustment:
     d_t = sum(h.temp_c - terms.temp_c for h in hits) / n
     d_rh = sum(h.rh_pct - terms.rh_pct for h in hits) / n
     balls = tuple(dict.fromkeys(h.ball for h in hits))
-    if terms.measured:
-        corrections = tuple(
-            -g
-            * (
-                terms.wear_per_hit * h.hits
-                + terms.cor_per_c * (h.temp_c - terms.temp_c)
-                + terms.cor_per_pct_rh * (h.rh_pct - terms.rh_pct)
-            )
-            for h in hits
-        )
+    wear = [terms.wear_per_hit * h.hits if terms.wear_measured else 0.0 for h in hits]
+    air = [
+        terms.cor_per_c * (h.temp_c - terms.temp_c) + terms.cor_per_pct_rh * (h.rh_pct - terms.rh_pct)
+        if terms.conditions_measured
+        else 0.0
+        for h in hits
+    ]
+    corrections = tuple(-g * (w + a) for w, a in zip(wear, air, strict=True))
+    if terms.wear_measured:
         u_wear = abs(g) * terms.wear_per_hit_u * mean_hits
-        u_cond = abs(g) * math.hypot(terms.cor_per_c_u * d_t, terms.cor_per_pct_rh_u * d_rh)
-    else:  # assumed sizes: nothing corrected, the whole effect budgeted
-        corrections = (0.0,) * n
+    else:  # an assumed size: nothing corrected, the whole effect budgeted
         u_wear = abs(g) * math.hypot(terms.wear_per_hit, terms.wear_per_hit_u) * mean_hits
+    if terms.conditions_measured:
+        u_cond = abs(g) * math.hypot(terms.cor_per_c_u * d_t, terms.cor_per_pct_rh_u * d_rh)
+    else:
         u_cond = abs(g) * math.hypot(
             math.hypot(terms.cor_per_c, terms.cor_per_c_u) * d_t,
             math.hypot(terms.cor_per_pct_rh, terms.cor_per_pct_rh_u) * d_rh,
@@ -148,3 +150,28 @@ def hit_balls(hits: list[Any], environment: dict[str, Any] | None, terms: BallTe
             )
         )
     return out
+
+
+def terms_from_lot(lot: Any, results: list[Any], law: dict[str, float] | None = None) -> BallTerms:
+    """The ball terms of a registered lot (rig.core.ball.BallLot) from its latest ball-cor result:
+    wear and spread measured; the air's sensitivities stay the assumed defaults, budgeted whole."""
+    cor = [r for r in results if r.procedure == "ball-cor" and r.wear_per_hit is not None]
+    cond = lot.conditioning
+    base: dict[str, Any] = {
+        "lot": lot.id,
+        "temp_c": cond.temperature_c if cond.temperature_c is not None else 21.0,
+        "rh_pct": cond.humidity_pct if cond.humidity_pct is not None else 50.0,
+        "law": law,
+    }
+    if not cor:
+        return BallTerms(**base, source=f"lot {lot.id}: no ball-cor result; assumed defaults [U]")
+    r = cor[-1]
+    return BallTerms(
+        **base,
+        source=f"lot {lot.id}: ball-cor run {r.run_id} (wear, spread); air sensitivities assumed [U]",
+        wear_measured=True,
+        plate_cor=r.mean,
+        wear_per_hit=r.wear_per_hit,
+        wear_per_hit_u=r.wear_per_hit_u or 0.0,
+        sd_between_balls=r.sd_between_balls or 0.0,
+    )

@@ -357,7 +357,7 @@ def shoot(ctx: PlanContext, loc_in: float, purpose: str) -> Plan[None]:
         raise RunAborted(f"the operator declined to fire shot {index}")
     yield Checkpoint()
     air: dict[str, float] = {}
-    if (st.setup or {}).get("ball", {}).get("measured"):  # measured sensitivities: the air at each shot
+    if (st.setup or {}).get("ball", {}).get("lot"):  # a named lot: the air at each shot, for its terms
         env = yield ReadEnvironment()
         air = {"temperature_c": env.temperature_c, "humidity_pct": env.humidity_pct}
     yield Record(
