@@ -114,6 +114,7 @@ class SimBallLot(BaseModel):
         0.0, ge=0.0, le=0.2, description="ball-to-ball standard deviation of the stiffness k1, relative"
     )
 
+
 class Target(BaseModel):
     """What the clamp holds: the bat (default), or a rigid target for ball tests.
 
