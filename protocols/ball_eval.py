@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from protocols.ball_procedure import BallProcedure
+from protocols.outcome import concluded, learned_aim, no_data
 from protocols.run_inputs import air_density, drag_inputs, uncertainty_model
 from protocols.shot import ShotRecord
 from protocols.state import RunState, ShotEntry
@@ -25,7 +26,7 @@ from rig.core.events import Verdict
 from rig.measure.model import ShotInputs, inbound_at_impact
 from rig.measure.speeds import ShotDataError, shot_speeds, split_passes
 from rig.measure.uncertainty import budget
-from rig.measure.validity import ValidityLimits, check_shot, is_valid
+from rig.measure.validity import ValidityLimits, check_shot
 
 NO_MOI = 1.0  # a rigid fixed target has no MOI; the budget's e_A does not depend on it
 
@@ -54,11 +55,7 @@ def shot(
         passes = split_passes(record.crossings, record.gate_config)
         speeds = shot_speeds(passes, record.gate_positions_m, record.gate_config)
     except ShotDataError as exc:
-        return {
-            **out,
-            "valid": False,
-            "reasons": [{"code": "NO_DATA", "message": str(exc), "invalidates": True}],
-        }
+        return no_data(out, exc)
     air = air_density(config, state)
     drag = drag_inputs(config, air)
     q = record.impact_from_pivot_m
@@ -67,8 +64,7 @@ def shot(
         v_at_target = inbound_at_impact(
             passes, record.gate_positions_m, record.gate_config, p.ball.mass_kg, drag
         )
-        aimed = target_speed / state.aim_factor
-        out["aim_factor"] = 0.5 * state.aim_factor + 0.5 * (v_at_target / aimed)
+        out["aim_factor"] = learned_aim(state.aim_factor, target_speed, v_at_target)
     limits = ValidityLimits(speed_tolerance_m_s=p.speed_tolerance_m_s)
     reasons = check_shot(
         speeds,
@@ -96,20 +92,7 @@ def shot(
             rebound_at_impact_m_s=hit.value("v_out"),
             budget=hit.as_dict(),
         )
-    out["reasons"] = [
-        {
-            "code": r.code.value,
-            "message": r.message,
-            "invalidates": r.invalidates,
-            "measured": r.measured,
-            "limit": r.limit,
-        }
-        for r in reasons
-    ]
-    if failure:
-        out["reasons"].append({"code": "SHOT_FAILED", "message": failure, "invalidates": True})
-    out["valid"] = is_valid(reasons) and not failure and out["metric"] is not None
-    return out
+    return concluded(out, reasons, failure)
 
 
 def points(shots: Sequence[ShotEntry]) -> list[CcorPoint]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import asdict
 from typing import Any
 
+from protocols.outcome import concluded, learned_aim, no_data
 from protocols.procedure import Metric, Procedure
 from protocols.run_inputs import NOMINAL_AIR, air_density, drag_inputs, uncertainty_model
 from protocols.shot import ShotRecord
@@ -22,7 +23,7 @@ from rig.measure.metrics import DEFAULT_SWING, compute_metrics
 from rig.measure.model import ShotInputs, inbound_at_impact
 from rig.measure.speeds import ShotDataError, shot_speeds, split_passes
 from rig.measure.uncertainty import budget
-from rig.measure.validity import Invalidity, ValidityLimits, check_shot, is_valid
+from rig.measure.validity import Invalidity, ValidityLimits, check_shot
 
 
 def _metric_u(p: Procedure, bud: dict[str, Any], v_pitch_plus_bat: float) -> float:
@@ -54,12 +55,7 @@ def shot(
         passes = split_passes(record.crossings, record.gate_config)
         speeds = shot_speeds(passes, record.gate_positions_m, record.gate_config)
     except ShotDataError as exc:
-        return {
-            **out,
-            "valid": False,
-            "reasons": [{"code": "NO_DATA", "message": str(exc), "invalidates": True}],
-            "aim_factor": state.aim_factor,
-        }
+        return no_data(out, exc, aim_factor=state.aim_factor)
     air = air_density(config, state) if config is not None else None
     v_in_bat: float | None = None  # the inbound speed at the bat, which the target is for
     if speeds.inbound is not None:
@@ -84,9 +80,7 @@ def shot(
     out["inbound_speed_m_s"], out["rebound_speed_m_s"] = v_in, v_out
     out["aim_factor"] = state.aim_factor
     if v_in_bat is not None:
-        # the cannon gave v_in_bat at the bat where the aim table promised the aimed speed: learn the ratio
-        aimed = p.target_speed_m_s / state.aim_factor
-        out["aim_factor"] = 0.5 * state.aim_factor + 0.5 * (v_in_bat / aimed)
+        out["aim_factor"] = learned_aim(state.aim_factor, p.target_speed_m_s, v_in_bat)
     if v_in is not None and v_out is not None and v_out > 0:
         inputs = ShotInputs.from_passes(
             passes,
@@ -110,20 +104,7 @@ def shot(
             budget=bud,
             inputs={k: v for k, v in asdict(inputs).items()},
         )
-    out["reasons"] = [
-        {
-            "code": r.code.value,
-            "message": r.message,
-            "invalidates": r.invalidates,
-            "measured": r.measured,
-            "limit": r.limit,
-        }
-        for r in reasons
-    ]
-    if failure:
-        out["reasons"].append({"code": "SHOT_FAILED", "message": failure, "invalidates": True})
-    out["valid"] = is_valid(reasons) and not failure and out["metric"] is not None
-    return out
+    return concluded(out, reasons, failure)
 
 
 __all__ = [
