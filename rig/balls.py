@@ -9,30 +9,26 @@ built with that target clamped (rig.session.sim_config), a real rig is told by t
 
 from __future__ import annotations
 
-import contextlib
-import logging
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import Any
 
 from protocols.ball_eval import lot_result
 from protocols.ball_procedure import BallProcedure
 from protocols.ball_steps import BallContext, ball_test
-from protocols.control import BudgetExceeded, Operator, RunControl, ScriptedOperator
+from protocols.control import Operator, RunControl, ScriptedOperator
 from protocols.dryrun import Rehearsal, rehearse
 from protocols.executor import Executor, LiveRig
 from protocols.state import fold
 from rig import __version__
-from rig.certification import Outcome, _reason, _running, _seal, _traffic_drain, _where, history
+from rig.certification import Emit, Outcome, _running, _traffic_drain, drive, history, register_item
 from rig.core import events as ev
 from rig.core.ball import BALL_TESTS, BallLot
 from rig.core.config import RigConfig
-from rig.core.errors import ConfigError, RecordRefused, RigError
+from rig.core.errors import ConfigError, RigError
 from rig.core.events import RunEvent, Subscriber
 from rig.keys import load_signer, recorded_rig
 from rig.session import RigSession
 from rig.store import Store
-
-log = logging.getLogger(__name__)
 
 
 def recorded_test(store: Store, run_id: str) -> tuple[BallProcedure, BallLot]:
@@ -67,7 +63,6 @@ def run_ball_test(
     The lot must be registered (Store.register_lot). The target is registered as what the clamp
     holds (the run's `bat`), so that the store's runs keep naming what was struck.
     """
-    listeners = list(subscribers)
     resuming = run_id is not None
     if run_id is not None:
         _running(store, run_id, "--resume")
@@ -86,71 +81,32 @@ def run_ball_test(
     signer = load_signer((recorded_rig(store, run_id) if run_id else None) or identity["name"])
     if run_id is None:
         target = procedure.target
-        spec = target.spec()
-        held = store.bats().get(target.id)
-        if held is None:
-            with contextlib.suppress(RecordRefused):  # another rig registered it meanwhile
-                store.register_bat(target.id, spec)
-            held = store.bats().get(target.id)
-        if held != spec:
-            raise ConfigError(f"target {target.id} is registered with other properties", source="procedure")
+        refusal = ConfigError(f"target {target.id} is registered with other properties", source="procedure")
+        register_item(store, target.id, target.spec(), refusal)
         meta = {"procedure": procedure.name, "rig": identity, "lot": lot.id, "test": procedure.test}
         run_id = store.create_run(procedure.test, target.id, meta)
 
-    def emit(event: RunEvent) -> None:
-        if event.persisted:
-            store.append(run_id, event.kind, event.data)
-        for listener in listeners:
-            listener(event)
+    def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Executor, Callable[[], Any]]:
+        operator_ = operator or ScriptedOperator()
+        ctx = BallContext(
+            procedure,  # type: ignore[arg-type]
+            None,  # type: ignore[arg-type]
+            config,
+            fold(past),
+            who=getattr(operator_, "who", "operator"),
+            lot=lot,
+        )
+        executor = Executor(
+            ctx,
+            LiveRig(session.cannon, session.gates, session.clamp),
+            emit,
+            operator_,
+            control,
+            _traffic_drain(session),
+        )
+        return executor, lambda: executor.run(ball_test)
 
-    with store.run_lock(run_id):
-        try:
-            session = RigSession.open(config)
-        except (RigError, OSError) as exc:
-            reason = f"the devices could not be opened: {_reason(exc)}"
-            emit(ev.RunInterrupted(reason=reason, extra={"budget_exceeded": False}))
-            return Outcome(run_id, "interrupted", None, reason)
-        with session:
-            past = history(store, run_id) if resuming else []
-            session.traffic.clear()
-            operator = operator or ScriptedOperator()
-            ctx = BallContext(
-                procedure,  # type: ignore[arg-type]
-                None,  # type: ignore[arg-type]
-                config,
-                fold(past),
-                who=getattr(operator, "who", "operator"),
-                lot=lot,
-            )
-            executor = Executor(
-                ctx,
-                LiveRig(session.cannon, session.gates, session.clamp),
-                emit,
-                operator,
-                control,
-                _traffic_drain(session),
-            )
-            try:
-                verdict = executor.run(ball_test)
-                executor.control.settled = True
-            except BaseException as exc:
-                executor.control.settled = True
-                if not isinstance(exc, Exception | KeyboardInterrupt):
-                    raise
-                reason, budget = _reason(exc), isinstance(exc, BudgetExceeded)
-                detail: dict[str, Any] = {"reason": reason, "budget_exceeded": budget}
-                if not isinstance(exc, RigError | KeyboardInterrupt):
-                    detail["where"] = _where(exc)
-                    log.debug("ball test %s interrupted by an unexpected error", run_id, exc_info=exc)
-                try:
-                    with contextlib.suppress(Exception):
-                        executor.flush_traffic()
-                    emit(ev.event(ev.RUN_INTERRUPTED, **detail))
-                except KeyboardInterrupt:
-                    pass
-                return Outcome(run_id, "interrupted", None, reason, budget)
-            _seal(store, run_id, "finished", str(verdict["verdict"]), signer)
-    return Outcome(run_id, "finished", verdict)
+    return drive(store, run_id, config, list(subscribers), signer, start, resuming=resuming, what="ball test")
 
 
 def recomputed_problems(store: Store) -> list[str]:

@@ -14,13 +14,14 @@ import traceback
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from protocols.dryrun import rehearse
 from protocols.evaluate import run_calibration
 from protocols.plan import PlanFactory
 from protocols.procedure import Procedure
 from protocols.runner import BudgetExceeded, Operator, RunControl, Runner
+from protocols.state import RunState
 from protocols.steps import certification
 from rig import __version__
 from rig.core import events as ev
@@ -167,20 +168,68 @@ def certify(
     if run_id is None:
         run_calibration(procedure, config)  # a named calibration that will not load stops us here
         bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
-        spec = bat.model_dump(mode="json")
-        registered = store.bats().get(bat.id)
-        if registered is None:
-            try:
-                store.register_bat(bat.id, spec)
-                registered = spec
-            except RecordRefused:  # another rig registered it meanwhile (one lab database)
-                registered = store.bats().get(bat.id)
-        if registered != spec:
-            raise ConfigError(
-                f"bat {bat.id} is registered with other properties; give it a new id", source="bat file"
-            )
+        refusal = ConfigError(
+            f"bat {bat.id} is registered with other properties; give it a new id", source="bat file"
+        )
+        register_item(store, bat.id, bat.model_dump(mode="json"), refusal)
         meta = {"procedure": procedure.name, "rig": identity}
         run_id = store.create_run(procedure.standard.value, bat.id, meta)
+
+    def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Driven, Callable[[], Any]]:
+        runner = Runner(
+            procedure,
+            bat,
+            config,
+            session.cannon,
+            session.gates,
+            session.clamp,
+            emit,
+            operator=operator,
+            history=past,
+            drain_traffic=_traffic_drain(session),
+            control=control,
+            confirm_fire=confirm_fire,
+            review_shots=review_shots,
+            rig_check=None if rig_checked is None else rig_checked.as_dict(),
+            plan=plan,
+            options=options,
+        )
+        return runner, lambda: runner.run(rehearse_first=False)  # rehearsed above, before the lock
+
+    return drive(store, run_id, config, listeners, signer, start, resuming=resuming, on_open=on_open)
+
+
+Emit = Callable[[RunEvent], None]
+
+
+class Driven(Protocol):
+    """What drive needs of a run's runner or executor: its state, its control, its unsent traffic."""
+
+    @property
+    def state(self) -> RunState: ...
+
+    @property
+    def control(self) -> RunControl: ...
+
+    def flush_traffic(self) -> None: ...
+
+
+def drive(
+    store: Store,
+    run_id: str,
+    config: RigConfig,
+    listeners: list[Subscriber],
+    signer: Signer | None,
+    start: Callable[[RigSession, list[RunEvent], Emit], tuple[Driven, Callable[[], Any]]],
+    *,
+    resuming: bool,
+    on_open: Callable[[RigSession], None] | None = None,
+    what: str = "run",
+) -> Outcome:
+    """Run one recorded run on the rig under its lock: every persisted event committed before the
+    plan goes on, any error recorded as the run's interruption (resumable), the run sealed (and
+    signed) at its end. `start` builds the runner from the open session, the record and `emit`, and
+    returns it with the call that runs it to its verdict."""
 
     def emit(event: RunEvent) -> None:
         if event.persisted:
@@ -201,48 +250,44 @@ def certify(
             if on_open is not None:
                 on_open(session)
             session.traffic.clear()  # opening chatter belongs to no shot
-            runner = Runner(
-                procedure,
-                bat,
-                config,
-                session.cannon,
-                session.gates,
-                session.clamp,
-                emit,
-                operator=operator,
-                history=past,
-                drain_traffic=_traffic_drain(session),
-                control=control,
-                confirm_fire=confirm_fire,
-                review_shots=review_shots,
-                rig_check=None if rig_checked is None else rig_checked.as_dict(),
-                plan=plan,
-                options=options,
-            )
+            driven, run = start(session, past, emit)
             try:
-                verdict = runner.run(rehearse_first=False)  # rehearsed above, before the lock
-                runner.control.settled = True
+                verdict = run()
+                driven.control.settled = True
             except BaseException as exc:
-                runner.control.settled = True  # stop signals from now on would only tear the record up
+                driven.control.settled = True  # stop signals from now on would only tear the record up
                 if not isinstance(exc, Exception | KeyboardInterrupt):
                     raise  # SystemExit and the like: not an interruption of the run
-                if runner.state.finished:  # e.g. a failed ring check ends the run with FAIL
-                    _seal(store, run_id, "finished", runner.state.verdict.get("verdict"), signer)
-                    return Outcome(run_id, "finished", runner.state.verdict, str(exc))
+                ended = driven.state.verdict
+                if driven.state.finished and ended is not None:  # e.g. a failed ring check: FAIL
+                    _seal(store, run_id, "finished", ended.get("verdict"), signer)
+                    return Outcome(run_id, "finished", ended, str(exc))
                 reason, budget = _reason(exc), isinstance(exc, BudgetExceeded)
                 detail: dict[str, Any] = {"reason": reason, "budget_exceeded": budget}
                 if not isinstance(exc, RigError | KeyboardInterrupt):  # a bug: say where, for the developers
                     detail["where"] = _where(exc)
-                    log.debug("run %s interrupted by an unexpected error", run_id, exc_info=exc)
+                    log.debug("%s %s interrupted by an unexpected error", what, run_id, exc_info=exc)
                 try:
                     with contextlib.suppress(Exception):
-                        runner.flush_traffic()
+                        driven.flush_traffic()
                     emit(ev.event(ev.RUN_INTERRUPTED, **detail))
                 except KeyboardInterrupt:  # forced while recording: the record stays whole, resumable
                     pass
                 return Outcome(run_id, "interrupted", None, reason, budget)
-            _seal(store, run_id, "finished", verdict["verdict"], signer)  # sealed under the lock
+            _seal(store, run_id, "finished", str(verdict["verdict"]), signer)  # sealed under the lock
     return Outcome(run_id, "finished", verdict)
+
+
+def register_item(store: Store, item_id: str, spec: dict[str, Any], refusal: ConfigError) -> None:
+    """Register what the clamp holds (a bat, a ball test's target) once; `refusal` if the store
+    already holds that id with other properties (another rig may register it meanwhile)."""
+    registered = store.bats().get(item_id)
+    if registered is None:
+        with contextlib.suppress(RecordRefused):  # another rig registered it meanwhile (one lab database)
+            store.register_bat(item_id, spec)
+        registered = store.bats().get(item_id)
+    if registered != spec:
+        raise refusal
 
 
 def default_db() -> Path | str:
