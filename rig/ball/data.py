@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rig.core.errors import ConfigError
+from rig.core.files import read_bounded
 
 COLUMNS = ("speed_m_s", "ccor", "u_ccor", "ball_id")
 REQUIRED = ("speed_m_s", "ccor")
@@ -117,18 +118,9 @@ def parse_ccor_csv(text: str, name: str) -> list[CcorPoint]:
 def load_ccor_csv(path: str | Path) -> CcorData:
     """Read a CCOR CSV file; ConfigError names the file (and the line) and the cause."""
     path = Path(path)
-    try:
-        if path.is_file() and path.stat().st_size > MAX_BYTES:
-            raise ConfigError(f"larger than {MAX_BYTES} bytes: not a CCOR data file", source=str(path))
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise ConfigError("no such file", source=str(path)) from None
-    except IsADirectoryError:
-        raise ConfigError("a directory, not a CCOR data file", source=str(path)) from None
+    raw = read_bounded(path, MAX_BYTES, "a CCOR data file")
     if not raw.strip():
         raise ConfigError("empty file", source=str(path))
-    if b"\x00" in raw:
-        raise ConfigError("not a text file: it holds NUL bytes", source=str(path))
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:

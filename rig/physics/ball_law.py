@@ -18,6 +18,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from rig.core.errors import ConfigError
+from rig.core.files import read_bounded
 from rig.physics.params import DEFAULT_PARAMS, CollisionParams, check_physical
 
 KIND = "rig-ball-law"
@@ -125,16 +126,7 @@ class BallLaw(BaseModel):
     def read(cls, path: str | Path) -> tuple[BallLaw, str]:
         """The ball law and the sha256 of the file's bytes (what a calibration records)."""
         path = Path(path)
-        try:
-            if path.is_file() and path.stat().st_size > MAX_BYTES:
-                raise ConfigError(f"not a ball file: larger than {MAX_BYTES} bytes", source=str(path))
-            raw = path.read_bytes()
-        except FileNotFoundError:
-            raise ConfigError("no such file", source=str(path)) from None
-        except IsADirectoryError:
-            raise ConfigError("not a ball file: a directory", source=str(path)) from None
-        if b"\x00" in raw:
-            raise ConfigError("not a ball file: it holds NUL bytes", source=str(path))
+        raw = read_bounded(path, MAX_BYTES, "a ball file")
         try:
             data = json.loads(raw.decode("utf-8"))
         except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
