@@ -26,6 +26,7 @@ import numpy as np
 from rig.ball.data import CcorPoint
 from rig.ball.limits import MAX_FOLDS, MAX_POINTS, MIN_SPEED_RATIO, MIN_SPEEDS, SPEED_GROUP_M_S
 from rig.core.errors import RigError
+from rig.measure.selection import VariantReport, simplest_within_one_se
 from rig.physics import DEFAULT_PARAMS, CollisionParams, Impact, solve_batch
 
 VARIANTS: dict[str, tuple[str, ...]] = {
@@ -217,20 +218,6 @@ def fit_variant(
     return BallFit(variant, names, values, cov, scatter, chi2_dof, -raw, cond, dof)
 
 
-@dataclass(frozen=True)
-class VariantReport:
-    """A variant's fit to all the points and its leave-one-out errors (measured - predicted)."""
-
-    fit: BallFit
-    loo_errors: np.ndarray
-    identified: bool
-
-    @property
-    def loo_rmse(self) -> float:
-        """Root mean square of the leave-one-out errors (CCOR)."""
-        return float(np.sqrt(np.mean(self.loo_errors**2)))
-
-
 def leave_one_out(data: FitData, full: BallFit, base: CollisionParams = DEFAULT_PARAMS) -> np.ndarray:
     """For each point: measured minus the prediction of a fit without its group (ball or point)."""
     out = np.empty(data.n)
@@ -246,16 +233,10 @@ def _group_mse(data: FitData, errors: np.ndarray) -> np.ndarray:
     return np.array([np.mean(errors[data.groups == g] ** 2) for g in range(len(data.group_names))])
 
 
-def choose(data: FitData, reports: Mapping[str, VariantReport]) -> str:
-    """The simplest identified variant whose LOO mean squared error is within one SE of the best."""
-    usable = {k: r for k, r in reports.items() if r.identified}
-    best = min(usable, key=lambda k: usable[k].loo_rmse)
-    for name in sorted(usable, key=lambda k: (len(VARIANTS[k]), usable[k].loo_rmse)):
-        diff = _group_mse(data, usable[name].loo_errors) - _group_mse(data, usable[best].loo_errors)
-        se = float(np.std(diff, ddof=1) / math.sqrt(diff.size)) if diff.size > 1 else 0.0
-        if float(np.mean(diff)) <= se:
-            return name
-    return best
+def choose(data: FitData, reports: Mapping[str, VariantReport[BallFit]]) -> str:
+    """The variant by the one-SE rule on the groups' (balls' or points') mean squared LOO errors
+    (rig.measure.selection), as `rig model calibrate` chooses."""
+    return simplest_within_one_se(reports, VARIANTS, lambda errors: _group_mse(data, errors))
 
 
 @dataclass(frozen=True)

@@ -3,19 +3,15 @@
 from __future__ import annotations
 
 import hashlib
-import math
 from collections.abc import Mapping
 from datetime import UTC, datetime
 
 import rig
 from rig.ball.fit import SELECTION, BallFitResult, model_ccor, speed_levels
+from rig.measure.selection import variant_rows
 from rig.physics.ball_law import BALL_NAMES, BallLaw, BallProvenance
 
 PAPER = "the founding paper's value (Sutton and Sherwood 2010)"
-
-
-def _num(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
 
 
 def weighting(result: BallFitResult) -> str:
@@ -38,18 +34,7 @@ def ball_law(
     data = result.data
     predicted = model_ccor(params, data.speed)
     loo = result.reports[result.chosen].loo_errors
-    variants = [
-        {
-            "variant": name,
-            "parameters": rep.fit.values,
-            "uncertainty": {k: _num(v) for k, v in rep.fit.errors().items()},
-            "scatter": _num(rep.fit.scatter),
-            "loo_rmse": _num(rep.loo_rmse),
-            "identified": rep.identified,
-            "condition_number": _num(rep.fit.condition),
-        }
-        for name, rep in result.reports.items()
-    ]
+    variants = variant_rows(result.reports)
     sources = dict(fixed_sources or {})
     fixed = {n: sources.get(n, PAPER) for n in BALL_NAMES if n not in fit.names}
     return BallLaw(

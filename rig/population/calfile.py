@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, Literal
@@ -18,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 
 import rig
 from rig.core.errors import ConfigError
+from rig.measure.selection import variant_rows
 from rig.physics import CollisionParams
 from rig.population.calibrate import (
     DEFAULT_LOCATION_IN,
@@ -105,10 +105,6 @@ class CalibrationFile(BaseModel):
         return self
 
 
-def _num(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
-
-
 def calibration_base(cal: CalibrationFile) -> CollisionParams:
     """The ball's constants a calibration was made with: its recorded ball's, else the paper's."""
     if cal.ball is None:
@@ -125,19 +121,7 @@ def calibration_record(
     predicted = predict(cal.bats, fit.values, base=cal.base)
     loo = cal.reports[cal.chosen].loo_errors
     hoops = [b.hoop_hz for b in cal.bats]
-    variants = []
-    for name, rep in cal.reports.items():
-        variants.append(
-            {
-                "variant": name,
-                "parameters": rep.fit.values,
-                "uncertainty": {k: _num(v) for k, v in rep.fit.errors().items()},
-                "scatter": _num(rep.fit.scatter),
-                "loo_rmse": _num(rep.loo_rmse),
-                "identified": rep.identified,
-                "condition_number": _num(rep.fit.condition),
-            }
-        )
+    variants = variant_rows(cal.reports)
     return {
         "kind": KIND,
         "format": FORMAT,

@@ -21,6 +21,7 @@ from rig.core.bat import PIVOT_FROM_KNOB_M
 from rig.core.errors import RigError
 from rig.core.units import INCH
 from rig.measure.metrics import compute_metrics
+from rig.measure.selection import VariantReport, simplest_within_one_se
 from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat, solve_batch
 from rig.physics.bat import impact_for
 from rig.population.dataset import METRICS, PopulationBat, missing_column
@@ -200,20 +201,6 @@ def fit_variant(
     return Fit(variant, names, values, cov, scatter, res.fun.copy(), cond)
 
 
-@dataclass(frozen=True)
-class VariantReport:
-    """A variant's fit to all the bats and its leave-one-out prediction errors."""
-
-    fit: Fit
-    loo_errors: np.ndarray  # measured - predicted for each bat, the bat left out of the fit
-    identified: bool
-
-    @property
-    def loo_rmse(self) -> float:
-        """Root mean square of the leave-one-out prediction errors."""
-        return float(np.sqrt(np.mean(self.loo_errors**2)))
-
-
 def leave_one_out(bats: Sequence[FitBat], full: Fit, base: CollisionParams = PAPER_BASE) -> np.ndarray:
     """For each bat: its measured value minus the prediction of a fit to the others."""
     out = np.empty(len(bats))
@@ -224,20 +211,9 @@ def leave_one_out(bats: Sequence[FitBat], full: Fit, base: CollisionParams = PAP
     return out
 
 
-def choose(reports: dict[str, VariantReport]) -> str:
-    """The simplest identified variant whose LOO mean squared error is within one SE of the best.
-
-    SE: the standard error of the mean of the bats' paired differences in squared LOO error; among
-    variants with as many parameters, the lower LOO error comes first.
-    """
-    usable = {k: r for k, r in reports.items() if r.identified}
-    best = min(usable, key=lambda k: usable[k].loo_rmse)
-    for name in sorted(usable, key=lambda k: (len(VARIANTS[k]), usable[k].loo_rmse)):
-        diff = usable[name].loo_errors ** 2 - usable[best].loo_errors ** 2
-        se = float(np.std(diff, ddof=1) / math.sqrt(diff.size)) if diff.size > 1 else 0.0
-        if float(np.mean(diff)) <= se:
-            return name
-    return best
+def choose(reports: dict[str, VariantReport[Fit]]) -> str:
+    """The variant by the one-SE rule on the bats' leave-one-out errors (rig.measure.selection)."""
+    return simplest_within_one_se(reports, VARIANTS, np.square)
 
 
 @dataclass(frozen=True)
