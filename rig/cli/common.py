@@ -21,6 +21,19 @@ def param_override(text: str) -> tuple[str, float]:
         raise argparse.ArgumentTypeError(f"{name.strip()}: {value!r} is not a number") from None
 
 
+def add_overrides(parser: argparse.ArgumentParser, help_text: str) -> None:
+    """--set NAME=VALUE (repeatable): model constants to override, collected in `overrides`."""
+    parser.add_argument(
+        "--set",
+        dest="overrides",
+        metavar="NAME=VALUE",
+        type=param_override,
+        action="append",
+        default=[],
+        help=help_text,
+    )
+
+
 PIPED_WIDTH = 400  # columns of output that is not a terminal: nothing wraps or is cut
 
 

@@ -8,8 +8,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from rig.cli.common import add_overrides, new_table
 from rig.cli.common import console as out
-from rig.cli.common import new_table, param_override
 from rig.core.errors import ConfigError
 
 WHO = "rig model fit-ball"
@@ -213,15 +213,7 @@ def add_parser(msub: Any) -> None:
         "--db", metavar="STORE", help="also (or only) the ccor tests of --lot in this record store"
     )
     p.add_argument("--lot", metavar="LOT", help="the ball lot (recorded; with --db, whose tests to read)")
-    p.add_argument(
-        "--set",
-        dest="overrides",
-        metavar="NAME=VALUE",
-        type=param_override,
-        action="append",
-        default=[],
-        help="fix m1, k1 or c1 at the lab's value (default: the paper's), e.g. --set m1=0.1445",
-    )
+    add_overrides(p, "fix m1, k1 or c1 at the lab's value (default: the paper's), e.g. --set m1=0.1445")
     p.add_argument("--output", required=True, metavar="BALL.json", help="where to write the ball law")
     p.add_argument("--json", action="store_true", help="print the ball-law record as JSON")
     p.add_argument("--plot", metavar="FIG", help="draw measured and model CCOR against speed (PNG and SVG)")

@@ -10,10 +10,10 @@ from typing import Any
 from rig.cli import calibrate, crosscheck, fit_ball
 from rig.cli.common import (
     Bounds,
+    add_overrides,
     check_flags,
     emit,
     new_table,
-    param_override,
     positive_int,
 )
 from rig.cli.common import console as out
@@ -39,15 +39,7 @@ BOUNDS: Bounds = {
 
 def _model_parent() -> argparse.ArgumentParser:
     parent = argparse.ArgumentParser(add_help=False)
-    parent.add_argument(
-        "--set",
-        dest="overrides",
-        metavar="NAME=VALUE",
-        type=param_override,
-        action="append",
-        default=[],
-        help="override a model constant (m1, k1, c1, a, b, m2, c2), e.g. --set m2=0.1",
-    )
+    add_overrides(parent, "override a model constant (m1, k1, c1, a, b, m2, c2), e.g. --set m2=0.1")
     parent.add_argument(
         "--ball",
         metavar="BALL.json",
