@@ -200,16 +200,15 @@ class SimWorld:
             ball = self.balls[ball_id] = SimBall(ball_id, 0, c1, k1)
         return ball
 
-    def _hit_ball(self) -> tuple[SimBall, CollisionParams]:
-        """The ball in the breech before this hit, its constants for it; its count goes up by one."""
-        ball = self.ball(self.ball_id)
+    def _hit_ball(self, ball: SimBall) -> CollisionParams:
+        """`ball`'s constants for this hit (its own offsets on the lot's ball); its count goes up by one."""
         params = self.scene.ball
         if ball.c1_scale != 1.0 or ball.k1_scale != 1.0:
             params = params.model_copy(
                 update={"c1": params.c1 * ball.c1_scale, "k1": params.k1 * ball.k1_scale}
             )
         self.balls[ball.id] = SimBall(ball.id, ball.hits + 1, ball.c1_scale, ball.k1_scale)
-        return ball, params
+        return params
 
     # -- physics ----------------------------------------------------------------------------
     def counter(self, ticks: int) -> int:
@@ -244,7 +243,7 @@ class SimWorld:
         omega = None
         ball = self.ball(self.ball_id)
         if hit:
-            ball, params = self._hit_ball()
+            params = self._hit_ball(ball)
             for hook in self.hooks["ball_params"]:
                 params = hook(params, t_impact, ball)  # type: ignore[assignment]
             e_a, contact = self.collision.collide(params, v_in, q)
