@@ -22,9 +22,13 @@ import time
 from pathlib import Path
 from typing import Any
 
+from protocols.ball_procedure import BallProcedure
+from protocols.ball_terms import terms_from_lot
 from protocols.procedure import Procedure
 from protocols.state import fold
+from rig.balls import run_ball_test
 from rig.certification import certify, history
+from rig.core.ball import BallLot, Conditioning
 from rig.core.bat import BatSpec
 from rig.population.simulate import simulated_population
 from rig.session import scene_with_bat, sim_config
@@ -35,20 +39,27 @@ from simulators.truth import true_metric
 SCENE = "lab"
 
 
-def lot_terms(scene: Scene) -> dict[str, Any]:
-    """The lot's ball terms, measured by a ball-cor test on the same simulated lab."""
-    import sys
-
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from ball_lot import measured_terms
-
-    return measured_terms(SCENE)
+def lot_terms(lot_id: str = "SIM-LOT") -> dict[str, Any]:
+    """The lot's ball terms, measured by a ball-cor test on the same simulated lab (its own store)."""
+    procedure = BallProcedure.load("ball-cor")
+    lot = BallLot(
+        id=lot_id,
+        maker="simulated",
+        model="lab ball",
+        conditioning=Conditioning(temperature_c=21.0, humidity_pct=50.0),
+    )
+    config = sim_config(SCENE, target=(procedure.target.kind, procedure.target.diameter_m))
+    with tempfile.TemporaryDirectory() as folder, Store.open(Path(folder) / "lot.db") as store:
+        store.register_lot(lot)
+        run_ball_test(store, procedure, lot, config)
+        lot_now, results = store.ball_lot(lot_id)
+        return terms_from_lot(lot_now, results).model_dump(mode="json")
 
 
 def run(n: int, seed: int, with_ball: bool) -> list[tuple[str, float, float, float]]:
     """(bat id, certified mean, truth, U) for each bat."""
     scene = Scene.load(SCENE)
-    terms = lot_terms(scene) if with_ball else None
+    terms = lot_terms() if with_ball else None
     folder = Path(tempfile.mkdtemp(prefix="bench-ball-"))
     out = []
     for bat in simulated_population(n, seed, 0, 0.0):

@@ -205,8 +205,7 @@ def ball_part(
     if recorded is None or moi <= 0.0:
         return None
     terms = BallTerms.model_validate(recorded)
-    name = p.standard.value if p.standard is not Metric.BBS else "bbs"
-    g = ratio(law_params(terms, p.ball.mass_kg), name, p.target_speed_m_s, q, moi, bat.length_m)
+    g = ratio(law_params(terms, p.ball.mass_kg), p.standard.value, p.target_speed_m_s, q, moi, bat.length_m)
     return adjust(terms, hit_balls(hits, state.environment, terms), g)
 
 
