@@ -4,7 +4,7 @@ The procedure fixes the schedule (protocols.ball_procedure.Slot: speed, ball, th
 hit); the plan fires the first slot without a valid hit, so the same plan starts a test and resumes
 it: every remaining shot goes at its slot's speed with its slot's ball. An invalid or lost shot is
 re-shot with the same ball at the same speed (it counts as a hit of that ball if the gates saw it).
-Each shot's intent records the ball and the ball's hit count at that shot.
+Each shot's intent records the ball, the ball's hit count and the lab's air at that shot.
 
 The clamp holds the target the procedure names; the target sits where `target.impact_from_pivot_m`
 says, so a shot's "location" is 0 (the target's face) and `BallContext.q` gives the stage position.
@@ -32,6 +32,7 @@ from protocols.plan import (
     PlanContext,
     Prepare,
     Problem,
+    ReadEnvironment,
     Record,
 )
 from rig import __version__
@@ -190,6 +191,7 @@ def shoot(ctx: BallContext, slot: Slot) -> Plan[None]:
     ):
         raise RunAborted(f"the operator declined to fire shot {index}")
     yield Checkpoint()
+    env = yield ReadEnvironment()  # the air at each shot: the lot's sensitivities to it are fitted
     yield Record(
         ev.ShotRequested(
             index=index,
@@ -202,6 +204,8 @@ def shoot(ctx: BallContext, slot: Slot) -> Plan[None]:
                 "ball_hit": ball_hits(ctx, slot.ball_id) + 1,
                 "slot": slot.number,
                 "planned_hit": slot.planned_hit,
+                "temperature_c": env.temperature_c,
+                "humidity_pct": env.humidity_pct,
             },
         )
     )
