@@ -2,12 +2,13 @@
 
 N bats of a simulated population (default 40) are certified through the real drivers on the `lab`
 scene, each on its own simulated rig, with the ball terms of a qualified lot: the lot's wear per
-hit and ball-to-ball spread measured by a `ball-cor` test on the same simulated lab (when the ball
-tests are available), its temperature and humidity sensitivities stated. Each certified mean is
+hit, ball-to-ball spread and sensitivity to the air measured by `ball-cor` tests on the same
+simulated lab at four hours of its daily swing of air (protocols.ball_air). Each certified mean is
 compared with the simulated truth as the standard means it (simulators.truth: the scanned location
 of maximum, 60.8 m/s, a new ball of the lot's nominal condition, the bat's true MOI), computed from
-the scene without the measurement chain. Prints the mean error, its standard error, and how many
-bats have |error| <= U; with --no-ball, the same bats without the lot's terms, for comparison.
+the scene without the measurement chain. Prints the mean error, its standard error, how many
+bats have |error| <= U and the SD of error / u (1 if the stated u is right, below 1 if cautious);
+with --no-ball, the same bats without the lot's terms, for comparison.
 
     python benchmarks/bench_ball_truth.py [--bats 40] [--seed 7] [--no-ball]
 """
@@ -39,8 +40,13 @@ from simulators.truth import true_metric
 SCENE = "lab"
 
 
-def lot_terms(lot_id: str = "SIM-LOT") -> dict[str, Any]:
-    """The lot's ball terms, measured by a ball-cor test on the same simulated lab (its own store)."""
+HOURS = 4  # ball-cor tests of the lot at this many points of the lab's daily swing of air
+
+
+def lot_terms(lot_id: str = "SIM-LOT", hours: int = HOURS) -> dict[str, Any]:
+    """The lot's ball terms, measured by ball-cor tests on the same simulated lab (its own store):
+    one test at each of `hours` evenly spaced points of the lab's swing of air, so the lot's
+    sensitivity to the air is measured too (protocols.ball_air)."""
     procedure = BallProcedure.load("ball-cor")
     lot = BallLot(
         id=lot_id,
@@ -48,16 +54,19 @@ def lot_terms(lot_id: str = "SIM-LOT") -> dict[str, Any]:
         model="lab ball",
         conditioning=Conditioning(temperature_c=21.0, humidity_pct=50.0),
     )
-    config = sim_config(SCENE, target=(procedure.target.kind, procedure.target.diameter_m))
+    target = (procedure.target.kind, procedure.target.diameter_m)
+    period = next(float(e.period_s) for e in Scene.load(SCENE).effects if e.kind == "environment")
     with tempfile.TemporaryDirectory() as folder, Store.open(Path(folder) / "lot.db") as store:
         store.register_lot(lot)
-        run_ball_test(store, procedure, lot, config)
+        for hour in range(hours):
+            at = {"environment": {"start_s": period * hour / hours, "random_start": False}}
+            run_ball_test(store, procedure, lot, sim_config(SCENE, target=target, effects=at))
         lot_now, results = store.ball_lot(lot_id)
         return terms_from_lot(lot_now, results).model_dump(mode="json")
 
 
-def run(n: int, seed: int, with_ball: bool) -> list[tuple[str, float, float, float]]:
-    """(bat id, certified mean, truth, U) for each bat."""
+def run(n: int, seed: int, with_ball: bool) -> list[tuple[str, float, float, float, float]]:
+    """(bat id, certified mean, truth, U, u) for each bat."""
     scene = Scene.load(SCENE)
     terms = lot_terms() if with_ball else None
     folder = Path(tempfile.mkdtemp(prefix="bench-ball-"))
@@ -72,7 +81,7 @@ def run(n: int, seed: int, with_ball: bool) -> list[tuple[str, float, float, flo
         verdict = state.verdict or {}
         scanned = tuple(sorted({s.location_in for s in state.shots if s.purpose == "scan"}))
         truth = true_metric(scene_with_bat(scene, spec), scanned)
-        out.append((spec.id, float(verdict["mean"]), truth.value, float(verdict["U"])))
+        out.append((spec.id, float(verdict["mean"]), truth.value, float(verdict["U"]), float(verdict["u"])))
     return out
 
 
@@ -85,17 +94,19 @@ def main() -> None:
     args = ap.parse_args()
     t0 = time.perf_counter()
     rows = run(args.bats, args.seed, not args.no_ball)
-    errors = [m - t for _, m, t, _ in rows]
-    covered = sum(1 for (_, m, t, u) in rows if abs(m - t) <= u)
+    errors = [m - t for _, m, t, _, _ in rows]
+    covered = sum(1 for (_, m, t, big_u, _) in rows if abs(m - t) <= big_u)
     mean = statistics.mean(errors)
     se = statistics.stdev(errors) / math.sqrt(len(errors)) if len(errors) > 1 else float("nan")
     print(f"scene {SCENE}, {len(rows)} bats, ball terms {'off' if args.no_ball else 'from the lot'}")
-    for bat, m, t, u in rows:
-        print(f"  {bat}: certified {m:.5f}  truth {t:.5f}  error {m - t:+.5f}  U {u:.5f}")
+    for bat, m, t, big_u, _ in rows:
+        print(f"  {bat}: certified {m:.5f}  truth {t:.5f}  error {m - t:+.5f}  U {big_u:.5f}")
     print(f"mean error {mean:+.5f} (standard error {se:.5f}; target within +-0.0005)")
     share = 100 * covered / len(rows)
     print(f"|error| <= U for {covered} of {len(rows)} bats ({share:.0f} %; target >= 95 %)")
-    print(f"median U {statistics.median(u for *_, u in rows):.5f}; {time.perf_counter() - t0:.1f} s")
+    z = [(m - t) / u for _, m, t, _, u in rows]
+    print(f"SD of error / u {statistics.pstdev(z):.2f} (1: the stated u is right; below 1: cautious)")
+    print(f"median U {statistics.median(r[3] for r in rows):.5f}; {time.perf_counter() - t0:.1f} s")
 
 
 if __name__ == "__main__":

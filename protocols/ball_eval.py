@@ -13,7 +13,10 @@ import math
 import statistics
 from collections import defaultdict
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
+
+import numpy as np
 
 from protocols.ball_procedure import BallProcedure
 from protocols.outcome import concluded, learned_aim, no_data
@@ -111,36 +114,64 @@ def points(shots: Sequence[ShotEntry]) -> list[CcorPoint]:
                 ball_id=str(r["ball"]),
                 ball_hit=int(r["ball_hit"]),
                 shot=s.index,
+                temp_c=r.get("temperature_c"),
+                rh_pct=r.get("humidity_pct"),
             )
         )
     return found
 
 
-def wear_slope(hits: Sequence[CcorPoint]) -> tuple[float | None, float | None, float]:
-    """(slope of COR per hit within balls, its standard u, the residual within-ball variance).
+@dataclass(frozen=True)
+class WithinFit:
+    """COR against the ball's hit count and the inbound speed, within balls (each ball its own level)."""
 
-    Each ball has its own level; the slope is common (least squares on the deviations from each
-    ball's mean). None where no ball has two hits at different counts.
+    slope: float | None  # COR per hit (the wear), None if not identified
+    slope_u: float | None
+    speed_slope: float | None  # COR per m/s of inbound speed at the impact point, None if not fitted
+    speed_slope_u: float | None
+    residual: float  # the within-ball variance left
+
+
+def within_ball_fit(hits: Sequence[CcorPoint]) -> WithinFit:
+    """The common wear slope of COR per hit, with the hit's own speed as a second regressor.
+
+    Least squares on the deviations from each ball's means. The cannon's shot-to-shot speed
+    scatter moves COR too (a ball's COR falls with speed); a slope fitted on the hit count alone
+    takes a share of that scatter for wear. The speed enters when it varies within the balls.
     """
     by_ball: dict[str, list[CcorPoint]] = defaultdict(list)
     for h in hits:
         by_ball[h.ball_id].append(h)
-    sxx = sxy = 0.0
-    dev: list[tuple[float, float]] = []
+    rows: list[tuple[float, float, float]] = []
     for balls in by_ball.values():
         n_bar = statistics.fmean(h.ball_hit for h in balls)
+        v_bar = statistics.fmean(h.speed_m_s for h in balls)
         e_bar = statistics.fmean(h.cor for h in balls)
-        for h in balls:
-            dx, dy = h.ball_hit - n_bar, h.cor - e_bar
-            sxx, sxy = sxx + dx * dx, sxy + dx * dy
-            dev.append((dx, dy))
-    dof = len(hits) - len(by_ball) - 1
-    if sxx <= 0.0 or dof < 1:
-        within = _within_variance(by_ball)
-        return None, None, within
-    slope = sxy / sxx
-    residual = sum((dy - slope * dx) ** 2 for dx, dy in dev) / dof
-    return slope, math.sqrt(residual / sxx), residual
+        rows += [(h.ball_hit - n_bar, h.speed_m_s - v_bar, h.cor - e_bar) for h in balls]
+    x = np.array([r[:2] for r in rows], dtype=float).reshape(-1, 2)
+    y = np.array([r[2] for r in rows], dtype=float)
+    use = [j for j in (0, 1) if float(np.sum(x[:, j] ** 2)) > 0.0]
+    dof = len(hits) - len(by_ball) - len(use)
+    if 0 not in use or dof < 1:
+        return WithinFit(None, None, None, None, _within_variance(by_ball))
+    a = x[:, use]
+    # scaled columns: hit counts are units, speed deviations tenths of m/s
+    scale = np.sqrt(np.sum(a * a, axis=0))
+    coef, *_ = np.linalg.lstsq(a / scale, y, rcond=None)
+    resid = y - (a / scale) @ coef
+    residual = float(resid @ resid) / dof
+    cov = residual * np.linalg.pinv((a / scale).T @ (a / scale)) / np.outer(scale, scale)
+    beta = coef / scale
+    slope, slope_u = float(beta[0]), math.sqrt(max(0.0, float(cov[0, 0])))
+    if len(use) == 1:
+        return WithinFit(slope, slope_u, None, None, residual)
+    return WithinFit(slope, slope_u, float(beta[1]), math.sqrt(max(0.0, float(cov[1, 1]))), residual)
+
+
+def wear_slope(hits: Sequence[CcorPoint]) -> tuple[float | None, float | None, float]:
+    """(slope of COR per hit within balls, its standard u, the residual within-ball variance)."""
+    fit = within_ball_fit(hits)
+    return fit.slope, fit.slope_u, fit.residual
 
 
 def _within_variance(by_ball: dict[str, list[CcorPoint]]) -> float:
@@ -168,13 +199,24 @@ def _mean_u(values: Sequence[float], u_sys: float) -> tuple[float, float, float 
     return mean, math.sqrt((sd or 0.0) ** 2 / len(values) + u_sys * u_sys), sd
 
 
+def _mean_air(at_hits: list[float | None], at_checks: list[Any]) -> float | None:
+    """The mean air over the hits (read at each shot), else over the run's environment checks."""
+    for values in (at_hits, at_checks):
+        known = [float(v) for v in values if v is not None]
+        if known and len(known) == len(values):
+            return statistics.fmean(known)
+    return None
+
+
 def lot_result(p: BallProcedure, lot_id: str, state: RunState, run_id: str = "") -> LotResult:
     """The lot's result from the run's valid hits (ValueError if there are none).
 
     Each ball counts once: its mean over its hits. COR (CCOR) = mean of the balls' means, u^2 =
     s_balls^2 / n_balls + u_systematic^2 (the gates' positions, drag and air are shared by every
     hit). The ball-to-ball SD removes the within-ball scatter: sqrt(max(0, s_balls^2 - s_w^2 / K)).
-    The wear per hit is the common slope of COR against the ball's hit count within each ball.
+    The wear per hit is the common slope of COR against the ball's hit count within each ball, the
+    hit's own inbound speed a second regressor (`within_ball_fit`). The lot's temperature and
+    humidity are the means over the hits (read at each shot).
     """
     hits = points(state.shots)
     if not hits:
@@ -185,7 +227,8 @@ def lot_result(p: BallProcedure, lot_id: str, state: RunState, run_id: str = "")
         by_ball[h.ball_id].append(h)
     ball_means = {b: statistics.fmean(h.cor for h in hs) for b, hs in by_ball.items()}
     mean, u, _ = _mean_u(list(ball_means.values()), u_sys)
-    slope, slope_u, within = wear_slope(hits)
+    fit = within_ball_fit(hits)
+    slope, slope_u, within = fit.slope, fit.slope_u, fit.residual
     k_hits = p.hits_per_ball
     spread = _between_balls_variance(by_ball)  # about each speed's mean: ccor's speeds differ
     sd_between = None if spread is None else math.sqrt(max(0.0, spread - within / k_hits))
@@ -221,12 +264,14 @@ def lot_result(p: BallProcedure, lot_id: str, state: RunState, run_id: str = "")
         sd_between_balls=sd_between,
         wear_per_hit=slope,
         wear_per_hit_u=slope_u,
+        speed_slope=fit.speed_slope,
+        speed_slope_u=fit.speed_slope_u,
         mean_hit=statistics.fmean(h.ball_hit for h in hits),
         n_balls=len(by_ball),
         hits_per_ball=k_hits,
         n_hits=len(hits),
-        temp_c=statistics.fmean(float(e["temperature_c"]) for e in envs) if envs else None,
-        rh_pct=statistics.fmean(float(e["humidity_pct"]) for e in envs) if envs else None,
+        temp_c=_mean_air([h.temp_c for h in hits], [e.get("temperature_c") for e in envs]),
+        rh_pct=_mean_air([h.rh_pct for h in hits], [e.get("humidity_pct") for e in envs]),
         run_id=run_id,
         per_ball=ball_means,
         per_speed=tuple(per_speed),

@@ -16,11 +16,13 @@ The lot's spread is never corrected (a ball's own COR is not known): it is budge
 from __future__ import annotations
 
 import math
+import statistics
 from dataclasses import asdict, dataclass
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from protocols.ball_air import fit_air, pooled_wear
 from rig.measure.metrics import compute_metrics
 from rig.physics import CollisionParams, PivotedBat, predict_bat, rigid_cor
 
@@ -46,6 +48,7 @@ class BallTerms(BaseModel):
     cor_per_c_u: float = Field(0.0015, ge=0.0)
     cor_per_pct_rh: float = Field(-0.0006, description="plate COR change per % RH above the nominal")
     cor_per_pct_rh_u: float = Field(0.0006, ge=0.0)
+    air_cov: tuple[float, float, float] | None = None  # measured: var(per C), cov, var(per % RH)
     temp_c: float = 21.0  # the lot's nominal (conditioning) temperature
     rh_pct: float = 50.0
     law: dict[str, float] | None = None  # the ball law's constants (BALL.json), else the paper's
@@ -123,7 +126,9 @@ def adjust(terms: BallTerms, hits: list[HitBall], g: float) -> BallAdjustment:
     else:  # an assumed size: nothing corrected, the whole effect budgeted
         u_wear = abs(g) * math.hypot(terms.wear_per_hit, terms.wear_per_hit_u) * mean_hits
     if terms.conditions_measured:
-        u_cond = abs(g) * math.hypot(terms.cor_per_c_u * d_t, terms.cor_per_pct_rh_u * d_rh)
+        var_t, cov, var_rh = terms.air_cov or (terms.cor_per_c_u**2, 0.0, terms.cor_per_pct_rh_u**2)
+        var = var_t * d_t * d_t + 2.0 * cov * d_t * d_rh + var_rh * d_rh * d_rh  # d' Cov d
+        u_cond = abs(g) * math.sqrt(max(0.0, var))
     else:
         u_cond = abs(g) * math.hypot(
             math.hypot(terms.cor_per_c, terms.cor_per_c_u) * d_t,
@@ -153,8 +158,12 @@ def hit_balls(hits: list[Any], environment: dict[str, Any] | None, terms: BallTe
 
 
 def terms_from_lot(lot: Any, results: list[Any], law: dict[str, float] | None = None) -> BallTerms:
-    """The ball terms of a registered lot (rig.core.ball.BallLot) from its latest ball-cor result:
-    wear and spread measured; the air's sensitivities stay the assumed defaults, budgeted whole."""
+    """The ball terms of a registered lot (rig.core.ball.BallLot) from its ball-cor results.
+
+    Wear and spread are measured by any one ball-cor test (pooled over the lot's tests); the air's
+    sensitivities only by tests at different conditions (protocols.ball_air), else they stay the
+    assumed defaults, budgeted whole.
+    """
     cor = [r for r in results if r.procedure == "ball-cor" and r.wear_per_hit is not None]
     cond = lot.conditioning
     base: dict[str, Any] = {
@@ -163,15 +172,44 @@ def terms_from_lot(lot: Any, results: list[Any], law: dict[str, float] | None = 
         "rh_pct": cond.humidity_pct if cond.humidity_pct is not None else 50.0,
         "law": law,
     }
-    if not cor:
+    wear = pooled_wear(cor)
+    if not cor or wear is None:
         return BallTerms(**base, source=f"lot {lot.id}: no ball-cor result; assumed defaults [U]")
-    r = cor[-1]
+    runs = ", ".join(r.run_id[:8] for r in cor)
+    spreads = [r.sd_between_balls for r in cor if r.sd_between_balls is not None]
+    values: dict[str, Any] = {
+        "wear_measured": True,
+        "plate_cor": cor[-1].mean,
+        "wear_per_hit": wear[0],
+        "wear_per_hit_u": wear[1],
+        "sd_between_balls": math.sqrt(statistics.fmean(s * s for s in spreads)) if spreads else 0.0,
+    }
+    defaults = BallTerms()
+    air = fit_air(
+        cor,
+        base["temp_c"],
+        base["rh_pct"],
+        math.hypot(defaults.cor_per_c, defaults.cor_per_c_u),
+        math.hypot(defaults.cor_per_pct_rh, defaults.cor_per_pct_rh_u),
+        wear[0],
+    )
+    if air is None:
+        source = f"lot {lot.id}: ball-cor {runs} (wear, spread); air sensitivities assumed [U]"
+        return BallTerms(**base, **values, source=source)
+    var_t, _, var_rh = air.covariance
+    source = (
+        f"lot {lot.id}: ball-cor {runs} (wear, spread; air from {air.n_results} tests spanning "
+        f"{air.span_c:.1f} C, {air.span_pct:.0f} % RH)"
+    )
+    values["plate_cor"] = air.cor_nominal  # the lot's COR at its nominal air
     return BallTerms(
         **base,
-        source=f"lot {lot.id}: ball-cor run {r.run_id} (wear, spread); air sensitivities assumed [U]",
-        wear_measured=True,
-        plate_cor=r.mean,
-        wear_per_hit=r.wear_per_hit,
-        wear_per_hit_u=r.wear_per_hit_u or 0.0,
-        sd_between_balls=r.sd_between_balls or 0.0,
+        **values,
+        source=source,
+        conditions_measured=True,
+        cor_per_c=air.cor_per_c,
+        cor_per_c_u=math.sqrt(var_t),
+        cor_per_pct_rh=air.cor_per_pct_rh,
+        cor_per_pct_rh_u=math.sqrt(var_rh),
+        air_cov=air.covariance,
     )

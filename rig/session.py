@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import contextlib
 import uuid
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 from urllib.parse import quote
 
 from drivers.cannon.driver import CannonDriver
@@ -35,6 +36,7 @@ def sim_config(
     rig_name: str | None = None,
     bat: BatSpec | None = None,
     target: tuple[str, float | None] | None = None,
+    effects: Mapping[str, Mapping[str, Any]] | None = None,
 ) -> RigConfig:
     """A rig config whose ports are simulated devices of `scene` (a built-in name or a TOML path).
 
@@ -43,7 +45,8 @@ def sim_config(
     the bat file's properties as its true ones, unless the scene's [bat] table sets them. With
     `target` (kind, diameter in m), the simulated clamp holds the rigid cylinder or plate a ball
     test names, as the lab clamps it (the scene's own [target] table wins), and the aim table
-    reaches down to ball-test speeds.
+    reaches down to ball-test speeds. `effects` replaces fields of the scene's effects by kind (e.g.
+    {"environment": {"start_s": 900.0, "random_start": False}}: the hour a ball test is run at).
     """
     from simulators.scene import Scene
     from simulators.urlhandler import install_world, register
@@ -55,7 +58,9 @@ def sim_config(
         loaded = scene_with_bat(loaded, bat)
     if target is not None:
         loaded = loaded.with_target(*target)
-    if bat is not None or target is not None:
+    for kind, values in (effects or {}).items():
+        loaded = loaded.with_effect(kind, **values)
+    if bat is not None or target is not None or effects:
         install_world(rig, scene, loaded)
     ports = {dev: f"sim://{dev}?scene={quote(scene, safe='')}&rig={rig}" for dev in DEVICES}
     fragment = loaded.rig_config_fragment(BALL_AIM_PRESSURES_KPA) if target else loaded.rig_config_fragment()

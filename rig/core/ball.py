@@ -75,6 +75,8 @@ class CcorPoint(_Model):
     ball_id: str
     ball_hit: int  # the ball's hit count at this hit (1: its first impact)
     shot: int  # the shot's index in the run
+    temp_c: float | None = None  # the lab's air at the shot (older records: None)
+    rh_pct: float | None = None
 
 
 class SpeedPoint(_Model):
@@ -103,6 +105,8 @@ class LotResult(_Model):
     sd_between_balls: float | None  # spread of the balls' own means, the within-ball scatter removed
     wear_per_hit: float | None  # slope of COR against the ball's hit count (within each ball)
     wear_per_hit_u: float | None
+    speed_slope: float | None = None  # COR per m/s of inbound speed within balls (a regressor of the wear)
+    speed_slope_u: float | None = None
     mean_hit: float  # the mean hit count of the hits behind `mean`
     n_balls: int
     hits_per_ball: int
