@@ -19,9 +19,10 @@ from __future__ import annotations
 import math
 import statistics
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
+
+from rig.core.ball import LotResult
 
 MIN_RESULTS = 3  # results at different conditions before the air is called measured
 MIN_SPAN_C = 0.5  # their temperatures must span at least this, or their humidities MIN_SPAN_PCT
@@ -42,7 +43,7 @@ class AirFit:
     birge: float  # sqrt(chi2 / dof) of the fit; 1 is what the stated u predict
 
 
-def result_u_random(result: Any) -> float:
+def result_u_random(result: LotResult) -> float:
     """A result's random u: the scatter of its balls' means over their number (spread included)."""
     means = list((result.per_ball or {}).values())
     if len(means) < 2:
@@ -51,18 +52,19 @@ def result_u_random(result: Any) -> float:
 
 
 def fit_air(
-    results: list[Any], temp0: float, rh0: float, prior_c: float, prior_pct: float, wear: float = 0.0
+    results: list[LotResult], temp0: float, rh0: float, prior_c: float, prior_pct: float, wear: float = 0.0
 ) -> AirFit | None:
     """The air fit over ball-cor `results` (LotResult), or None where the air is not identified.
 
     Each result's mean is first moved to the results' common mean hit count with `wear` (COR per
     hit). `prior_c`, `prior_pct`: the sensitivities' prior standard deviations about zero.
     """
-    usable = [r for r in results if r.temp_c is not None and r.rh_pct is not None]
-    if len(usable) < MIN_RESULTS:
+    at = [(r, r.temp_c, r.rh_pct) for r in results if r.temp_c is not None and r.rh_pct is not None]
+    if len(at) < MIN_RESULTS:
         return None
-    temps = [float(r.temp_c) for r in usable]
-    rhs = [float(r.rh_pct) for r in usable]
+    usable = [r for r, _, _ in at]
+    temps = [t for _, t, _ in at]
+    rhs = [h for _, _, h in at]
     span_c, span_pct = max(temps) - min(temps), max(rhs) - min(rhs)
     if span_c < MIN_SPAN_C and span_pct < MIN_SPAN_PCT:
         return None
@@ -90,11 +92,10 @@ def fit_air(
     )
 
 
-def pooled_wear(results: list[Any]) -> tuple[float, float] | None:
+def pooled_wear(results: list[LotResult]) -> tuple[float, float] | None:
     """The inverse-variance mean of the results' wear per hit and its u (None if none measured it);
     the u is scaled up by the Birge ratio when the results scatter more than their u say."""
-    measured = [r for r in results if r.wear_per_hit is not None]
-    known = [(float(r.wear_per_hit), float(r.wear_per_hit_u or 0.0)) for r in measured]
+    known = [(r.wear_per_hit, r.wear_per_hit_u or 0.0) for r in results if r.wear_per_hit is not None]
     if not known:
         return None
     if any(u <= 0.0 for _, u in known):
