@@ -23,7 +23,7 @@ from protocols.outcome import concluded, learned_aim, no_data
 from protocols.run_inputs import air_density, drag_inputs, uncertainty_model
 from protocols.shot import ShotRecord
 from protocols.state import RunState, ShotEntry
-from rig.core.ball import CcorPoint, LotResult, SpeedPoint
+from rig.core.ball import BallLot, CcorPoint, LotResult, SpeedPoint
 from rig.core.config import RigConfig
 from rig.core.events import Verdict
 from rig.measure.model import ShotInputs, inbound_at_impact
@@ -286,12 +286,11 @@ def verdict(p: BallProcedure, lot: dict[str, Any], state: RunState) -> dict[str,
     cannot meet (|mean - nominal| > tolerance + U): a ball test measures, it certifies nothing.
     """
     result = lot_result(p, lot["id"], state)
-    spec = lot.get("specification") or {}
-    nominal = spec.get("nominal_ccor" if p.test == "ccor" else "nominal_cor")
-    tolerance = spec.get("cor_tolerance") if p.test == "ball-cor" else None
-    meets: bool | None = None
-    if nominal is not None and tolerance is not None:
-        meets = abs(result.mean - nominal) <= tolerance + result.U
+    the_lot = BallLot.model_validate(lot)
+    spec = the_lot.specification
+    nominal = spec.nominal_ccor if p.test == "ccor" else spec.nominal_cor
+    tolerance = spec.cor_tolerance if p.test == "ball-cor" else None
+    meets = the_lot.meets(result.quantity, result.mean, result.U)
     return {
         "verdict": Verdict.FAIL if meets is False else Verdict.PASS,
         "metric": result.quantity,

@@ -37,6 +37,7 @@ class BallTerms(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
     lot: str | None = None
+    balls: int | None = None  # the balls in the lot (numbered LOT-01 ...): a run may not use more
     source: str = "assumed defaults [U]: no qualified lot named"
     wear_measured: bool = False  # True: wear and spread measured on this lot (ball-cor) -> wear corrected
     conditions_measured: bool = False  # True: the air sensitivities were measured -> corrected

@@ -79,10 +79,15 @@ class Hits(_Model):
 
 
 class Ball(_Model):
-    """Ball handling."""
+    """Ball handling, and the rules for the balls of a named lot (`rig certify --ball-lot`)."""
 
     mass_kg: Annotated[float, Field(gt=0.1, lt=0.2)] = 0.145
     replace_after_hits: Annotated[int, Field(ge=1, le=1000)] = 12
+    # a named lot must state at least this many days of conditioning (None: no rule)
+    conditioning_days_min: Annotated[float, Field(ge=0.0, le=3650.0)] | None = None
+    # at each shot, the lab's air within this of the lot's conditioning temperature / humidity
+    air_window_c: Annotated[float, Field(gt=0.0, le=30.0)] | None = None
+    air_window_pct: Annotated[float, Field(gt=0.0, le=100.0)] | None = None
 
 
 class EnvironmentLimits(_Model):

@@ -29,6 +29,7 @@ from protocols.plan import (
     Record,
     TimePendulum,
 )
+from protocols.procedure import Procedure
 from rig import __version__
 from rig.core import events as ev
 from rig.core.bat import PIVOT_FROM_KNOB_IN, BatSpec
@@ -313,11 +314,34 @@ def replace_ball(ctx: PlanContext) -> Plan[None]:
     """Ask for a new ball once the current one has had its hits."""
     st = ctx.state
     if st.ball_hits >= ctx.procedure.ball.replace_after_hits:
+        lot = (st.setup or {}).get("ball") or {}
+        if lot.get("balls") is not None and st.ball_number + 1 > int(lot["balls"]):
+            raise RunAborted(
+                f"lot {lot.get('lot')} has {lot['balls']} balls and every one has had its hits: "
+                "name a larger lot (this run resumes with the same lot only)"
+            )
         if not (
             yield Ask("ball", f"Replace the ball (ball {st.ball_number} has {st.ball_hits} hits). Done?")
         ):
             raise RunAborted("ball not replaced")
         yield Record(ev.BallReplaced(ball_number=st.ball_number + 1))
+
+
+def outside_window(p: Procedure, lot: dict[str, Any], temp_c: float, rh_pct: float) -> None:
+    """Stop (resumable) before a shot when the lab's air is outside the lot's conditioning window."""
+    win_c, win_pct = p.ball.air_window_c, p.ball.air_window_pct
+    t0, rh0 = float(lot.get("temp_c", 21.0)), float(lot.get("rh_pct", 50.0))
+    off_c = win_c is not None and abs(temp_c - t0) > win_c
+    off_pct = win_pct is not None and abs(rh_pct - rh0) > win_pct
+    if off_c or off_pct:
+        window = " and ".join(
+            [f"{t0:g} +- {win_c:g} C"] * (win_c is not None)
+            + [f"{rh0:g} +- {win_pct:g} % RH"] * (win_pct is not None)
+        )
+        raise RunAborted(
+            f"the lab's air ({temp_c:.1f} C, {rh_pct:.0f} % RH) is outside lot {lot.get('lot')}'s "
+            f"conditioning window ({window}): resume when it is back"
+        )
 
 
 def ring_check(ctx: PlanContext, prompt_id: str, text: str, index: int) -> Plan[None]:
@@ -357,9 +381,11 @@ def shoot(ctx: PlanContext, loc_in: float, purpose: str) -> Plan[None]:
         raise RunAborted(f"the operator declined to fire shot {index}")
     yield Checkpoint()
     air: dict[str, float] = {}
-    if (st.setup or {}).get("ball", {}).get("lot"):  # a named lot: the air at each shot, for its terms
+    lot = (st.setup or {}).get("ball") or {}
+    if lot.get("lot"):  # a named lot: the air at each shot, for its terms and its conditioning window
         env = yield ReadEnvironment()
         air = {"temperature_c": env.temperature_c, "humidity_pct": env.humidity_pct}
+        outside_window(p, lot, env.temperature_c, env.humidity_pct)
     yield Record(
         ev.ShotRequested(
             index=index,

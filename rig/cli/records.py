@@ -76,15 +76,20 @@ def cmd_certify(args: argparse.Namespace) -> int:
     from rig.run_signals import stop_on_signals
 
     if args.end:
-        if args.resume or args.procedure or args.bat or args.rig_checked:
+        if args.resume or args.procedure or args.bat or args.rig_checked or args.ball_lot or args.ball:
             raise ConfigError("--end takes only the run, --who and --why", source="command line")
         return _end(args)
     if args.rig_checked and not args.resume:
         raise ConfigError("--rig-checked goes with --resume RUN", source="command line")
+    if args.resume and (args.ball_lot or args.ball):
+        raise ConfigError(
+            "a resumed run keeps the balls it recorded: drop --ball-lot and --ball", source="--resume"
+        )
     rig_checked = _signoff(args, "--rig-checked") if args.rig_checked else None
     control = RunControl()
     args.create_db = True
     with stop_on_signals(control), _certify_store(args) as store:
+        ball: dict[str, Any] | None = None  # a resumed run keeps the ball terms it recorded
         if args.resume:
             run_id = resolve_run(store, args.resume)
             started = store.entries(run_id, kinds=[ev.RUN_STARTED])
@@ -102,6 +107,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
             # before the rig is built, so that a simulated bat takes the measured hoop as its own
             bat = with_measured_hoop(store, bat)
             run_id = None
+            ball = _ball_terms(store, args, procedure)
         config = rig_config(args, bat=bat)
         if args.calibration:
             if args.resume:
@@ -141,6 +147,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
             subscribers=[live],
             control=control,
             rig_checked=rig_checked,
+            ball=ball,
         )
         live.close()
         if args.json:
@@ -151,6 +158,17 @@ def cmd_certify(args: argparse.Namespace) -> int:
     if outcome.status != "finished":
         return _interrupted(outcome, args)
     return 0 if outcome.verdict and outcome.verdict.get("verdict") == Verdict.PASS else 1
+
+
+def _ball_terms(store: Any, args: argparse.Namespace, procedure: Any) -> dict[str, Any] | None:
+    """The ball terms `--ball-lot` and `--ball` give (recorded in RunStarted), None for neither."""
+    from rig.ball_rules import law_terms, lot_terms
+    from rig.cli.fit_ball import load_ball
+
+    law = load_ball(args.ball)[0] if args.ball else None
+    if args.ball_lot:
+        return lot_terms(store, args.ball_lot, procedure, law).model_dump(mode="json")
+    return None if law is None else law_terms(law).model_dump(mode="json")
 
 
 @contextlib.contextmanager
@@ -341,6 +359,17 @@ def add_parsers(sub: Any) -> None:
         "--calibration",
         metavar="CAL.json",
         help="model calibration for the cross-check (rig model calibrate); wins over the config [model]",
+    )
+    p.add_argument(
+        "--ball-lot",
+        metavar="LOT",
+        help="the balls come from this lot in the store (rig balls register; qualified by a ball-cor test):"
+        " its measured wear, spread and air sensitivities correct and budget the verdict, its rules hold",
+    )
+    p.add_argument(
+        "--ball",
+        metavar="BALL.json",
+        help="the ball law fitted by rig model fit-ball (recorded; the model's ratio and cross-check use it)",
     )
     p.add_argument(
         "--rig-checked",

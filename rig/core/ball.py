@@ -53,6 +53,16 @@ class BallLot(_Model):
     conditioning: Conditioning = Conditioning()
     note: Annotated[str, Field(max_length=2000)] = ""
 
+    def meets(self, quantity: str, mean: float, big_u: float) -> bool | None:
+        """Whether a measured COR (CCOR) with its U can meet the lot's specification: False only if
+        |mean - nominal| > tolerance + U; None where the lot states no nominal value with a tolerance."""
+        spec = self.specification
+        nominal = spec.nominal_ccor if quantity == "ccor" else spec.nominal_cor
+        tolerance = spec.cor_tolerance if quantity == "cor" else None
+        if nominal is None or tolerance is None:
+            return None
+        return abs(mean - nominal) <= tolerance + big_u
+
     def ball_id(self, number: int) -> str:
         """The id of ball `number` (1-based) of this lot: LOT-01, LOT-02, ... (LOT-001 past 99)."""
         width = 2 if self.balls < 100 else 3

@@ -1,0 +1,70 @@
+"""The balls of a certification: a qualified lot from the store, its rules checked, its terms for the verdict.
+
+`rig certify --ball-lot LOT [--ball BALL.json]` names the lot the run's balls come from. Before
+anything is armed the lot must be registered (`rig balls register`), qualified (at least one
+ball-cor test, meeting the lot's specification where it states one), conditioned as long as the
+procedure asks, and the ball law (if given) fitted on this lot or on none named. The run then
+records the lot's terms (protocols.ball_terms) in RunStarted; the procedure enforces the rest at
+each shot (the lab's air within the conditioning window, balls numbered within the lot).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from protocols.ball_terms import BallTerms, terms_from_lot
+from protocols.procedure import Procedure
+from rig.core.ball import BallLot, LotResult
+from rig.core.errors import ConfigError
+
+
+def qualify(lot: BallLot, results: list[LotResult], procedure: Procedure) -> list[LotResult]:
+    """The lot's ball-cor results a certification may rest on; ConfigError names what is missing."""
+    cor = [r for r in results if r.procedure == "ball-cor"]
+    where = f"--ball-lot {lot.id}"
+    if not cor:
+        raise ConfigError(
+            f"lot {lot.id} is not qualified: no ball-cor test; run "
+            f"'rig balls test --procedure ball-cor --lot {lot.id}' first",
+            source=where,
+        )
+    latest = cor[-1]
+    if lot.meets(latest.quantity, latest.mean, latest.U) is False:
+        nominal = lot.specification.nominal_cor
+        raise ConfigError(
+            f"lot {lot.id} fails its specification: COR {latest.mean:.4f} (U {latest.U:.4f}) against "
+            f"{nominal} +- {lot.specification.cor_tolerance} (ball-cor run {latest.run_id[:12]})",
+            source=where,
+        )
+    need = procedure.ball.conditioning_days_min
+    days = lot.conditioning.days
+    if need is not None and (days is None or days < need):
+        stated = "states no conditioning days" if days is None else f"was conditioned {days:g} days"
+        raise ConfigError(
+            f"lot {lot.id} {stated}; the procedure asks at least {need:g} ([lot.conditioning] days)",
+            source=where,
+        )
+    return cor
+
+
+def lot_terms(store: Any, lot_id: str, procedure: Procedure, law: Any = None) -> BallTerms:
+    """The ball terms of registered lot `lot_id` for a certification with `procedure`.
+
+    `law`: a rig.physics.ball_law.BallLaw (`--ball`), refused if it was fitted on another lot.
+    """
+    lot, results = store.ball_lot(lot_id)
+    cor = qualify(lot, results, procedure)
+    if law is not None and law.lot not in (None, lot.id):
+        raise ConfigError(
+            f"the ball law was fitted on lot {law.lot}, not {lot.id}: fit one on this lot "
+            f"('rig model fit-ball --db STORE --lot {lot.id}') or name its lot",
+            source="--ball",
+        )
+    constants = None if law is None else dict(law.constants)
+    terms = terms_from_lot(lot, cor, constants)
+    return terms.model_copy(update={"balls": lot.balls})
+
+
+def law_terms(law: Any) -> BallTerms:
+    """The terms of a run that names a ball law but no lot: the law recorded, the rest assumed."""
+    return BallTerms(law=dict(law.constants), source="ball law given, no lot named: assumed defaults [U]")

@@ -1,0 +1,178 @@
+"""`rig certify --ball-lot LOT [--ball BALL.json]`: a qualified lot's terms in the record, its rules held."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from protocols.ball_procedure import BallProcedure
+from protocols.procedure import Procedure
+from protocols.state import fold
+from rig.ball_rules import lot_terms
+from rig.balls import run_ball_test
+from rig.certification import certify, history
+from rig.core import events as ev
+from rig.core.bat import BatSpec
+from rig.core.errors import ConfigError
+from rig.session import sim_config
+from rig.store import Store
+from tests.unit.clirun import GOOD_BAT, QUICK_PROCEDURE, run_cli
+
+LOT = """\
+[lot]
+id = "{id}"
+maker = "Acme"
+model = "NCAA 1"
+balls = {balls}
+[lot.specification]
+nominal_cor = {nominal}
+cor_tolerance = 0.02
+[lot.conditioning]
+temperature_c = 21.0
+humidity_pct = 50.0
+days = {days}
+"""
+RULES = """
+[procedure.ball]
+replace_after_hits = {replace}
+conditioning_days_min = 14.0
+air_window_c = 3.0
+air_window_pct = 10.0
+"""
+
+
+@pytest.fixture(scope="module")
+def lab(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A store with lots: L (qualified, 14 days), RAW (never tested), BAD (fails its COR), YOUNG (3 days),
+    TWO (qualified, 2 balls); a quick procedure with the ball rules and a bat file beside it."""
+    folder = tmp_path_factory.mktemp("lot-lab")
+    db = folder / "s.db"
+    lots = {
+        "L": (24, 0.52, 14),
+        "RAW": (24, 0.52, 14),
+        "BAD": (24, 0.60, 14),
+        "YOUNG": (24, 0.52, 3),
+        "TWO": (2, 0.52, 14),
+    }
+    for lot_id, (balls, nominal, days) in lots.items():
+        path = folder / f"{lot_id}.toml"
+        path.write_text(LOT.format(id=lot_id, balls=balls, nominal=nominal, days=days), encoding="utf-8")
+        assert run_cli(["balls", "register", str(path), "--db", str(db)]).code == 0
+    procedure = BallProcedure.load("ball-cor").model_copy(update={"balls_per_speed": 2, "hits_per_ball": 3})
+    with Store.open(db) as store:
+        for lot_id in ("L", "BAD", "YOUNG", "TWO"):
+            lot, _ = store.ball_lot(lot_id)
+            run_ball_test(store, procedure, lot, sim_config("lab", target=("plate", None)))
+    (folder / "proc.toml").write_text(QUICK_PROCEDURE + RULES.format(replace=12), encoding="utf-8")
+    (folder / "tight.toml").write_text(QUICK_PROCEDURE + RULES.format(replace=1), encoding="utf-8")
+    (folder / "bat.toml").write_text(GOOD_BAT, encoding="utf-8")
+    return folder
+
+
+def certify_cli(lab: Path, *extra: str, procedure: str = "proc.toml") -> tuple[int | str | None, str]:
+    argv = ["certify", "--procedure", str(lab / procedure), "--bat", str(lab / "bat.toml"), "--sim", "lab"]
+    result = run_cli([*argv, "--db", str(lab / "s.db"), *extra])
+    return result.code, result.err
+
+
+@pytest.mark.parametrize(
+    ("lot", "cause"),
+    [
+        ("RAW", "lot RAW is not qualified: no ball-cor test"),
+        ("BAD", "lot BAD fails its specification"),
+        ("YOUNG", "lot YOUNG was conditioned 3 days; the procedure asks at least 14"),
+        ("NOPE", "known lots"),
+    ],
+)
+def test_a_lot_that_does_not_qualify_is_refused_before_anything_is_recorded(
+    lab: Path, lot: str, cause: str
+) -> None:
+    with Store.open(lab / "s.db") as store:
+        before = len(store.runs())
+    code, err = certify_cli(lab, "--ball-lot", lot)
+    assert code == 2 and cause in err, err
+    assert len(err.strip().splitlines()) == 1
+    with Store.open(lab / "s.db") as store:
+        assert len(store.runs()) == before
+
+
+def test_a_qualified_lot_is_recorded_and_each_valid_hit_names_its_ball(lab: Path) -> None:
+    code, err = certify_cli(lab, "--ball-lot", "L")
+    assert code in (0, 1), err
+    with Store.open(lab / "s.db") as store:
+        run = store.runs()[-1].run_id
+        state = fold(history(store, run))
+        _, results = store.ball_lot("L")
+    recorded = state.setup["ball"]
+    assert recorded["lot"] == "L" and recorded["balls"] == 24 and recorded["wear_measured"]
+    assert recorded["wear_per_hit"] == pytest.approx(results[-1].wear_per_hit)
+    assert not recorded["conditions_measured"]  # one ball-cor test cannot tell the air's effect
+    fired = [s for s in state.shots if s.raw]
+    assert all(str(s.raw["ball"]).startswith("L-") for s in fired)
+    assert [s.raw["ball_hits"] for s in fired] == list(range(len(fired)))  # one ball, 12 hits allowed
+    verdict = state.verdict or {}
+    assert len(verdict["ball"]["corrections"]) == len(
+        [s for s in state.shots if s.valid and s.purpose != "scan"]
+    )
+
+
+def test_a_ball_law_of_another_lot_is_refused(lab: Path, tmp_path: Path) -> None:
+    from tests.ball.synthetic import ccor_points  # a separately written solver's CCOR data
+
+    csv = tmp_path / "ccor.csv"
+    csv.write_text(
+        "speed_m_s,ccor,u_ccor,ball_id\n"
+        + "".join(
+            f"{p.speed_m_s},{p.ccor},{p.u_ccor},{p.ball_id}\n" for p in ccor_points(seed=2, with_u=True)
+        ),
+        encoding="utf-8",
+    )
+    ball = tmp_path / "ball.json"
+    fitted = run_cli(["model", "fit-ball", "--data", str(csv), "--lot", "OTHER", "--output", str(ball)])
+    assert fitted.code == 0, fitted.err
+    code, err = certify_cli(lab, "--ball-lot", "L", "--ball", str(ball))
+    assert code == 2 and "fitted on lot OTHER, not L" in err, err
+
+
+def test_a_run_stops_when_the_lots_balls_are_used_up(lab: Path) -> None:
+    """Lot TWO has two balls; a procedure that replaces the ball after every hit needs more."""
+    code, err = certify_cli(lab, "--ball-lot", "TWO", procedure="tight.toml")
+    assert code == 3, err
+    assert "lot TWO has 2 balls" in err
+    with Store.open(lab / "s.db") as store:
+        state = fold(history(store, store.runs()[-1].run_id))
+    assert [s.raw["ball"] for s in state.shots if s.raw] == ["TWO-01", "TWO-02"]
+
+
+def test_the_air_outside_the_conditioning_window_stops_the_run_before_a_shot(lab: Path) -> None:
+    """A lab 4 C warmer than the lot's conditioning (inside the procedure's 18-26 C): no shot, resumable."""
+    procedure = Procedure.load(lab / "proc.toml")
+    bat = BatSpec.load(lab / "bat.toml")
+    warm = {"environment": {"temp_c": 25.0, "temp_swing_c": 0.0, "random_start": False}}
+    with Store.open(lab / "s.db") as store:
+        terms = lot_terms(store, "L", procedure)
+        outcome = certify(
+            store, procedure, bat, sim_config("lab", bat=bat, effects=warm), ball=terms.model_dump()
+        )
+        assert outcome.status != "finished"
+        entries = store.entries(outcome.run_id)
+    kinds = [e.kind for e in entries]
+    assert ev.SHOT_FIRED not in kinds
+    interrupted = [e for e in entries if e.kind == ev.RUN_INTERRUPTED]
+    assert interrupted and "outside lot L's conditioning window (21 +- 3 C" in str(interrupted[-1].payload)
+
+
+def test_the_rules_are_procedure_data_and_none_means_none(lab: Path) -> None:
+    with Store.open(lab / "s.db") as store:
+        # the built-in BBCOR procedure asks 14 days; a procedure without rules takes YOUNG
+        with pytest.raises(ConfigError, match="at least 14"):
+            lot_terms(store, "YOUNG", Procedure.load("bbcor"))
+        assert (
+            lot_terms(
+                store,
+                "YOUNG",
+                Procedure.load(lab / "proc.toml").model_copy(update={"ball": Procedure.load("bbs").ball}),
+            ).lot
+            == "YOUNG"
+        )
