@@ -105,7 +105,12 @@ def _rig_config(args: argparse.Namespace, procedure: Any) -> Any:
     if args.sim is not None:
         from rig.session import sim_config
 
-        return sim_config(args.sim, target=(procedure.target.kind, procedure.target.diameter_m))
+        at = None
+        if args.sim_start is not None:
+            at = {"environment": {"start_s": args.sim_start, "random_start": False}}
+        return sim_config(args.sim, target=(procedure.target.kind, procedure.target.diameter_m), effects=at)
+    if args.sim_start is not None:
+        raise ConfigError("--sim-start is for a simulated rig (--sim)", source="command line")
     if args.config:
         return RigConfig.load(args.config)
     raise ConfigError("give --sim [SCENE] or --config RIG.toml", source="command line")
@@ -206,6 +211,13 @@ def add_parsers(sub: Any) -> None:
     add_rig_options(p)
     p.add_argument("--db", metavar="FILE", help=DB_HELP)
     p.add_argument("--resume", metavar="RUN", help="resume an interrupted ball test")
+    p.add_argument(
+        "--sim-start",
+        type=float,
+        metavar="S",
+        help="with --sim: the simulated lab's air starts S virtual s into its daily swing (ball-cor tests"
+        " at several starts measure the lot's sensitivity to the air; the lab scene's swing is 3600 s)",
+    )
     p.add_argument("--dry-run", action="store_true", help="check the test against rig and lot only")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(handler=cmd_test)

@@ -176,3 +176,39 @@ def test_the_rules_are_procedure_data_and_none_means_none(lab: Path) -> None:
             ).lot
             == "YOUNG"
         )
+
+
+def test_ball_cor_tests_at_three_hours_from_the_cli_measure_the_air(tmp_path: Path) -> None:
+    """The whole path as a lab on the simulated rig would type it: register, three ball-cor tests at
+    different hours of the lab's air, certify; the run's terms have the air measured and corrected."""
+    db, lot = tmp_path / "s.db", tmp_path / "lot.toml"
+    lot.write_text(LOT.format(id="AIRLOT", balls=24, nominal=0.52, days=14), encoding="utf-8")
+    assert run_cli(["balls", "register", str(lot), "--db", str(db)]).code == 0
+    for start in ("0", "1200", "2400"):
+        test = [
+            "balls",
+            "test",
+            "--procedure",
+            "ball-cor",
+            "--lot",
+            "AIRLOT",
+            "--sim",
+            "lab",
+            "--db",
+            str(db),
+        ]
+        done = run_cli([*test, "--sim-start", start])
+        assert done.code == 0, done.err
+    (tmp_path / "proc.toml").write_text(QUICK_PROCEDURE + RULES.format(replace=12), encoding="utf-8")
+    (tmp_path / "bat.toml").write_text(GOOD_BAT, encoding="utf-8")
+    code, err = certify_cli(tmp_path, "--ball-lot", "AIRLOT")
+    assert code in (0, 1), err
+    with Store.open(db) as store:
+        state = fold(history(store, store.runs()[-1].run_id))
+        _, results = store.ball_lot("AIRLOT")
+    terms = state.setup["ball"]
+    assert terms["conditions_measured"] and terms["air_cov"] is not None
+    assert len({round(r.temp_c or 0.0, 1) for r in results}) == 3  # three hours, three airs
+    hits = [s for s in state.shots if s.valid and s.purpose != "scan"]
+    assert all("temperature_c" in s.requested for s in hits)  # the air read before each shot
+    assert (state.verdict or {})["ball"]["u_conditions"] < 0.002
