@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime
 
 import rig
@@ -27,6 +27,7 @@ def ball_law(
     data_file: str,
     lot: str | None = None,
     fixed_sources: Mapping[str, str] | None = None,
+    runs: Sequence[str] = (),
 ) -> BallLaw:
     """The file's contents: constants, chosen variant, covariance, scores, points and provenance."""
     fit = result.fit
@@ -69,6 +70,7 @@ def ball_law(
             data_file=data_file,
             data_sha256=hashlib.sha256(blob).hexdigest(),
             lot=lot,
+            runs=list(runs),
             n_points=data.n,
             n_balls=data.n_balls,
             n_speeds=len(speed_levels(data.speed.tolist())),

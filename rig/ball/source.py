@@ -1,62 +1,75 @@
 """CCOR points from the record store's ball-lot tests (`rig model fit-ball --db STORE --lot LOT`).
 
-The store side (ball lots and their `ccor` tests) is built separately. This module reads what a
-store offers through one method, `store.ball_test_points(lot, procedure)`: an iterable of
-mappings with `speed_m_s`, `ccor` and optionally `u_ccor` and `ball_id` (one per ball and speed,
-the valid shots of the lot's finished `ccor` tests). A store without it, or a lot without such
-points, is refused with one line naming the cause.
+The store keeps a lot's measurements as the `lot_result` of each finished ball-test run
+(`Store.ball_lot(lot_id) -> (BallLot, [LotResult])`, docs/ball-tests.md). The points fitted are the
+valid hits of the lot's finished `ccor` tests (the rigid cylinder; a `ball-cor` result is a COR
+on the flat plate at one speed, not CCOR, and is left out): each hit's speed at the cylinder's
+face, its CCOR, its standard uncertainty and its ball, oldest run first. The runs they come from
+are returned with them, for the ball file's provenance. An unknown lot and a lot without a
+finished `ccor` test are refused in one line naming the lot and the cause.
 """
 
 from __future__ import annotations
 
 import json
-import math
-from collections.abc import Iterable, Mapping
-from typing import Any
+from dataclasses import dataclass
 
 from rig.ball.data import CcorData, CcorPoint, check_point
-from rig.core.errors import ConfigError, RigError
+from rig.core.ball import LotResult
+from rig.core.errors import RigError
+from rig.store import Store
 
 PROCEDURE = "ccor"
 
 
 class NoBallTests(RigError):
-    """The store holds no CCOR tests of the lot asked for."""
+    """The store holds no finished CCOR test of the lot asked for."""
 
 
-def _point(row: Mapping[str, Any], where: str) -> CcorPoint:
-    def num(key: str) -> float | None:
-        value = row.get(key)
-        if value is None:
-            return None
-        if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-            raise ConfigError(f"{key} {value!r} is not a finite number", source=where)
-        return float(value)
+@dataclass(frozen=True)
+class StoreCcor:
+    """The lot's CCOR points, the bytes their provenance hashes, and the runs that measured them."""
 
-    speed, ccor = num("speed_m_s"), num("ccor")
-    if speed is None or ccor is None:
-        raise ConfigError("a ccor test point lacks speed_m_s or ccor", source=where)
-    ball = row.get("ball_id")
-    return check_point(CcorPoint(speed, ccor, num("u_ccor"), None if ball is None else str(ball), where))
+    data: CcorData
+    runs: tuple[str, ...]  # the ccor test runs the points come from, oldest first
 
 
-def ccor_points_from_store(store: Any, lot: str) -> list[CcorPoint]:
-    """The CCOR points of `lot`'s tests in `store`; NoBallTests when there are none."""
-    reader = getattr(store, "ball_test_points", None)
-    if not callable(reader):
-        raise NoBallTests("the store has no ball-lot tests (this store holds no ball lots)")
-    rows: Iterable[Mapping[str, Any]] = reader(lot, PROCEDURE)
-    points = [_point(r, f"store: lot {lot}, point {i + 1}") for i, r in enumerate(rows)]
-    if not points:
-        raise NoBallTests(f"the store has no {PROCEDURE} tests of ball lot {lot!r}")
-    return points
+def ccor_results(store: Store, lot: str) -> list[LotResult]:
+    """The lot's finished `ccor` results, oldest first; UnknownRecord (naming the known lots) for an
+    unregistered lot, NoBallTests when the lot has no `ccor` result with points."""
+    _, results = store.ball_lot(lot)
+    ccor = [r for r in results if r.procedure == PROCEDURE and r.points]
+    if not ccor:
+        others = sorted({r.procedure for r in results})
+        held = f" (its results: {', '.join(others)} only)" if others else " (no ball test of it has finished)"
+        raise NoBallTests(
+            f"ball lot {lot!r} has no finished {PROCEDURE} test{held};"
+            f" run rig balls test --procedure {PROCEDURE} --lot {lot} first"
+        )
+    return ccor
 
 
-def ccor_data_from_store(store: Any, lot: str, name: str) -> CcorData:
-    """The points with the bytes their provenance hashes: the rows as canonical JSON (sorted keys)."""
-    points = ccor_points_from_store(store, lot)
-    rows = [
-        {"speed_m_s": p.speed_m_s, "ccor": p.ccor, "u_ccor": p.u_ccor, "ball_id": p.ball_id} for p in points
-    ]
-    blob = json.dumps(rows, sort_keys=True, separators=(",", ":")).encode()
-    return CcorData(tuple(points), blob, name)
+def ccor_data_from_store(store: Store, lot: str, name: str) -> StoreCcor:
+    """The points of `lot`'s `ccor` tests in `store`, named `name` in messages and provenance.
+
+    The bytes hashed are the points as canonical JSON (sorted keys, no spaces): one object per hit
+    with its run id, shot index, ball id, speed_m_s, ccor and u_ccor, in the store's order.
+    """
+    points, rows = [], []
+    results = ccor_results(store, lot)
+    for result in results:
+        for hit in result.points:
+            where = f"{name}: run {result.run_id}, shot {hit.shot}"
+            points.append(check_point(CcorPoint(hit.speed_m_s, hit.cor, hit.u, hit.ball_id, where)))
+            rows.append(
+                {
+                    "run_id": result.run_id,
+                    "shot": hit.shot,
+                    "ball_id": hit.ball_id,
+                    "speed_m_s": hit.speed_m_s,
+                    "ccor": hit.cor,
+                    "u_ccor": hit.u,
+                }
+            )
+    blob = json.dumps(rows, sort_keys=True, separators=(",", ":"), allow_nan=False).encode()
+    return StoreCcor(CcorData(tuple(points), blob, name), tuple(r.run_id for r in results))

@@ -126,7 +126,7 @@ def _result_line(lot_id: str, run_id: str, r: dict[str, Any]) -> str:
     if r.get("sd_between_balls") is not None:
         parts.append(f"ball-to-ball SD {r['sd_between_balls']:.4f}")
     if wear is not None:
-        parts.append(f"wear {wear:+.5f} +- {r['wear_per_hit_u']:.5f} per hit")
+        parts.append(f"wear {wear:+.6f} +- {r['wear_per_hit_u']:.2g} per hit")  # u may be 1e-6
     return "; ".join(parts) + f" (run {run_id})"
 
 

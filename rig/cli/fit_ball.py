@@ -6,43 +6,48 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rig.cli.common import add_overrides, new_table
 from rig.cli.common import console as out
 from rig.core.errors import ConfigError
+
+if TYPE_CHECKING:
+    from rig.ball.data import CcorData
 
 WHO = "rig model fit-ball"
 FIXED = ("m1", "k1", "c1")  # what --set may fix (a and b are always fitted)
 PLOT_SPEEDS = 120
 
 
-def gather(data: str | None, db: str | None, lot: str | None) -> tuple[list[Any], bytes, str]:
-    """The CCOR points of a CSV file and/or a store's lot tests, the bytes hashed, and a name for them."""
+def gather(data: str | None, db: str | None, lot: str | None) -> tuple[CcorData, tuple[str, ...]]:
+    """The CCOR points of a CSV file or of a store's lot tests, and the store runs they come from.
+
+    One source per fit: --data and --db together are refused. Combined, a file exported from the
+    same tests would count every hit twice (the stated sigma shrinking by sqrt 2 with no new
+    information), a ball id in both would merge two balls into one leave-out group, and the
+    provenance could not say which file or which runs the law rests on.
+    """
     from rig.ball.data import load_ccor_csv
 
+    if data and db:
+        raise ConfigError(
+            "give --data CCOR.csv or --db STORE --lot LOT, not both: a fit reads one source", source=WHO
+        )
     if not data and not db:
-        raise ConfigError("give --data CCOR.csv, --db STORE --lot LOT, or both", source=WHO)
-    if db and not lot:
-        raise ConfigError("--db needs --lot LOT: which ball lot's tests to fit", source=WHO)
-    points: list[Any] = []
-    blob, names = b"", []
+        raise ConfigError("give --data CCOR.csv or --db STORE --lot LOT", source=WHO)
     if data:
-        got = load_ccor_csv(data)
-        points += got.points
-        blob += got.blob
-        names.append(got.name)
-    if db:
-        from rig.ball.source import ccor_data_from_store
-        from rig.store import Store
+        return load_ccor_csv(data), ()
+    if not lot:
+        raise ConfigError("--db needs --lot LOT: which ball lot's ccor tests to fit", source=WHO)
+    from rig.ball.source import ccor_data_from_store
+    from rig.cli.common import shown_db
+    from rig.store import Store
 
-        assert lot is not None
-        with Store.open(db, create=False) as store:
-            got = ccor_data_from_store(store, lot, f"store {db}, lot {lot}")
-        points += got.points
-        blob += got.blob
-        names.append(got.name)
-    return points, blob, " + ".join(names)
+    assert db is not None  # neither --data nor --db was refused above
+    with Store.open(db, create=False) as store:
+        got = ccor_data_from_store(store, lot, f"store {shown_db(db)}, lot {lot}")
+    return got.data, got.runs
 
 
 def _base(overrides: list[tuple[str, float]]) -> tuple[Any, dict[str, str]]:
@@ -65,17 +70,14 @@ def cmd_fit_ball(args: argparse.Namespace) -> int:
     from rig.ball.record import ball_law
 
     output = Path(args.output)
-    if (
-        args.data
-        and output.exists()
-        and Path(args.data).exists()
-        and output.resolve() == Path(args.data).resolve()
-    ):
-        raise ConfigError("--output would overwrite the data file", source=str(output))
+    for flag, given in (("--data", args.data), ("--db", args.db)):
+        if given and output.exists() and Path(given).exists() and output.resolve() == Path(given).resolve():
+            what = "the data file" if flag == "--data" else "the record store"
+            raise ConfigError(f"--output would overwrite {what} ({flag})", source=str(output))
     base, sources = _base(args.overrides)
-    points, blob, names = gather(args.data, args.db, args.lot)
-    result = fit_ball(points, base)
-    law = ball_law(result, blob, names, lot=args.lot, fixed_sources=sources)
+    data, runs = gather(args.data, args.db, args.lot)
+    result = fit_ball(data.points, base)
+    law = ball_law(result, data.blob, data.name, lot=args.lot, fixed_sources=sources, runs=runs)
     law.save(output)
     if args.plot:
         import numpy as np
@@ -155,6 +157,8 @@ def _print(law: Any) -> None:
         + (f", lot {prov.lot}" if prov.lot else "")
         + f", data sha256 {prov.data_sha256[:12]}..."
     )
+    if prov.runs:
+        console.print(f"from the store's ccor test run(s): {', '.join(prov.runs)}")
     table = new_table(title="Variants (chosen by leave-one-out error)")
     for col in ("variant", "parameters (+- 1 sigma)", "scatter", "LOO RMSE", "condition", ""):
         table.add_column(col)
@@ -203,14 +207,17 @@ def add_parser(msub: Any) -> None:
             "Fit the ball law's exponents a and b (and, as variants, c1 or k1 and c1) to the cylindrical"
             " COR measured against a rigid cylinder at several inbound speeds (the founding paper's Fig. 3);"
             " the model's CCOR is the COR of the ball on a rigid immovable surface. The variant is chosen"
-            " by leave-one-out error. CSV columns: speed_m_s, ccor, optional u_ccor and ball_id."
+            " by leave-one-out error. CSV columns: speed_m_s, ccor, optional u_ccor and ball_id; or, instead"
+            " of a file, --db STORE --lot LOT: the valid hits of the lot's finished ccor tests in the store."
             f" Needs at least {MIN_SPEEDS} distinct speeds, the highest at least {MIN_SPEED_RATIO:g} x the"
             " lowest."
         ),
     )
     p.add_argument("--data", metavar="CCOR.csv", help="CCOR points (speed_m_s, ccor[, u_ccor, ball_id])")
     p.add_argument(
-        "--db", metavar="STORE", help="also (or only) the ccor tests of --lot in this record store"
+        "--db",
+        metavar="STORE",
+        help="instead of --data: the valid hits of --lot's finished ccor tests in this record store",
     )
     p.add_argument("--lot", metavar="LOT", help="the ball lot (recorded; with --db, whose tests to read)")
     add_overrides(p, "fix m1, k1 or c1 at the lab's value (default: the paper's), e.g. --set m1=0.1445")

@@ -35,6 +35,7 @@ class BallProvenance(BaseModel):
     data_file: str
     data_sha256: str
     lot: str | None = None
+    runs: list[str] = []  # the store's ball-test runs the points come from (--db); empty for a file
     n_points: int = Field(ge=1)
     n_balls: int = Field(ge=1)
     n_speeds: int = Field(ge=1)

@@ -186,33 +186,6 @@ def test_json_refusal_is_an_error_object(tmp_path: Path, capsys: pytest.CaptureF
     assert error["kind"] == "BallFitRefused" and "too few distinct speeds: 2" in error["message"]
 
 
-def test_store_without_ball_lot_tests_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from rig.store import Store
-
-    db = tmp_path / "records.db"
-    Store.open(db, create=True).close()
-    out_file = str(tmp_path / "b.json")
-    code, _, err = run(["model", "fit-ball", "--db", str(db), "--lot", "L1", "--output", out_file], capsys)
-    assert code == 2 and "the store has no ball-lot tests" in err
-    code, _, err = run(["model", "fit-ball", "--db", str(db), "--output", out_file], capsys)
-    assert code == 2 and "--db needs --lot LOT" in err
-    code, _, err = run(["model", "fit-ball", "--output", out_file], capsys)
-    assert code == 2 and "give --data CCOR.csv, --db STORE --lot LOT, or both" in err
-
-
-def test_store_points_are_read_through_the_store_interface() -> None:
-    from rig.ball.source import ccor_data_from_store
-
-    class FakeStore:
-        def ball_test_points(self, lot: str, procedure: str) -> list[dict[str, object]]:
-            assert (lot, procedure) == ("L1", "ccor")
-            return [{"speed_m_s": 25.0, "ccor": 0.52, "ball_id": "B1"}, {"speed_m_s": 60.0, "ccor": 0.48}]
-
-    got = ccor_data_from_store(FakeStore(), "L1", "store")
-    assert [p.ccor for p in got.points] == [0.52, 0.48] and got.points[0].ball_id == "B1"
-    assert got.blob.startswith(b"[{")
-
-
 def test_ball_changes_rig_model_cor_by_the_ball_law(
     ball_file: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
