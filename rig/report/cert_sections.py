@@ -34,6 +34,16 @@ def _reasons(shot: dict[str, Any]) -> str:
     )
 
 
+def ball_text(raw: dict[str, Any] | None) -> str:
+    """A shot's ball and its hit count with this shot ('LOT-02 (hit 3)'); an older record's ball number."""
+    raw = raw or {}
+    ball, before = raw.get("ball"), raw.get("ball_hits")
+    if ball:
+        return f"{ball} (hit {before + 1})" if isinstance(before, int) else str(ball)
+    number = raw.get("ball_number")
+    return "—" if number is None else str(number)
+
+
 def _purpose(shot: dict[str, Any]) -> str:
     return {"scan": "scan", "valid": "certification"}.get(
         str(shot.get("purpose")), str(shot.get("purpose", "?"))
@@ -42,7 +52,8 @@ def _purpose(shot: dict[str, Any]) -> str:
 
 def _bracket_blocks(record: dict[str, Any]) -> list[Block]:
     """Whether the maximum was bracketed, and the scan's extensions that looked for it."""
-    loc, out = record.get("location") or {}, []
+    loc = record.get("location") or {}
+    out: list[Block] = []
     ext = [f"{x['from_barrel_end_in']:g}" for x in record.get("scan_extensions") or []]
     if ext:
         out.append(
@@ -85,10 +96,16 @@ def shot_blocks(record: dict[str, Any], decimals: int, fig: dict[str, Figure]) -
             ),
             None,
         )
-        valid = [str(s["index"]) for s in here if s.get("status") == "valid"]
+        counted = [str(s["index"]) for s in here if s.get("status") == "valid"]
         mean = next((v for k, v in scan.items() if float(k) == x), None)
         rows.append(
-            (f"{x:g}", _num(q, 4), ", ".join(valid) or "—", _num(mean, d), "◀ chosen" if x == chosen else "")
+            (
+                f"{x:g}",
+                _num(q, 4),
+                ", ".join(counted) or "—",
+                _num(mean, d),
+                "◀ chosen" if x == chosen else "",
+            )
         )
     out: list[Block] = [Heading("Location scan")]
     if rows:
@@ -120,7 +137,7 @@ def shot_blocks(record: dict[str, Any], decimals: int, fig: dict[str, Figure]) -
                     str(s["index"]),
                     _purpose(s),
                     f"{s.get('location_in', '?'):g}",
-                    str((s.get("raw") or {}).get("ball_number", "—")),
+                    ball_text(s.get("raw")),
                     _num(s.get("inbound_speed_m_s"), 3),
                     _num(s.get("rebound_speed_m_s"), 3),
                     _num(s.get("metric"), d),
@@ -249,6 +266,7 @@ def budget_blocks(record: dict[str, Any]) -> list[Block]:
     if not out_b or scale is None:
         return []
     name, inputs = metric_label(metric), budget.get("inputs") or {}
+    ball = v.get("ball") if isinstance(v.get("ball"), dict) else None
     ranked = sorted((out_b.get("contributions") or {}).items(), key=lambda item: -item[1])
     top = [(k, share) for k, share in ranked if share > 0]
     rows = [
@@ -274,7 +292,8 @@ def budget_blocks(record: dict[str, Any]) -> list[Block]:
             f"Result: u = {_sig(v.get('u'), 3)}, U = {_sig(v.get('U'), 3)} (k = {v.get('coverage_k', 2):g}). "
             f"It combines the model budget below{note}, u = {_sig(scale * out_b.get('u', 0.0), 3)} "
             f"(systematic {_sig(sys_u)}, random {_sig(rnd_u)} for the mean of {budget.get('n_hits', '?')} "
-            "hits), with the hits' observed scatter (docs/measurement.md, section 3)."
+            "hits), with the hits' observed scatter (docs/measurement.md, section 3)"
+            + (f", and the ball's terms, u = {_sig(ball.get('u'), 3)} (see Balls)." if ball else ".")
         ),
         Table(("input", "what", "u of input", "kind", f"share of u²({name})"), tuple(rows)),
         Para(f"Largest contribution: {lead}. Shared (systematic) inputs are not reduced by more hits."),

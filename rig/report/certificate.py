@@ -23,6 +23,7 @@ from rig.core.bat import PIVOT_FROM_KNOB_IN
 from rig.core.errors import ConfigError
 from rig.core.events import Verdict
 from rig.core.units import INCH, OUNCE
+from rig.report.cert_ball import ball_blocks
 from rig.report.cert_crosscheck import cross_check_blocks
 from rig.report.cert_doc import Banner, Block, Code, Figure, Heading, Para, Table, kv, to_html, to_markdown
 from rig.report.cert_plots import certification_hits, metric_label, svg_figures, write_figures
@@ -99,6 +100,7 @@ def build(record: dict[str, Any], fig: dict[str, Figure]) -> list[Block]:
         Heading("Interruptions and resumes"),
         *interruption_blocks(record),
         *budget_blocks(record),
+        *ball_blocks(record, _decimals(record)),
         Heading("Model cross-check"),
         *cross_check_blocks(record, fig),
         Heading("Record anchor"),

@@ -60,6 +60,8 @@ def _fill(record: dict[str, Any], st: RunState, locks: list[LogEntry]) -> None:
     if st.setup is not None:
         for key in ("procedure", "bat", "rig", "software"):
             record[key] = st.setup.get(key)
+        if "ball" in st.setup:  # the ball terms (lot, source, sensitivities, law); none in older runs
+            record["ball"] = st.setup["ball"]
         if st.setup.get("plan"):  # a lab's own plan (rig.plans) ran the procedure, not the standard one
             record["plan"] = st.setup["plan"]
     record["environment"] = [{**n.data, "t_utc": n.t_utc} for n in st.environment_checks]
@@ -143,6 +145,8 @@ _RAW_KEYS = (
     "notes",
     "ball_number",
 )
+_BALL_KEYS = ("ball", "ball_hits")  # the ball's id and its hits before this shot, where recorded
+_AIR_KEYS = ("temperature_c", "humidity_pct")  # the lab's air at the shot, where the run read it
 
 
 def _shot(s: ShotEntry) -> dict[str, Any]:
@@ -156,8 +160,9 @@ def _shot(s: ShotEntry) -> dict[str, Any]:
             requested_utc=s.requested_utc,
             target_speed_m_s=d.get("target_speed_m_s"),
         )
+        shot.update({k: d[k] for k in _AIR_KEYS if d.get(k) is not None})
     if s.raw is not None:
-        shot["raw"] = {k: s.raw.get(k) for k in _RAW_KEYS}
+        shot["raw"] = {k: s.raw.get(k) for k in _RAW_KEYS} | {k: s.raw[k] for k in _BALL_KEYS if k in s.raw}
     if s.outcome is not None:
         d = s.outcome
         shot.update(
