@@ -64,7 +64,16 @@ def _air_text(terms: dict[str, Any]) -> str:
         f"{_sensitivity(terms.get('cor_per_pct_rh'), terms.get('cor_per_pct_rh_u'), '% RH')}"
     )
     if terms.get("conditions_measured"):
+        cov = terms.get("air_cov")
+        if cov and cov[0] > 0 and cov[2] > 0:
+            r = cov[1] / (cov[0] * cov[2]) ** 0.5
+            sens += (
+                f" (correlation {r:+.2f}: the lot's tests pin their combination along the lab's swing of"
+                " air, and the budget uses the full covariance)"
+            )
         return f"corrected to the nominal: {sens}, measured; their u is budgeted"
+    if "assumed" in str(terms.get("source", "")) and not terms.get("lot"):
+        return f"not corrected: {sens}, assumed defaults [U]; the whole effect is budgeted"
     return f"not corrected: {sens}, stated, not measured; the whole effect is budgeted"
 
 
