@@ -42,7 +42,7 @@ def _purpose(shot: dict[str, Any]) -> str:
 
 def _bracket_blocks(record: dict[str, Any]) -> list[Block]:
     """Whether the maximum was bracketed, and the scan's extensions that looked for it."""
-    loc, out = record.get("location") or {}, []
+    loc, out = record.get("location") or {}, list[Block]()
     ext = [f"{x['from_barrel_end_in']:g}" for x in record.get("scan_extensions") or []]
     if ext:
         out.append(
@@ -85,10 +85,10 @@ def shot_blocks(record: dict[str, Any], decimals: int, fig: dict[str, Figure]) -
             ),
             None,
         )
-        valid = [str(s["index"]) for s in here if s.get("status") == "valid"]
+        ids = [str(s["index"]) for s in here if s.get("status") == "valid"]  # this place's valid shots
         mean = next((v for k, v in scan.items() if float(k) == x), None)
         rows.append(
-            (f"{x:g}", _num(q, 4), ", ".join(valid) or "—", _num(mean, d), "◀ chosen" if x == chosen else "")
+            (f"{x:g}", _num(q, 4), ", ".join(ids) or "—", _num(mean, d), "◀ chosen" if x == chosen else "")
         )
     out: list[Block] = [Heading("Location scan")]
     if rows:
