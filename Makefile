@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install demo test lint bench accuracy clean
+.PHONY: install demo test lint typecheck bench accuracy clean
 
 install: $(STAMP)
 
@@ -29,7 +29,11 @@ lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports
 
-test: lint
+# mypy over drivers, rig, protocols, simulators and benchmarks ([tool.mypy] in pyproject.toml)
+typecheck: $(STAMP)
+	$(BIN)/mypy
+
+test: lint typecheck
 	$(BIN)/python -m pytest -q
 
 bench: $(STAMP)
@@ -47,4 +51,4 @@ accuracy: $(STAMP)
 	$(BIN)/python benchmarks/accuracy_doc.py
 
 clean:
-	rm -rf $(VENV) out .pytest_cache .ruff_cache
+	rm -rf $(VENV) out .pytest_cache .ruff_cache .mypy_cache

@@ -262,7 +262,7 @@ def main() -> None:
     scene = Scene.load("lab")
     if a.spread is not None:  # the Monte Carlo's world only; tier 1 certifies on the scene as shipped
         scene = scene.with_effect("trampoline", spread_bbcor=a.spread)
-    spread = next(e.spread_bbcor for e in scene.effects if e.kind == "trampoline")  # type: ignore[attr-defined]
+    spread = next(e.spread_bbcor for e in scene.effects if e.kind == "trampoline")
     noise, u = a.noise, a.u
     if a.certified:
         noise, u = certified_tier(Scene.load("lab"), a.certified, a.seed + 900)

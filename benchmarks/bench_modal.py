@@ -127,7 +127,7 @@ def run_cell(window_s: float, hits: int, noise: float, bats: int, seed0: int) ->
         if res.hoop is None:
             cell.diagnoses["no hoop mode"] += 1
             continue
-        cell.errors.append(res.hoop_hz - hoop)
+        cell.errors.append(res.hoop.frequency_hz - hoop)
         cell.u_expanded.append(res.hoop.expanded_uncertainty_hz)
         cell.coherence.append(res.hoop.coherence)
         if res.bending_hz:
@@ -175,7 +175,7 @@ def close_mode_cell(offset_hz: float, window_s: float, bats: int, seed0: int) ->
         if res.hoop is None:
             cell.diagnoses["no hoop mode"] += 1
             continue
-        cell.errors.append(res.hoop_hz - hoop)
+        cell.errors.append(res.hoop.frequency_hz - hoop)
         cell.u_expanded.append(res.hoop.expanded_uncertainty_hz)
         near = abs(offset_hz) / 4
         if any(

@@ -63,6 +63,7 @@ def run(n: int, seed: int, altered: int) -> None:
                 fin = store.entries(run.run_id, kinds=["RunFinished"])[-1].payload
                 bat = bats[run.bat_id]
                 spec = bat.spec
+                assert spec.hoop_hz is not None  # a simulated bat always has its hoop frequency
                 model = true_bbcor(scene, spec.hoop_hz, bat.moi_kgm2, spec.length_in, fin["location_in"])
                 offset = bat_offset_bbcor(scene.seed, run.bat_id, tramp.spread_bbcor)
                 w_loc = fin["location_in"]

@@ -13,6 +13,7 @@ untimed warm-up each that writes the bytecode. Run with `make bench` or
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import os
 import subprocess
@@ -113,7 +114,7 @@ def main() -> int:
         }
         runs: dict[str, Callable[[], float]] = {
             "B": lambda: wall([sys.executable, "-c", "import numpy, scipy.integrate"], folder),
-            **{name: (lambda argv=argv: wall(argv, folder)) for name, argv in commands.items()},
+            **{name: functools.partial(wall, argv, folder) for name, argv in commands.items()},
             "console first paint": lambda: first_paint_seconds(db, folder),
         }
         seconds: dict[str, float | None] = {name: None for name in runs}
@@ -129,7 +130,8 @@ def main() -> int:
                         t = None
                     bar.advance()
                     if round_ and t is not None and t == t:
-                        seconds[name] = t if seconds[name] is None else min(seconds[name], t)  # type: ignore[type-var]
+                        best = seconds[name]
+                        seconds[name] = t if best is None else min(best, t)
         b = seconds.pop("B")
         if b is None:
             raise SystemExit("bench_startup: the baseline (import numpy, scipy.integrate) failed")
@@ -148,7 +150,7 @@ def main() -> int:
         print(json.dumps({"B_seconds": b, "repeats": args.repeats, "results": results}, indent=2))
     else:
         print(f"B = import numpy, scipy.integrate in a fresh python, best of {args.repeats}: {b:.3f} s")
-        width = max(len(r["command"]) for r in results)
+        width = max(len(str(r["command"])) for r in results)
         for r in results:
             if r["seconds"] is None:
                 print(f"{r['command']:<{width}}  not measured         target <= {r['target_ratio']:.1f} B")

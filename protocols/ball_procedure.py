@@ -99,7 +99,8 @@ class BallProcedure(_Model):
 
     def schedule(self, lot: BallLot) -> list[Slot]:
         """Every slot of the test in firing order: each speed, its fresh balls, each ball's hits."""
-        slots, number = [], 0
+        slots: list[Slot] = []
+        number = 0
         for speed in self.speeds_m_s:
             for _ in range(self.balls_per_speed):
                 number += 1

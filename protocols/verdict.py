@@ -40,6 +40,12 @@ UNCALIBRATED = (
 )
 
 
+def _shot_inputs(recorded: dict[str, Any]) -> ShotInputs:
+    """A hit's ShotInputs from its record (JSON gives lists where the dataclass has tuples)."""
+    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in recorded.items()}
+    return ShotInputs(**fields)
+
+
 def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> dict[str, Any]:
     """Mean of the valid hits at the chosen location, its uncertainty, the decision, the cross-check."""
     loc = state.best_location_in
@@ -49,10 +55,7 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> d
         raise RigError("no valid hits to decide on")
     n = len(values)
     mean = sum(values) / n
-    inputs = [
-        ShotInputs(**{k: tuple(v) if isinstance(v, list) else v for k, v in h.measured["inputs"].items()})
-        for h in hits
-    ]
+    inputs = [_shot_inputs(h.measured["inputs"]) for h in hits]
     model = uncertainty_model(p, config, state)
     per_bat = budget(inputs, model)
     per_hit = budget(inputs[0], model)
@@ -182,6 +185,7 @@ def _uncalibrated(
     pred = predict_bat(params, v_in, hoop, PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q))
     m = compute_metrics(v_in, pred.e_a * v_in, q, moi, p.ball.mass_kg, bat.length_m)
     predicted = m.as_dict()[p.standard.value]
+    assert predicted is not None  # bbcor, besr and bbs are always set (only besr_eq3 may be None)
     return {
         "calibrated": False,
         "predicted": predicted,

@@ -189,6 +189,7 @@ def certify(
     if calibration is not None:
         named = str(Path(calibration).expanduser().resolve())
         config = config.model_copy(update={"model": Model(calibration=named, named_by="script")})
+    plan_kw: dict[str, Any] = {"plan": plan} if plan is not None else {}  # else certify's default
     outcome = run_certification(
         store,
         proc,
@@ -198,7 +199,7 @@ def certify(
         operator=operator or ScriptedOperator(who="script (rig.certify)"),
         subscribers=[on_event] if on_event is not None else [],
         control=control,
-        **({"plan": plan} if plan is not None else {}),
+        **plan_kw,
     )
     return _result(store, outcome)
 

@@ -110,7 +110,8 @@ def end_run(store: Store, run_id: str, signoff: Signoff) -> Outcome:
     signer = load_signer(recorded_rig(store, run_id))  # a key file open to others stops us here
     with store.run_lock(run_id):  # never while a runner is still working on the run
         shots = len(store.entries(run_id, kinds=[ev.SHOT_REQUESTED]))
-        ended = ev.RunEnded(**signoff.as_dict(), shots_so_far=shots)
+        said = signoff.as_dict()  # who and why, stripped
+        ended = ev.RunEnded(who=said["who"], why=said["why"], shots_so_far=shots)
         store.append(run_id, ended.kind, ended.data)
         _seal(store, run_id, "aborted", None, signer)
     return Outcome(run_id, "ended", None, f"ended without a verdict by {signoff.who}: {signoff.why}")

@@ -112,9 +112,10 @@ class SimDevice:
         data = self.codec.event(name, values)
         hooks = self.world.hooks["outgoing"]
         if hooks:
-            data = self.world.filter_outgoing(Outgoing(self.name, "event", name, shot or self._shot, data))
-            if data is None:
+            sent = self.world.filter_outgoing(Outgoing(self.name, "event", name, shot or self._shot, data))
+            if sent is None:
                 return
+            data = sent
         self.out.push(time_s, data, tag, shot)
 
     def _send(self, kind: str, seq: int, verb: str, data: bytes) -> None:

@@ -21,6 +21,7 @@ from rig.core.units import INCH
 from rig.measure.metrics import compute_metrics
 from rig.population.dataset import PopulationBat
 from rig.population.simulate import SimulatedBat
+from simulators.physics import Collision
 from simulators.scene import Scene
 
 SPEED_M_S = 60.8  # the BBCOR inbound speed the calibration predicts at
@@ -50,11 +51,11 @@ def bat_metric(scene: Scene, bat: SimulatedBat, metric: str = "bbcor") -> Callab
     slot = [e for e in sc.active_effects() if getattr(e, "slot", None) == "collision"]
     if not slot:
         raise ValueError(f"scene {scene.name!r} has no collision effect: its barrel is rigid")
-    effect = slot[0].build(sc, random.Random(0))  # the collision draws nothing at random
+    effect: Collision = slot[0].build(sc, random.Random(0))  # the collision draws nothing at random
 
     def at(location_in: float) -> float:
         q = (bat.spec.length_in - location_in) * INCH - sc.rig.pivot_from_knob_m
-        e_a, _ = effect.collide(sc.ball, SPEED_M_S, q)  # type: ignore[attr-defined]
+        e_a, _ = effect.collide(sc.ball, SPEED_M_S, q)
         m = compute_metrics(SPEED_M_S, e_a * SPEED_M_S, q, bat.moi_kgm2, sc.ball.m1, bat.spec.length_m)
         return float(getattr(m, metric))
 

@@ -8,10 +8,12 @@ forms only, with the rigid-barrel collision solved once per distinct impact.
 
 from __future__ import annotations
 
+import functools
 import math
 import random
 import threading
 from collections.abc import Callable
+from typing import Any
 
 from rig.core.devices import Interlocks
 from rig.physics import CollisionParams
@@ -21,13 +23,16 @@ from simulators.device import SimDevice
 from simulators.effects import CHAINED_HOOKS, Effect, overrides
 from simulators.gates import SimGates
 from simulators.physics import (
+    Collision,
     EnvironmentSensor,
+    Flight,
     NominalEnvironment,
     RecoilSensor,
     RigidCollision,
     RigidTarget,
     RoundingTicks,
     StraightFlight,
+    Ticks,
     drop_m,
     pendulum_period,
 )
@@ -55,20 +60,20 @@ class SimWorld:
             for i, spec in enumerate(scene.effects)
             if spec.enabled
         )
-        self.hooks: dict[str, tuple[Callable[..., object], ...]] = {
+        # each hook has its own signature (simulators.effects.base.Effect): callers know which they call
+        self.hooks: dict[str, tuple[Callable[..., Any], ...]] = {
             hook: tuple(getattr(e, hook) for e in self.effects if overrides(e, hook))
             for hook in CHAINED_HOOKS
         }
-        slots: dict[str, object] = {e.slot: e for e in self.effects if e.slot}
-        self.flight = slots.get("flight") or StraightFlight()
-        self.collision = slots.get("collision") or RigidCollision(scene.bat.moi_kgm2)
+        # the effect in a slot is that slot's component (simulators.physics: Flight, Collision, ...)
+        slots: dict[str, Any] = {e.slot: e for e in self.effects if e.slot}
+        self.flight: Flight = slots.get("flight") or StraightFlight()
+        self.collision: Collision = slots.get("collision") or RigidCollision(scene.bat.moi_kgm2)
         if scene.target.rigid:  # a rigid target in the clamp: no bat, so no trampoline and no recoil
             self.collision = RigidTarget(scene.target.contact_factor)
-        self.ticker = slots.get("ticks") or RoundingTicks(scene.rig.tick_ns * 1e-9)
-        self.recoil_sensor: RecoilSensor | None = (
-            None if scene.target.rigid else slots.get("recoil")  # type: ignore[assignment]
-        )
-        self.lab: EnvironmentSensor = slots.get("environment") or NominalEnvironment()  # type: ignore[assignment]
+        self.ticker: Ticks = slots.get("ticks") or RoundingTicks(scene.rig.tick_ns * 1e-9)
+        self.recoil_sensor: RecoilSensor | None = None if scene.target.rigid else slots.get("recoil")
+        self.lab: EnvironmentSensor = slots.get("environment") or NominalEnvironment()
         self.door = True
         self.estop = True
         self._pending_ilk: list[tuple[float, str, bool]] = []
@@ -158,7 +163,7 @@ class SimWorld:
         for hook in self.hooks["outgoing"]:
             if data is None:
                 return None
-            data = hook(Outgoing(message.device, message.kind, message.name, message.shot, data))  # type: ignore[assignment]
+            data = hook(Outgoing(message.device, message.kind, message.name, message.shot, data))
         return data
 
     def misfires(self, shot: int) -> bool:
@@ -177,7 +182,7 @@ class SimWorld:
                 count = hook(name, shot)
                 if count is not None:
                     when = device.out.unplug_after(shot, count, self.clock)
-                    self.at(when, lambda d=device: setattr(d, "unplugged", True), tag=f"unplug-{name}")
+                    self.at(when, functools.partial(setattr, device, "unplugged", True), tag=f"unplug-{name}")
                     break
 
     # -- balls ------------------------------------------------------------------------------
@@ -228,7 +233,7 @@ class SimWorld:
         t0 = self.clock
         v0 = scene.cannon.muzzle_speed(pressure_kpa)
         for hook in self.hooks["launch_speed"]:
-            v0 = hook(v0)  # type: ignore[assignment]
+            v0 = hook(v0)
         t_exit = t0 + scene.cannon.launch_delay_s
         flight, muzzle = self.flight, rig.muzzle_m
         crossings = [
@@ -245,7 +250,7 @@ class SimWorld:
         if hit:
             params = self._hit_ball(ball)
             for hook in self.hooks["ball_params"]:
-                params = hook(params, t_impact, ball)  # type: ignore[assignment]
+                params = hook(params, t_impact, ball)
             e_a, contact = self.collision.collide(params, v_in, q)
             v_out = e_a * v_in
             t_leave = t_impact + contact
@@ -258,7 +263,7 @@ class SimWorld:
                 omega = self.recoil_sensor.recoil(params.m1, q, v_in, v_out)
                 self.clamp.report_recoil(omega, t_leave + RECOIL_REPORT_S, shot)
         for hook in self.hooks["crossings"]:
-            crossings = hook(crossings, shot)  # type: ignore[assignment]
+            crossings = hook(crossings, shot)
         ticks = tuple((x.gate, self.counter(self.ticker.latch(x.gate, x.time_s))) for x in crossings)
         self.gates.stream(crossings, ticks, shot)
         record = ShotTruth(

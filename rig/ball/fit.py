@@ -196,8 +196,10 @@ def fit_variant(
 
     tol = 1e-12 if covariance else 1e-8
     res = least_squares(
-        residuals, x0, bounds=(lo, hi), jac="2-point", diff_step=DIFF_STEP, x_scale=scale,
+        residuals, x0, bounds=(lo, hi), jac="2-point", x_scale=scale,
         xtol=tol, ftol=tol, gtol=tol,
+        # scipy takes a scalar diff_step (array_like); scipy-stubs accept only a 1-D array
+        diff_step=DIFF_STEP,  # type: ignore[arg-type]
     )  # fmt: skip
     values = {n: float(v) for n, v in zip(names, res.x, strict=True)}
     n, p = int(mask.sum()), len(names)

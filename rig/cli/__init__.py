@@ -61,6 +61,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     handler: Handler = args.handler
+    error: Exception
     try:
         return handler(args)
     except ParameterError as exc:

@@ -23,7 +23,10 @@ def gather(data: str | None, db: str | None, who: str) -> tuple[list[Any], bytes
 
     if not data and not db:
         raise ConfigError("give --data POPULATION, --db STORE or both", source=who)
-    bats, blob, names, notes = [], b"", [], []
+    bats: list[Any] = []
+    names: list[str] = []
+    notes: list[str] = []
+    blob = b""
     if data:
         bats += load_population(data)
         blob += Path(data).read_bytes()

@@ -188,7 +188,7 @@ def cmd_bat(args: argparse.Namespace) -> int:
     bat = PivotedBat.build(moi_kgm2=args.moi, impact_from_pivot_m=args.impact_from_pivot)
     hoop = None if args.rigid else args.hoop
     pred = predict_bat(params, args.speed, hoop, bat, rtol=_rtol(args, fast.DEFAULT_RTOL))
-    payload = {
+    payload: dict[str, Any] = {
         "speed_m_s": pred.speed,
         "hoop_hz": pred.hoop_hz,
         "moi_kgm2": bat.moi_kgm2,

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import overload
 
 import numpy as np
 
@@ -64,6 +65,10 @@ def saturation_pressure_kpa(t_c: float | complex) -> float | complex:
     return 0.61094 * np.exp(17.625 * t_c / (t_c + 243.04))
 
 
+@overload
+def air_density(t_c: float, rh_pct: float, p_kpa: float) -> float: ...
+@overload
+def air_density(t_c: complex, rh_pct: complex, p_kpa: complex) -> complex: ...  # complex-step derivatives
 def air_density(t_c: float | complex, rh_pct: float | complex, p_kpa: float | complex) -> float | complex:
     """Density of moist air, kg/m^3: (p - 0.378 e) / (R_d T), e = RH e_s(T)."""
     e = rh_pct / 100.0 * saturation_pressure_kpa(t_c)

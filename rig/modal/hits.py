@@ -259,9 +259,9 @@ def segment(
             hits.pop()
             room.pop()
         window = min(room)
-    noise, source = quiet_noise(rec, hits[0]), "before the first hit"
-    if noise is None:
-        noise, source = tail_noise(rec, starts[-1], int(window)), "tail"
+    accel_noise, source = quiet_noise(rec, hits[0]), "before the first hit"
+    if accel_noise is None:
+        accel_noise, source = tail_noise(rec, starts[-1], int(window)), "tail"
     return Hits(
         starts=tuple(starts),
         pulses=tuple(hits),
@@ -271,6 +271,6 @@ def segment(
         threshold_n=threshold,
         polarity=polarity,
         dropped=tuple(dropped),
-        accel_noise=noise,
-        noise_source=None if noise is None else source,
+        accel_noise=accel_noise,
+        noise_source=None if accel_noise is None else source,
     )

@@ -151,10 +151,12 @@ def fit_pole(
 
     lo, hi = omega.min() / w0, omega.max() / w0
     theta0 = np.array([max(-guess.real / w0, 1e-6), min(max(guess.imag / w0, lo), hi)])
+
+    def residuals(theta: np.ndarray) -> np.ndarray:
+        return solve(theta)[0]
+
     try:
-        out = least_squares(
-            lambda th: solve(th)[0], theta0, bounds=([0.0, lo], [0.5, hi]), x_scale=[1e-3, 1e-3]
-        )
+        out = least_squares(residuals, theta0, bounds=([0.0, lo], [0.5, hi]), x_scale=[1e-3, 1e-3])
     except (ValueError, np.linalg.LinAlgError):
         return None
     if not out.success or not np.all(np.isfinite(out.x)):
@@ -170,7 +172,8 @@ def fit_pole(
     if m > n_par:
         s2 = 2.0 * out.cost / (m - n_par)
         try:
-            cov = s2 * np.linalg.inv(out.jac.T @ out.jac)
+            jac = np.asarray(out.jac)  # dense: no jac_sparsity, the default trust-region solver
+            cov = s2 * np.linalg.inv(jac.T @ jac)
         except np.linalg.LinAlgError:
             cov = None
         if cov is not None and np.all(np.isfinite(cov)):

@@ -121,8 +121,12 @@ def fit_poles(
         theta0[2 * i] = min(max(-g.real / w0, 1e-6), 0.49)
         theta0[2 * i + 1] = min(max(g.imag / w0, lo + 1e-9), hi - 1e-9)
     bounds = ([0.0, lo] * n, [0.5, hi] * n)
+
+    def residuals(theta: np.ndarray) -> np.ndarray:
+        return solve(theta)[0]
+
     try:
-        out = least_squares(lambda th: solve(th)[0], theta0, bounds=bounds, x_scale=1e-3)
+        out = least_squares(residuals, theta0, bounds=bounds, x_scale=1e-3)
     except (ValueError, np.linalg.LinAlgError):
         return None
     if not out.success or not np.all(np.isfinite(out.x)):
@@ -138,7 +142,8 @@ def fit_poles(
     n_par = 2 * n + 2 * (2 * n + N_LINE)
     s2 = 2.0 * out.cost / (m - n_par)
     try:
-        cov = s2 * np.linalg.inv(out.jac.T @ out.jac)
+        jac = np.asarray(out.jac)  # dense: no jac_sparsity, the default trust-region solver
+        cov = s2 * np.linalg.inv(jac.T @ jac)
     except np.linalg.LinAlgError:
         cov = np.full((2 * n, 2 * n), np.nan)
     u = []

@@ -80,7 +80,8 @@ class Recording:
         step = _check_time(arrays[0], time_quantum, where, first_line)
         for a in arrays:
             a.setflags(write=False)
-        return cls(*arrays, source=source, step_s=step)
+        t, f, a1, a2 = arrays
+        return cls(t, f, a1, a2, source=source, step_s=step)
 
     @property
     def n(self) -> int:
@@ -287,7 +288,8 @@ def read_csv(path: str | Path) -> Recording:
     _check_time_unit(data[:, 0], path, first_line - 1)
     quantum = scale * time_quantum(line.partition(",")[0] for _, line in body)
     numbers = np.array([n for n, _ in body])
-    return Recording.build(*data.T, source=str(path), first_line=numbers, time_quantum=quantum)
+    t, f, a1, a2 = data.T  # the four CSV_COLUMNS (checked above)
+    return Recording.build(t, f, a1, a2, source=str(path), first_line=numbers, time_quantum=quantum)
 
 
 def _check_time_unit(t: np.ndarray, path: Path, header_line: int) -> None:

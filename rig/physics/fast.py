@@ -19,6 +19,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Sequence
 from types import ModuleType
+from typing import Protocol
 
 import numpy as np
 
@@ -133,6 +134,12 @@ def solve_batch(impacts: Sequence[Impact], rtol: float = DEFAULT_RTOL) -> tuple[
     return _run_batch(P, v0, length, rtol, n_active, t_max, impacts)
 
 
+class ImpactLookup(Protocol):
+    """The impact of lane k (a Sequence[Impact], or one built only when an error message needs it)."""
+
+    def __getitem__(self, k: int, /) -> Impact: ...
+
+
 def _run_batch(
     P: np.ndarray,
     v0: np.ndarray,
@@ -140,7 +147,7 @@ def _run_batch(
     rtol: float,
     n_active: np.ndarray,
     t_max: np.ndarray,
-    impacts: Sequence[Impact],
+    impacts: ImpactLookup,
     contacts: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Run the lanes; lanes whose ball may meet the barrel again are followed by the reference.
@@ -166,9 +173,9 @@ def _run_batch(
     np.clip(cor, -1.0, 1.0, out=cor)  # |COR| <= 1 (reference.bounded_cor)
     bad = np.flatnonzero(status != kernel.STATUS_OK)
     if bad.size:
-        k = int(bad[0])
+        first = int(bad[0])
         raise SolverError(
-            f"{_STATUS_TEXT.get(int(status[k]), 'unknown failure')} at {_describe(impacts[k], rtol)}"
+            f"{_STATUS_TEXT.get(int(status[first]), 'unknown failure')} at {_describe(impacts[first], rtol)}"
             f" ({bad.size} of {n} solves failed)"
         )
     return cor, tc

@@ -69,13 +69,14 @@ def first_step_effect(
     out = []
     for rtol in rtols:
         atol = rtol * imp.scales()
-        h_scipy = DOP853(fun, 0.0, y0, t_max, rtol=rtol, atol=atol).h_abs
+        # scipy takes an array atol and a fun returning a list; scipy-stubs declare float and ndarray
+        h_scipy = DOP853(fun, 0.0, y0, t_max, rtol=rtol, atol=atol).h_abs  # type: ignore[arg-type]
         runs = []
         for first in (None, h_kernel):
             sol = solve_ivp(
                 fun, (0.0, t_max), y0, "DOP853", rtol=rtol, atol=atol, events=ended, first_step=first
             )
-            if sol.status != 1:
+            if sol.status != 1 or sol.y_events is None:  # status 1: a terminal event, so y_events is set
                 raise SolverError(f"first-step probe: contact did not end ({sol.message})")
             runs.append((float(abs(-sol.y_events[0][0][1] / imp.speed - ref)), int(sol.nfev)))
         k = fast.solve(imp, rtol)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal, cast
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -28,6 +28,7 @@ from rig.physics.equations import (
 from rig.physics.params import CollisionParams, check_tolerance
 
 SCIPY_METHODS = ("RK45", "DOP853", "Radau", "BDF", "LSODA")
+ScipyMethod = Literal["RK45", "DOP853", "Radau", "BDF", "LSODA"]  # SCIPY_METHODS, as a type
 
 
 @dataclass(frozen=True)
@@ -172,9 +173,10 @@ class _Phases:
     def _solve(self, fun: Any, t0: float, t1: float, y0: np.ndarray, events: list, **extra: Any) -> Any:
         from scipy.integrate import solve_ivp  # on first use: the compiled kernel's solves never need it
 
+        method = cast(ScipyMethod, self.method)  # solve_reference checks it; continue_contacts: DOP853
         try:
             sol = solve_ivp(
-                fun, (t0, t1), y0, method=self.method, rtol=self.rtol, atol=self.atol, events=events, **extra
+                fun, (t0, t1), y0, method=method, rtol=self.rtol, atol=self.atol, events=events, **extra
             )
         except (RuntimeError, ValueError, ZeroDivisionError) as exc:
             raise SolverError(f"scipy {self.method} failed ({exc}) at {self.where}") from None

@@ -34,7 +34,10 @@ class Bin:
 
 
 def bin_by_hoop(
-    hoop_hz: Sequence[float], values: Sequence[float], width_hz: float = 50.0, half_width_hz: float = 25.0
+    hoop_hz: Sequence[float],
+    values: Sequence[float | None],
+    width_hz: float = 50.0,
+    half_width_hz: float = 25.0,
 ) -> list[Bin]:
     """Mean and spread of `values` in hoop-frequency bins; pairs with a None value are skipped."""
     if not (width_hz > 0 and half_width_hz > 0):

@@ -184,7 +184,8 @@ def fit_variant(
         x0,
         bounds=(lo, hi),
         jac="2-point",
-        diff_step=DIFF_STEP,
+        # scipy takes a scalar diff_step (array_like); scipy-stubs accept only a 1-D array
+        diff_step=DIFF_STEP,  # type: ignore[arg-type]
         x_scale=scale,
         xtol=tol,
         ftol=tol * 1e-2,

@@ -28,6 +28,8 @@ IMPACT_FROM_TIP_IN = 6.0
 DEFAULT_LENGTH_IN = 33.0
 DEFAULT_MOI_KGM2 = 0.19
 
+HoopGrid = Sequence[float] | np.ndarray  # hoop frequencies, Hz: a list, or grid_for()'s array
+
 
 @dataclass(frozen=True)
 class ReferenceBat:
@@ -69,7 +71,7 @@ def predict_metrics(
 
 
 def model_curves(
-    hoop_hz: Sequence[float],
+    hoop_hz: HoopGrid,
     bat: ReferenceBat,
     speed: float = SPEED_M_S,
     params: CollisionParams = PAPER_PARAMS,
@@ -84,7 +86,7 @@ def model_curves(
 
 def population_curves(
     bats: Sequence[PopulationBat],
-    hoop_hz: Sequence[float],
+    hoop_hz: HoopGrid,
     speed: float = SPEED_M_S,
     params: CollisionParams = PAPER_PARAMS,
     location_in: float | None = None,

@@ -17,7 +17,7 @@ import numpy as np
 
 from rig.population.binning import Bin, bin_by_hoop
 from rig.population.dataset import METRICS, PopulationBat
-from rig.population.model import SPEED_M_S, ReferenceBat, grid_for, population_curves
+from rig.population.model import SPEED_M_S, HoopGrid, ReferenceBat, grid_for, population_curves
 
 if TYPE_CHECKING:
     from rig.population.calfile import CalibrationFile
@@ -119,7 +119,7 @@ def _trend(
 
 
 def calibrated_curves(
-    bats: Sequence[PopulationBat], hoop_hz: Sequence[float], cal: CalibrationFile, source: str = ""
+    bats: Sequence[PopulationBat], hoop_hz: HoopGrid, cal: CalibrationFile, source: str = ""
 ) -> dict[str, Any]:
     """The calibrated model over the grid: the calibration's parameters (calibrate.model_params).
 

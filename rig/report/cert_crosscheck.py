@@ -59,7 +59,7 @@ def cross_check_blocks(record: dict[str, Any], fig: dict[str, Figure]) -> list[B
     if not cc:
         return [Para("No model cross-check in the record.")]
     if cc.get("predicted") is None:
-        return [Para(str(cc.get("note", "no prediction")))] + ([fig["model"]] if "model" in fig else [])
+        return [Para(str(cc.get("note", "no prediction"))), *([fig["model"]] if "model" in fig else [])]
     hoop = cc.get("hoop_hz")
     rows = [
         ("model", str(cc.get("model", "—"))),
@@ -83,4 +83,4 @@ def cross_check_blocks(record: dict[str, Any], fig: dict[str, Figure]) -> list[B
             ("flagged", "YES: investigate before signing" if cc.get("flagged") else "no"),
         ]
     rows.append(("note", str(cc.get("note", ""))))
-    return [kv(rows)] + ([fig["model"]] if "model" in fig else [])
+    return [kv(rows), *([fig["model"]] if "model" in fig else [])]

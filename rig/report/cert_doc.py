@@ -107,8 +107,8 @@ def to_markdown(blocks: list[Block], link_base: Path | None) -> str:
             if b.path is None:  # drawn only in memory, for HTML
                 continue
             where = os.path.abspath(b.path)
-            link = Path(where if link_base is None else os.path.relpath(where, os.path.abspath(link_base)))
-            link = link.as_posix()
+            rel = where if link_base is None else os.path.relpath(where, os.path.abspath(link_base))
+            link = Path(rel).as_posix()
             target = f"<{link}>" if " " in link else link
             parts.append(f"![{md_escape(b.caption)}]({target})\n\n*Figure: {md_escape(b.caption)}*")
         elif isinstance(b, Code):

@@ -149,10 +149,11 @@ def decision_words(record: dict[str, Any]) -> str:
 
 def resume_command(record: dict[str, Any]) -> str:
     """How to resume the run: on the same simulated scene, or with the lab's rig file."""
-    scene = None
+    scene: str | None = None
     for url in ((record.get("rig") or {}).get("ports") or {}).values():
         if isinstance(url, str) and url.startswith("sim://"):
-            scene = (parse_qs(urlsplit(url).query).get("scene") or [None])[0]
+            scenes = parse_qs(urlsplit(url).query).get("scene")
+            scene = scenes[0] if scenes else None
             break
     where = f"--sim {shlex.quote(scene)}" if scene else "--config RIG.toml"
     return f"rig certify --resume {record.get('run_id')} {where}"

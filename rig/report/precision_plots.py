@@ -183,15 +183,15 @@ def markdown_table(study: PrecisionStudy, rtols: Iterable[float] | None = None) 
         for rtol in sorted(by_rtol, reverse=True):
             cells = [method, f"{rtol:.0e}"]
             for hoop in cases:
-                r = by_rtol[rtol].get(hoop)
-                if r is None:
+                row = by_rtol[rtol].get(hoop)
+                if row is None:
                     cells += ["—"] * 4
                 else:
                     cells += [
-                        f"{r.cor_error:.1e}",
-                        f"{r.contact_time_error:.1e}",
-                        str(r.nfev),
-                        format_time(r.time_s),
+                        f"{row.cor_error:.1e}",
+                        f"{row.contact_time_error:.1e}",
+                        str(row.nfev),
+                        format_time(row.time_s),
                     ]
             body.append(cells)
     return _md(header, body, right_from=2)

@@ -29,7 +29,7 @@ class Chains:
     def feed(self, seq: int, chain: object, chain_seq: object, fields: tuple[Any, ...]) -> None:
         """Take one row whose text columns decoded (run_id, kind, payload, t_utc, prev, hash)."""
         run_id, kind, payload, t_utc, prev_hash, hash_ = fields
-        want = run_id if run_id is not None else LAB_CHAIN
+        want: str = run_id if run_id is not None else LAB_CHAIN
         if chain != want or not isinstance(chain_seq, int):
             self.problems.append(
                 (seq, f"chain columns ({chain!r}, {chain_seq!r}) do not belong to its run {run_id!r}")

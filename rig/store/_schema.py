@@ -181,7 +181,7 @@ def _settle_format(conn: sqlite3.Connection) -> None:
     conn.execute("INSERT INTO store_meta (key, value) VALUES ('chain_format', ?)", ("2" if empty else "1",))
 
 
-def chain_format(conn: sqlite3.Connection, path: Path) -> int:
+def chain_format(conn: sqlite3.Connection, path: Path | str) -> int:
     """The file's chain format (1: one chain through the file; 2: a chain per run and the lab's)."""
     if not _has_meta(conn):
         return 1  # a file of a schema before 3: one chain

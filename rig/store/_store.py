@@ -396,7 +396,8 @@ class Store:
         self, run_id: str | None = None, kinds: Iterable[str] | None = None, after_seq: int = 0
     ) -> list[LogEntry]:
         """Entries in seq order: of one run (or all), of some kinds (or all), after a seq."""
-        where, params = ["seq > ?"], [after_seq]
+        where = ["seq > ?"]
+        params: list[object] = [after_seq]
         if run_id is not None:
             where.append("run_id = ?")
             params.append(run_id)

@@ -37,7 +37,7 @@ class SyncReport:
         )
 
 
-def conflict(run_id: str, held: Sequence[tuple[int, str]], entries: Sequence[LogEntry]) -> str | None:
+def conflict(run_id: str, held: Sequence[tuple[int | None, str]], entries: Sequence[LogEntry]) -> str | None:
     """Why the target's entries of a run are not a prefix of the source's, or None."""
     if len(held) > len(entries):
         return (
@@ -85,8 +85,8 @@ def sync(source: Any, target: Any) -> SyncReport:
         elif target_bats[bat_id] != source_bats[bat_id]:
             raise RecordRefused(f"bat {bat_id} is registered in {to} with other properties; nothing copied")
     copied = entries_copied = up_to_date = 0
-    for run, entries, held in plans:
-        if held == len(entries):
+    for run, entries, n_held in plans:
+        if n_held == len(entries):
             up_to_date += 1
             continue
         entries_copied += target.import_chain(run.run_id, entries, where)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterable
-from typing import Any
+from typing import Any, cast
 
 from rig.core import events as ev
 from rig.store._chains import Chains, check_anchors, check_chain
@@ -176,7 +176,8 @@ def _decode(raw: tuple[object, ...]) -> tuple[tuple[str | None, ...], str | None
         if storage != "text":
             return (), f"{column} is stored as {storage}, not text"
         try:
-            values.append(bytes(data).decode("utf-8"))  # type: ignore[arg-type]
+            # CAST AS BLOB (sqlite) or convert_to (PostgreSQL) of a text column: bytes
+            values.append(bytes(cast("bytes | memoryview", data)).decode("utf-8"))
         except UnicodeDecodeError:
             return (), f"{column} is not valid UTF-8 text (changed after it was written)"
     return tuple(values), None

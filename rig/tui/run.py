@@ -8,6 +8,7 @@ operator's answers). Nothing here touches a device.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from dataclasses import replace
 from typing import Any, ClassVar
 
@@ -244,7 +245,7 @@ class RunScreen(RunKeys, Screen[None]):
         """Redraw every panel from the folded state, append new log lines, re-check the keys."""
         if not self.is_mounted:
             return
-        panels = {
+        panels: dict[str, Callable[[LiveRun], Text]] = {
             "cannon": render.cannon_panel,
             "gates": render.gates_panel,
             "shot": render.shot_panel,

@@ -10,13 +10,22 @@ from __future__ import annotations
 
 import time
 import urllib.parse
+from typing import TYPE_CHECKING, Any
 
-from serial.serialutil import PortNotOpenError, SerialBase, SerialException, to_bytes
+from serial.serialutil import (  # type: ignore[attr-defined]  # to_bytes: pyserial's, missing from its stubs
+    PortNotOpenError,
+    SerialBase,
+    SerialException,
+    to_bytes,
+)
 
 from simulators.device import SimDevice, Unplugged
 from simulators.urlhandler import registry
 from simulators.urlhandler.registry import RigConflict
 from simulators.world import SimWorld
+
+if TYPE_CHECKING:
+    from _typeshed import ReadableBuffer
 
 DEVICES = ("cannon", "gates", "clamp")
 OPTIONS = ("scene", "rig")
@@ -42,7 +51,7 @@ def parse_url(url: str) -> tuple[str, str, str]:
 class Serial(SerialBase):
     """A serial port onto a simulated device."""
 
-    def __init__(self, *args: object, **kwargs: object) -> None:
+    def __init__(self, *args: Any, **kwargs: Any) -> None:  # SerialBase's arguments, passed on
         self._device: SimDevice | None = None
         self._world: SimWorld | None = None
         self._key: tuple[str, str] | None = None
@@ -53,10 +62,10 @@ class Serial(SerialBase):
         """Attach to the device of the URL's rig (building its world on first use)."""
         if self.is_open:
             raise SerialException("Port is already open.")
-        if self._port is None:
+        if self.port is None:
             raise SerialException("Port must be configured before it can be used.")
         try:
-            name, scene, rig = parse_url(self._port)
+            name, scene, rig = parse_url(self.port)
         except ValueError as exc:
             raise SerialException(str(exc)) from None
         try:
@@ -97,7 +106,7 @@ class Serial(SerialBase):
     def read(self, size: int = 1) -> bytes:
         """Up to `size` bytes: what is queued, else whatever comes within the timeout."""
         world, device = self._dev()
-        deadline = None if self._timeout is None else time.monotonic() + self._timeout
+        deadline = None if self.timeout is None else time.monotonic() + self.timeout
         self._cancel = False
         with world.changed:
             while True:
@@ -115,7 +124,7 @@ class Serial(SerialBase):
                     return b""
                 world.changed.wait(remaining)
 
-    def write(self, data: bytes) -> int:
+    def write(self, data: ReadableBuffer) -> int:
         """Hand bytes to the device; it answers at once."""
         _, device = self._dev()
         try:

@@ -46,9 +46,10 @@ def reference_ccor(
         events=contact_end,
         first_step=1e-6 * depth / speed,
     )
-    if sol.status != 1 or not sol.t_events[0].size:
+    t_events, y_events = sol.t_events, sol.y_events  # both set: an event was given
+    if sol.status != 1 or t_events is None or y_events is None or not t_events[0].size:
         raise RuntimeError(f"contact did not end at {speed} m/s: {sol.message}")
-    v_out = float(sol.y_events[0][0][1])
+    v_out = float(y_events[0][0][1])
     cor = -v_out / speed
     assert math.isfinite(cor) and 0.0 < cor < 1.0
     return cor

@@ -11,7 +11,7 @@ from scipy.integrate import solve_ivp
 
 from rig.modal import Recording, SimMode, SimSettings, analyze, simulate
 from rig.modal.frf import estimate, windows
-from rig.modal.hits import Hits, segment
+from rig.modal.hits import Hits, find_pulses, segment
 from rig.modal.simulate import pulse_response
 
 MODE = SimMode(1000.0, 0.01, 0.1, 1.0, 0.5, "hoop")
@@ -92,6 +92,17 @@ def test_coherence_drops_with_noise() -> None:
     assert frf.coherence[0, k] > 0.99  # the resonance stands well above the noise
     high = (frf.freq_hz >= 5000) & (frf.freq_hz <= 8000)
     assert np.median(frf.coherence[0, high]) < 0.99
+
+
+def test_segment_keeps_the_force_noise_apart_from_the_accelerometers() -> None:
+    """noise_n is the force channel's noise floor (find_pulses); the accelerometers' is accel_noise."""
+    rec = simulate(SimSettings(modes=(MODE,), hits=4, hit_interval_s=0.2, noise=0.02, seed=2))
+    hits = segment(
+        rec, threshold_sigma=10, threshold_fraction=0.02, pretrigger_s=1e-3, window_s=None, min_spacing_s=0.05
+    )
+    _, _, force_noise, _, _ = find_pulses(rec.force, rec.fs, 10, 0.02)
+    assert isinstance(hits.noise_n, float) and hits.noise_n == force_noise
+    assert hits.accel_noise is not None and len(hits.accel_noise) == 2
 
 
 def test_spectra_agree_with_scipy_csd(sdof: tuple[Recording, Hits]) -> None:
