@@ -141,8 +141,20 @@ def plot_hits(record: dict[str, Any]) -> Any | None:
         color="C0",
         label="valid hit (+- u)",
     )
+    corrections = (v.get("ball") or {}).get("corrections") or []
+    corrected = len(corrections) == len(hits) and any(c for c in corrections)
+    if corrected:  # the result averages the hits corrected for their balls (certificate, Balls)
+        ax.plot(
+            idx,
+            [s["metric"] + c for s, c in zip(hits, corrections, strict=True)],
+            "o",
+            mfc="none",
+            color="C1",
+            label="corrected for its ball",
+        )
     mean, big_u = v["mean"], v.get("U") or 0.0
-    ax.axhline(mean, color="C0", lw=1.2, label=f"mean {mean:.4g}")
+    what = "mean of the corrected hits" if corrected else "mean"
+    ax.axhline(mean, color="C0", lw=1.2, label=f"{what} {mean:.4g}")
     ax.axhspan(
         mean - big_u,
         mean + big_u,

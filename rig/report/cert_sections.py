@@ -74,6 +74,17 @@ def _bracket_blocks(record: dict[str, Any]) -> list[Block]:
     return out
 
 
+def _valid_text(record: dict[str, Any], name: str) -> str:
+    """What the valid-hits table shows, and how the result follows from it."""
+    corrections = ((record.get("verdict") or {}).get("ball") or {}).get("corrections") or []
+    if any(c for c in corrections):
+        return (
+            f"Valid shots as measured; those marked 'yes' are the hits whose mean {name}, each hit "
+            "corrected for its ball (see Balls), is the result."
+        )
+    return f"Valid shots; those marked 'yes' are the hits whose mean {name} is the result."
+
+
 def shot_blocks(record: dict[str, Any], decimals: int, fig: dict[str, Figure]) -> list[Block]:
     """Location scan, valid hits, and every shot that did not count, with its reasons."""
     shots = record.get("shots") or []
@@ -118,7 +129,7 @@ def shot_blocks(record: dict[str, Any], decimals: int, fig: dict[str, Figure]) -
     valid = [s for s in shots if s.get("status") == "valid"]
     out += [
         Heading("Valid hits"),
-        Para(f"Valid shots; those marked 'yes' are the hits whose mean {name} is the result."),
+        Para(_valid_text(record, name)),
         Table(
             (
                 "shot",
