@@ -29,6 +29,7 @@ from rig.physics import CollisionParams, PivotedBat, predict_bat, rigid_cor
 PLATE_SPEED_M_S = 26.8  # ASTM F1887: 60 mph onto a rigid flat surface
 G_U_REL = 0.15  # [U] relative u of the model's ratio g (rigid barrel against a hollow one: 6 % seen)
 DAMPING_STEP = 0.01  # relative step of c1 for the ratio
+MIN_SPREAD_BALLS = 3  # balls a ball-cor test must have for its ball-to-ball SD to count as measured
 
 
 class BallTerms(BaseModel):
@@ -38,6 +39,7 @@ class BallTerms(BaseModel):
 
     lot: str | None = None
     balls: int | None = None  # the balls in the lot (numbered LOT-01 ...): a run may not use more
+    first_ball: int = Field(1, ge=1, description="the run's first ball: the lot's first one never fired")
     source: str = "assumed defaults [U]: no qualified lot named"
     wear_measured: bool = False  # True: wear and spread measured on this lot (ball-cor) -> wear corrected
     conditions_measured: bool = False  # True: the air sensitivities were measured -> corrected
@@ -50,6 +52,8 @@ class BallTerms(BaseModel):
     cor_per_pct_rh: float = Field(-0.0006, description="plate COR change per % RH above the nominal")
     cor_per_pct_rh_u: float = Field(0.0006, ge=0.0)
     air_cov: tuple[float, float, float] | None = None  # measured: var(per C), cov, var(per % RH)
+    sensor_u_c: float = Field(0.2, ge=0.0, description="[U] u of the lab's temperature reading, C")
+    sensor_u_pct: float = Field(2.0, ge=0.0, description="[U] u of the lab's humidity reading, % RH")
     temp_c: float = 21.0  # the lot's nominal (conditioning) temperature
     rh_pct: float = 50.0
     law: dict[str, float] | None = None  # the ball law's constants (BALL.json), else the paper's
@@ -129,6 +133,8 @@ def adjust(terms: BallTerms, hits: list[HitBall], g: float) -> BallAdjustment:
     if terms.conditions_measured:
         var_t, cov, var_rh = terms.air_cov or (terms.cor_per_c_u**2, 0.0, terms.cor_per_pct_rh_u**2)
         var = var_t * d_t * d_t + 2.0 * cov * d_t * d_rh + var_rh * d_rh * d_rh  # d' Cov d
+        # the readings' own error moves every hit's correction alike (21 C, 50 % RH are absolute)
+        var += (terms.cor_per_c * terms.sensor_u_c) ** 2 + (terms.cor_per_pct_rh * terms.sensor_u_pct) ** 2
         u_cond = abs(g) * math.sqrt(max(0.0, var))
     else:
         u_cond = abs(g) * math.hypot(
@@ -177,13 +183,19 @@ def terms_from_lot(lot: Any, results: list[Any], law: dict[str, float] | None = 
     if not cor or wear is None:
         return BallTerms(**base, source=f"lot {lot.id}: no ball-cor result; assumed defaults [U]")
     runs = ", ".join(r.run_id[:8] for r in cor)
-    spreads = [r.sd_between_balls for r in cor if r.sd_between_balls is not None]
+    # a spread from fewer than MIN_SPREAD_BALLS balls is not called measured: the default stays
+    spreads = [
+        r.sd_between_balls for r in cor if r.sd_between_balls is not None and r.n_balls >= MIN_SPREAD_BALLS
+    ]
+    spread_from = "spread" if spreads else f"spread assumed [U]: fewer than {MIN_SPREAD_BALLS} balls tested"
     values: dict[str, Any] = {
         "wear_measured": True,
         "plate_cor": cor[-1].mean,
         "wear_per_hit": wear[0],
         "wear_per_hit_u": wear[1],
-        "sd_between_balls": math.sqrt(statistics.fmean(s * s for s in spreads)) if spreads else 0.0,
+        "sd_between_balls": (
+            math.sqrt(statistics.fmean(s * s for s in spreads)) if spreads else BallTerms().sd_between_balls
+        ),
     }
     defaults = BallTerms()
     air = fit_air(
@@ -195,11 +207,11 @@ def terms_from_lot(lot: Any, results: list[Any], law: dict[str, float] | None = 
         wear[0],
     )
     if air is None:
-        source = f"lot {lot.id}: ball-cor {runs} (wear, spread); air sensitivities assumed [U]"
+        source = f"lot {lot.id}: ball-cor {runs} (wear, {spread_from}); air sensitivities assumed [U]"
         return BallTerms(**base, **values, source=source)
     var_t, _, var_rh = air.covariance
     source = (
-        f"lot {lot.id}: ball-cor {runs} (wear, spread; air from {air.n_results} tests spanning "
+        f"lot {lot.id}: ball-cor {runs} (wear, {spread_from}; air from {air.n_results} tests spanning "
         f"{air.span_c:.1f} C, {air.span_pct:.0f} % RH)"
     )
     values["plate_cor"] = air.cor_nominal  # the lot's COR at its nominal air

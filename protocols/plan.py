@@ -143,10 +143,14 @@ class PlanContext:
     options: dict[str, Any] = field(default_factory=dict)  # for a lab's own plans
 
     def ball_id(self, number: int | None = None) -> str:
-        """The id of the run's ball `number` (default: the one in use): the lot's id and its number."""
+        """The id of the run's ball `number` (default: the one in use): the lot's id and its number in
+        the lot, counted on from the lot's first ball no earlier run has fired (`first_ball`)."""
         recorded = (self.state.setup or {}).get("ball") or self.options.get("ball") or {}
         lot = str(recorded.get("lot") or "ball")
-        return f"{lot}-{self.state.ball_number if number is None else number:02d}"
+        n = self.state.ball_number if number is None else number
+        n += int(recorded.get("first_ball") or 1) - 1  # a lot's balls used by earlier runs are skipped
+        width = 3 if int(recorded.get("balls") or 0) >= 100 else 2  # as rig.core.ball.BallLot.ball_id
+        return f"{lot}-{n:0{width}d}"
 
     def q(self, location_in: float) -> float:
         """The impact point's distance from the pivot (m) for a location from the tip (in)."""

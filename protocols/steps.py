@@ -315,7 +315,8 @@ def replace_ball(ctx: PlanContext) -> Plan[None]:
     st = ctx.state
     if st.ball_hits >= ctx.procedure.ball.replace_after_hits:
         lot = (st.setup or {}).get("ball") or {}
-        if lot.get("balls") is not None and st.ball_number + 1 > int(lot["balls"]):
+        in_lot = st.ball_number + int(lot.get("first_ball") or 1)  # the next ball's number in the lot
+        if lot.get("balls") is not None and in_lot > int(lot["balls"]):
             raise RunAborted(
                 f"lot {lot.get('lot')} has {lot['balls']} balls and every one has had its hits: "
                 "name a larger lot (this run resumes with the same lot only)"

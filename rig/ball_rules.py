@@ -4,8 +4,9 @@
 anything is armed the lot must be registered (`rig balls register`), qualified (at least one
 ball-cor test, meeting the lot's specification where it states one), conditioned as long as the
 procedure asks, and the ball law (if given) fitted on this lot or on none named. The run then
-records the lot's terms (protocols.ball_terms) in RunStarted; the procedure enforces the rest at
-each shot (the lab's air within the conditioning window, balls numbered within the lot).
+records the lot's terms (protocols.ball_terms) in RunStarted, starting on the lot's first ball no
+earlier run fired; the procedure enforces the rest at each shot (the lab's air within the
+conditioning window, balls numbered within the lot).
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from typing import Any
 
 from protocols.ball_terms import BallTerms, terms_from_lot
 from protocols.procedure import Procedure
+from rig.core import events as ev
 from rig.core.ball import BallLot, LotResult
 from rig.core.errors import ConfigError
 
@@ -62,7 +64,35 @@ def lot_terms(store: Any, lot_id: str, procedure: Procedure, law: Any = None) ->
         )
     constants = None if law is None else dict(law.constants)
     terms = terms_from_lot(lot, cor, constants)
-    return terms.model_copy(update={"balls": lot.balls})
+    first = first_unused_ball(store, lot)
+    need = balls_needed(procedure)
+    if lot.balls - first + 1 < need:
+        raise ConfigError(
+            f"lot {lot.id} has {max(0, lot.balls - first + 1)} of its {lot.balls} balls never fired; "
+            f"this procedure needs at least {need} (a new ball after "
+            f"{procedure.ball.replace_after_hits} hits)",
+            source=f"--ball-lot {lot.id}",
+        )
+    return terms.model_copy(update={"balls": lot.balls, "first_ball": first})
+
+
+def first_unused_ball(store: Any, lot: BallLot) -> int:
+    """The number of the lot's first ball after every ball any recorded shot fired (1 if none).
+
+    A certification starts on balls no earlier run has hit, so each ball's recorded hit count is
+    its whole history (a ball's wear does not reset between runs)."""
+    prefix, highest = f"{lot.id}-", 0
+    for entry in store.entries(kinds=[ev.SHOT_FIRED]):
+        ball = str(entry.payload.get("ball") or "")
+        if ball.startswith(prefix) and ball[len(prefix) :].isdigit():
+            highest = max(highest, int(ball[len(prefix) :]))
+    return highest + 1
+
+
+def balls_needed(procedure: Procedure) -> int:
+    """The fewest balls a run of `procedure` can need: its scan and valid hits, no re-shot."""
+    shots = len(procedure.scan.locations_in()) * procedure.scan.hits_per_location + procedure.hits.valid_hits
+    return -(-shots // procedure.ball.replace_after_hits)
 
 
 def law_terms(law: Any) -> BallTerms:

@@ -369,7 +369,7 @@ def add_parsers(sub: Any) -> None:
     p.add_argument(
         "--ball",
         metavar="BALL.json",
-        help="the ball law fitted by rig model fit-ball (recorded; the model's ratio and cross-check use it)",
+        help="the ball law fitted by rig model fit-ball (recorded; the ball terms' model ratio uses it)",
     )
     p.add_argument(
         "--rig-checked",

@@ -48,7 +48,8 @@ def _lot_text(terms: dict[str, Any]) -> str:
 
 
 def _sensitivity(value: Any, u: Any, per: str) -> str:
-    return f"{_signed(value, 5)} ± {_num(u, 5)} plate COR per {per}"
+    u_text = "—" if u is None else f"{float(u):.2g}"  # a measured slope's u can be 1e-6
+    return f"{_signed(value, 6)} ± {u_text} plate COR per {per}"
 
 
 def _wear_text(terms: dict[str, Any]) -> str:
@@ -86,7 +87,13 @@ def _terms_rows(record: dict[str, Any], terms: dict[str, Any]) -> list[tuple[str
         ("ball law in use", _law_text(terms)),
     ]
     if _is_num(terms.get("plate_cor")):
-        rows.append(("lot's COR on the flat plate at 60 mph (ball-cor)", _num(terms["plate_cor"], 4)))
+        rows.append(
+            (
+                "lot's COR on the flat plate at 60 mph (ball-cor; at the tests' mean hit count"
+                + (", its nominal air)" if terms.get("conditions_measured") else ", the latest test's air)"),
+                _num(terms["plate_cor"], 4),
+            )
+        )
     if _is_num(proc_ball.get("mass_kg")) or _is_num(proc_ball.get("replace_after_hits")):
         rows.append(
             (

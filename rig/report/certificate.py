@@ -220,7 +220,12 @@ def verdict_blocks(record: dict[str, Any]) -> list[Block]:
         kv(
             [
                 ("metric", f"{name}: {v.get('definition', '')}"),
-                ("mean of valid hits", f"{fmt_num(mean, d)}{unit} (n = {v.get('n_hits')})"),
+                (
+                    "mean of the valid hits corrected for their balls"
+                    if any((v.get("ball") or {}).get("corrections") or [])
+                    else "mean of valid hits",
+                    f"{fmt_num(mean, d)}{unit} (n = {v.get('n_hits')})",
+                ),
                 ("standard uncertainty u", f"{fmt_num(v.get('u'), d + 1)}{unit}"),
                 (f"expanded uncertainty U (k = {v.get('coverage_k', 2):g})", f"{fmt_num(big_u, d)}{unit}"),
                 ("mean + U", f"{fmt_num(mean + big_u, d)}{unit}"),

@@ -152,6 +152,15 @@ def test_air_fit_stated_u_is_honest_on_a_swinging_lab() -> None:
     assert 0.90 <= inside / trials <= 0.99, inside / trials
 
 
+def test_a_spread_from_too_few_balls_is_not_called_measured() -> None:
+    lot = BallLot(id="L", maker="m", model="x")
+    two = result(0.52, 21, 50, sd=0.0001, n=2).model_copy(update={"sd_between_balls": 0.0001})
+    terms = terms_from_lot(lot, [two])
+    assert terms.sd_between_balls == BallTerms().sd_between_balls and "spread assumed" in terms.source
+    six = result(0.52, 21, 50, sd=0.0011, n=6)
+    assert terms_from_lot(lot, [six]).sd_between_balls == pytest.approx(0.0011)
+
+
 def test_pooled_wear_weights_and_widens_for_disagreeing_runs() -> None:
     a = result(0.52, 21, 50, wear=-3.0e-4)
     b = result(0.52, 21, 50, wear=-3.2e-4)
@@ -168,7 +177,8 @@ def test_conditions_u_is_the_quadratic_form_of_the_covariance() -> None:
     out = adjust(terms, hits, g=0.9)
     d = np.array([22.2 - 21.0, 45.5 - 50.0])
     sigma = np.array([[cov[0], cov[1]], [cov[1], cov[2]]])
-    assert out.u_conditions == pytest.approx(0.9 * math.sqrt(d @ sigma @ d))
+    sensors = (0.0015 * terms.sensor_u_c) ** 2 + (0.0006 * terms.sensor_u_pct) ** 2  # the readings' own u
+    assert out.u_conditions == pytest.approx(0.9 * math.sqrt(d @ sigma @ d + sensors))
     expected = [-0.9 * (0.0015 * (h.temp_c - 21) - 0.0006 * (h.rh_pct - 50)) for h in hits]
     assert list(out.corrections) == pytest.approx(expected)
 

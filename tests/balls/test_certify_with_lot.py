@@ -110,6 +110,7 @@ def test_a_qualified_lot_is_recorded_and_each_valid_hit_names_its_ball(lab: Path
     assert not recorded["conditions_measured"]  # one ball-cor test cannot tell the air's effect
     fired = [s for s in state.shots if s.raw]
     assert all(str(s.raw["ball"]).startswith("L-") for s in fired)
+    assert fired[0].raw["ball"] == "L-03"  # the lot's ball-cor test fired L-01 and L-02
     assert [s.raw["ball_hits"] for s in fired] == list(range(len(fired)))  # one ball, 12 hits allowed
     verdict = state.verdict or {}
     assert len(verdict["ball"]["corrections"]) == len(
@@ -135,14 +136,41 @@ def test_a_ball_law_of_another_lot_is_refused(lab: Path, tmp_path: Path) -> None
     assert code == 2 and "fitted on lot OTHER, not L" in err, err
 
 
-def test_a_run_stops_when_the_lots_balls_are_used_up(lab: Path) -> None:
-    """Lot TWO has two balls; a procedure that replaces the ball after every hit needs more."""
+def test_a_lot_without_enough_unused_balls_is_refused(lab: Path) -> None:
+    """Lot TWO has two balls; a procedure that replaces the ball after every hit needs four."""
     code, err = certify_cli(lab, "--ball-lot", "TWO", procedure="tight.toml")
-    assert code == 3, err
-    assert "lot TWO has 2 balls" in err
+    assert code == 2 and "lot TWO has" in err and "needs at least 4" in err, err
+
+
+def test_a_run_stops_when_the_lots_balls_are_used_up(lab: Path) -> None:
+    """Terms giving the run two balls (bypassing the start's check): the third is refused mid-run."""
+    procedure = Procedure.load(lab / "tight.toml")
+    bat = BatSpec.load(lab / "bat.toml")
+    with Store.open(lab / "s.db") as store:
+        terms = lot_terms(store, "L", Procedure.load(lab / "proc.toml"))
+        few = terms.model_copy(update={"balls": terms.first_ball + 1})  # two balls left
+        outcome = certify(store, procedure, bat, sim_config("lab", bat=bat), ball=few.model_dump())
+        assert outcome.status != "finished"
+        state = fold(history(store, outcome.run_id))
+        stop = [e for e in store.entries(outcome.run_id) if e.kind == ev.RUN_INTERRUPTED]
+    first = terms.first_ball
+    assert [s.raw["ball"] for s in state.shots if s.raw] == [f"L-{first:02d}", f"L-{first + 1:02d}"]
+    assert stop and f"lot L has {first + 1} balls" in str(stop[-1].payload)
+
+
+def test_each_run_starts_on_balls_no_earlier_run_fired(lab: Path) -> None:
+    """A ball's recorded hit count is its whole history: a run never takes a ball another run hit."""
+    with Store.open(lab / "s.db") as store:
+        fired_before = {e.payload.get("ball") for e in store.entries(kinds=[ev.SHOT_FIRED])}
+    code, err = certify_cli(lab, "--ball-lot", "L")
+    assert code in (0, 1), err
     with Store.open(lab / "s.db") as store:
         state = fold(history(store, store.runs()[-1].run_id))
-    assert [s.raw["ball"] for s in state.shots if s.raw] == ["TWO-01", "TWO-02"]
+    used = [s.raw["ball"] for s in state.shots if s.raw]
+    assert not set(used) & fired_before
+    numbers = sorted(int(b.split("-")[1]) for b in fired_before if str(b).startswith("L-"))
+    assert used[0] == f"L-{numbers[-1] + 1:02d}"
+    assert state.shots[0].raw["ball_hits"] == 0
 
 
 def test_the_air_outside_the_conditioning_window_stops_the_run_before_a_shot(lab: Path) -> None:
