@@ -11,7 +11,8 @@ together and the data pin only their combination along the swing; a prior of zer
 magnitude (the assumed sensitivities and their u) closes the other direction, so the fitted
 covariance is honest in both: a bat test's air on the same line is corrected with a small u, air
 off that line with the prior's. c0 is the lot's COR at its nominal conditions. When the residual
-scatter exceeds the stated u (Birge ratio above 1) the covariance is scaled up by it.
+scatter exceeds the stated u (Birge ratio above 1, on n minus the effective number of parameters)
+the covariance is scaled up by it.
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ class AirFit:
     span_c: float
     span_pct: float
     birge: float  # sqrt(chi2 / dof) of the fit; 1 is what the stated u predict
+    dof: float  # n minus the hat matrix's trace: the prior's share of the slopes is not the data's
 
 
 def result_u_random(result: LotResult) -> float:
@@ -77,8 +79,10 @@ def fit_air(
     cov = np.linalg.inv(a)
     beta = cov @ (x.T @ (w * y))
     resid = y - x @ beta
-    dof = len(usable) - 1  # the intercept; the slopes are held by the prior where the data are not
-    birge = math.sqrt(float(resid @ (w * resid)) / dof) if dof > 0 else 1.0
+    # the data's degrees of freedom: n minus the effective number of parameters (the hat matrix's
+    # trace: 1 for the intercept plus what the data, not the prior, determine of the slopes)
+    dof = len(usable) - float(np.trace(x @ cov @ (x.T * w)))
+    birge = math.sqrt(float(resid @ (w * resid)) / dof) if dof > 1e-6 else 1.0
     cov = cov * max(1.0, birge) ** 2
     return AirFit(
         cor_nominal=float(beta[0]),
@@ -89,6 +93,7 @@ def fit_air(
         span_c=span_c,
         span_pct=span_pct,
         birge=birge,
+        dof=dof,
     )
 
 

@@ -114,6 +114,17 @@ def test_air_fit_recovers_independent_sensitivities() -> None:
     assert fit.cor_nominal == pytest.approx(0.52, abs=1e-7)
 
 
+def test_air_fit_degrees_of_freedom_count_what_the_data_determine() -> None:
+    """Independent T and RH: a vague prior leaves n - 3 degrees of freedom, a tight one n - 1."""
+    grid = [(t, h) for t in (19.0, 21.0, 23.0) for h in (40.0, 50.0, 60.0)]
+    results = [result(0.52 + 0.001 * (t - 21), t, h, sd=0.001) for t, h in grid]
+    vague = fit_air(results, 21.0, 50.0, 10.0, 10.0)
+    tight = fit_air(results, 21.0, 50.0, 1e-9, 1e-9)
+    assert vague is not None and tight is not None
+    assert vague.dof == pytest.approx(len(grid) - 3, abs=1e-6)
+    assert tight.dof == pytest.approx(len(grid) - 1, abs=1e-3)
+
+
 def test_air_fit_needs_three_results_spanning_the_air() -> None:
     assert fit_air([result(0.52, 21, 50), result(0.53, 23, 45)], 21.0, 50.0, 0.002, 0.001) is None
     flat = [result(0.52, 21.0 + 0.1 * i, 50.0 + 0.5 * i) for i in range(4)]
