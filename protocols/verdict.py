@@ -60,15 +60,15 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> d
     per_bat = budget(inputs, model)
     per_hit = budget(inputs[0], model)
     name = p.standard.value if p.standard is not Metric.BBS else "e_a"
-    if n >= 2:
-        u = u_with_scatter(per_bat, [float(h.measured["metrics"][name]) for h in hits], name)
-    else:
-        u = per_bat.u_of(name)
-    if p.standard is Metric.BBS:
-        u *= hits[0].measured["metrics"]["v_bat"] + DEFAULT_SWING.pitch_speed_m_s
     q = bat.impact_from_pivot_m(loc) if loc is not None else config.impact_from_pivot_m
     moi = float(state.moi["moi_kgm2"]) if state.moi else float(bat.moi_kgm2 or 0.0)
     ball = ball_part(p, bat, state, hits, q, moi)
+    observed = [float(h.measured["metrics"][name]) for h in hits]
+    if ball is not None and name == p.standard.value:  # the scatter of what is averaged: corrected hits
+        observed = [v + c for v, c in zip(observed, ball.corrections, strict=True)]
+    u = u_with_scatter(per_bat, observed, name) if n >= 2 else per_bat.u_of(name)
+    if p.standard is Metric.BBS:
+        u *= hits[0].measured["metrics"]["v_bat"] + DEFAULT_SWING.pitch_speed_m_s
     u_measured = u
     if ball is not None:
         values = [v + c for v, c in zip(values, ball.corrections, strict=True)]

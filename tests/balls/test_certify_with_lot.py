@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import math
+import statistics
 from pathlib import Path
 
 import pytest
 
 from protocols.ball_procedure import BallProcedure
+from protocols.ball_terms import BallTerms
 from protocols.procedure import Procedure
 from protocols.state import fold
 from rig.ball_rules import lot_terms
@@ -240,3 +243,22 @@ def test_ball_cor_tests_at_three_hours_from_the_cli_measure_the_air(tmp_path: Pa
     hits = [s for s in state.shots if s.valid and s.purpose != "scan"]
     assert all("temperature_c" in s.requested for s in hits)  # the air read before each shot
     assert (state.verdict or {})["ball"]["u_conditions"] < 0.002
+
+
+def test_the_hits_scatter_in_the_budget_is_that_of_the_corrected_hits(tmp_path: Path) -> None:
+    """The result averages the corrected hits, so their scatter is the Type A term: with a large
+    measured wear the corrections spread the hits far more than the rig does, and u must show it."""
+    (tmp_path / "proc.toml").write_text(QUICK_PROCEDURE + RULES.format(replace=12), encoding="utf-8")
+    (tmp_path / "bat.toml").write_text(GOOD_BAT, encoding="utf-8")
+    procedure, bat = Procedure.load(tmp_path / "proc.toml"), BatSpec.load(tmp_path / "bat.toml")
+    terms = BallTerms(lot="W", wear_measured=True, wear_per_hit=-0.01, wear_per_hit_u=0.0)
+    with Store.open(tmp_path / "s.db") as store:
+        outcome = certify(store, procedure, bat, sim_config("ideal", bat=bat), ball=terms.model_dump())
+        state = fold(history(store, outcome.run_id))
+    v = state.verdict or {}
+    hits = [s for s in state.shots if s.valid and s.purpose != "scan"]
+    corrected = [float(s.metric or 0.0) + c for s, c in zip(hits, v["ball"]["corrections"], strict=True)]
+    type_a = statistics.stdev(corrected) / math.sqrt(len(corrected))
+    measured = [float(s.metric or 0.0) for s in hits]
+    assert type_a > 3 * statistics.stdev(measured) / math.sqrt(len(measured))  # the corrections spread them
+    assert v["ball"]["u_measurement"] >= type_a * (1 - 1e-9)
