@@ -32,7 +32,7 @@ from rig.certification import certify, history
 from rig.core.ball import BallLot, Conditioning
 from rig.core.bat import BatSpec
 from rig.population.simulate import simulated_population
-from rig.session import scene_with_bat, sim_config
+from rig.session import air_starting_at, scene_with_bat, sim_config
 from rig.store import Store
 from simulators.scene import Scene
 from simulators.truth import true_metric
@@ -59,7 +59,7 @@ def lot_terms(lot_id: str = "SIM-LOT", hours: int = HOURS) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as folder, Store.open(Path(folder) / "lot.db") as store:
         store.register_lot(lot)
         for hour in range(hours):
-            at = {"environment": {"start_s": period * hour / hours, "random_start": False}}
+            at = air_starting_at(period * hour / hours)
             run_ball_test(store, procedure, lot, sim_config(SCENE, target=target, effects=at))
         lot_now, results = store.ball_lot(lot_id)
         return terms_from_lot(lot_now, results).model_dump(mode="json")

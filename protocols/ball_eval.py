@@ -168,12 +168,6 @@ def within_ball_fit(hits: Sequence[CcorPoint]) -> WithinFit:
     return WithinFit(slope, slope_u, float(beta[1]), math.sqrt(max(0.0, float(cov[1, 1]))), residual)
 
 
-def wear_slope(hits: Sequence[CcorPoint]) -> tuple[float | None, float | None, float]:
-    """(slope of COR per hit within balls, its standard u, the residual within-ball variance)."""
-    fit = within_ball_fit(hits)
-    return fit.slope, fit.slope_u, fit.residual
-
-
 def _within_variance(by_ball: dict[str, list[CcorPoint]]) -> float:
     """Pooled variance of the hits about their ball's mean (0 if every ball has one hit)."""
     ss = sum(sum((h.cor - statistics.fmean(x.cor for x in b)) ** 2 for h in b) for b in by_ball.values())

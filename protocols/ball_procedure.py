@@ -15,10 +15,9 @@ from typing import Annotated, Literal
 
 from pydantic import Field, StrictBool, model_validator
 
-from protocols.procedure import Ball, Decision, EnvironmentLimits, Hits, _Model
+from protocols.procedure import Ball, Decision, EnvironmentLimits, Hits, _Model, load_table
 from rig.core.ball import BallLot
 from rig.core.devices import STAGE_RANGE_MM
-from rig.core.tomlfile import read_toml, table, validate
 
 BUILTIN_DIR = Path(__file__).parent
 BALL_BUILTIN = ("ccor", "ball-cor")
@@ -111,11 +110,7 @@ class BallProcedure(_Model):
     @classmethod
     def load(cls, name_or_path: str | Path) -> BallProcedure:
         """A built-in ball test by name (ccor, ball-cor) or a TOML file; errors name the field."""
-        path = Path(name_or_path)
-        if str(name_or_path) in BALL_BUILTIN:
-            path = BUILTIN_DIR / f"{name_or_path}.toml"
-        data = read_toml(path, missing=f"no such ball test; built-in ones are {', '.join(BALL_BUILTIN)}")
-        return validate(cls, table(data, "procedure", str(path)), str(path), prefix="procedure.")
+        return load_table(cls, name_or_path, BALL_BUILTIN, "ball test")[0]
 
 
 @dataclass(frozen=True)

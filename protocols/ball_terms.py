@@ -179,6 +179,7 @@ def terms_from_lot(lot: Any, results: list[Any], law: dict[str, float] | None = 
         "rh_pct": cond.humidity_pct if cond.humidity_pct is not None else 50.0,
         "law": law,
     }
+    defaults = BallTerms()
     wear = pooled_wear(cor)
     if not cor or wear is None:
         return BallTerms(**base, source=f"lot {lot.id}: no ball-cor result; assumed defaults [U]")
@@ -194,10 +195,9 @@ def terms_from_lot(lot: Any, results: list[Any], law: dict[str, float] | None = 
         "wear_per_hit": wear[0],
         "wear_per_hit_u": wear[1],
         "sd_between_balls": (
-            math.sqrt(statistics.fmean(s * s for s in spreads)) if spreads else BallTerms().sd_between_balls
+            math.sqrt(statistics.fmean(s * s for s in spreads)) if spreads else defaults.sd_between_balls
         ),
     }
-    defaults = BallTerms()
     air = fit_air(
         cor,
         base["temp_c"],

@@ -142,15 +142,22 @@ class PlanContext:
     plan_name: str | None = None  # a lab's own plan (module.function), recorded in RunStarted
     options: dict[str, Any] = field(default_factory=dict)  # for a lab's own plans
 
-    def ball_id(self, number: int | None = None) -> str:
-        """The id of the run's ball `number` (default: the one in use): the lot's id and its number in
-        the lot, counted on from the lot's first ball no earlier run has fired (`first_ball`)."""
-        recorded = (self.state.setup or {}).get("ball") or self.options.get("ball") or {}
-        lot = str(recorded.get("lot") or "ball")
+    def recorded_ball(self) -> dict[str, Any]:
+        """The run's ball terms as recorded in RunStarted (before that, as given): {} for none."""
+        return dict((self.state.setup or {}).get("ball") or self.options.get("ball") or {})
+
+    def lot_ball_number(self, number: int | None = None) -> int:
+        """The run's ball `number` (default: the one in use) as numbered in its lot: counted on from
+        the lot's first ball no earlier run has fired (`first_ball`)."""
         n = self.state.ball_number if number is None else number
-        n += int(recorded.get("first_ball") or 1) - 1  # a lot's balls used by earlier runs are skipped
+        return n + int(self.recorded_ball().get("first_ball") or 1) - 1
+
+    def ball_id(self, number: int | None = None) -> str:
+        """The id of the run's ball `number` (default: the one in use): the lot's id and its number."""
+        recorded = self.recorded_ball()
+        lot = str(recorded.get("lot") or "ball")
         width = 3 if int(recorded.get("balls") or 0) >= 100 else 2  # as rig.core.ball.BallLot.ball_id
-        return f"{lot}-{n:0{width}d}"
+        return f"{lot}-{self.lot_ball_number(number):0{width}d}"
 
     def q(self, location_in: float) -> float:
         """The impact point's distance from the pivot (m) for a location from the tip (in)."""

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from enum import StrEnum
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Literal, TypeVar
 
 from pydantic import (
     BaseModel,
@@ -24,6 +24,17 @@ from rig.core.tomlfile import read_toml, table, validate
 
 BUILTIN_DIR = Path(__file__).parent
 BUILTIN = ("bbcor", "besr", "bbs")
+M = TypeVar("M", bound=BaseModel)
+
+
+def load_table(cls: type[M], name_or_path: str | Path, builtin: tuple[str, ...], what: str) -> tuple[M, Path]:
+    """Table [procedure] of a built-in file by name (one of `builtin`) or of a TOML file, validated as
+    `cls`; errors name the file and the field. Also returns the file's path."""
+    path = Path(name_or_path)
+    if str(name_or_path) in builtin:
+        path = BUILTIN_DIR / f"{name_or_path}.toml"
+    data = read_toml(path, missing=f"no such {what}; built-in ones are {', '.join(builtin)}")
+    return validate(cls, table(data, "procedure", str(path)), str(path), prefix="procedure."), path
 
 
 class Metric(StrEnum):
@@ -172,11 +183,7 @@ class Procedure(_Model):
     @classmethod
     def load(cls, name_or_path: str | Path) -> Procedure:
         """A built-in procedure by name (bbcor, besr, bbs) or a TOML file; errors name the field."""
-        path = Path(name_or_path)
-        if str(name_or_path) in BUILTIN:
-            path = BUILTIN_DIR / f"{name_or_path}.toml"
-        data = read_toml(path, missing=f"no such procedure; built-in ones are {', '.join(BUILTIN)}")
-        proc = validate(cls, table(data, "procedure", str(path)), str(path), prefix="procedure.")
+        proc, path = load_table(cls, name_or_path, BUILTIN, "procedure")
         if proc.calibration is not None:  # a relative path is relative to the procedure file
             proc = proc.model_copy(
                 update={"calibration": str(path.parent / Path(proc.calibration).expanduser())}

@@ -314,9 +314,8 @@ def replace_ball(ctx: PlanContext) -> Plan[None]:
     """Ask for a new ball once the current one has had its hits."""
     st = ctx.state
     if st.ball_hits >= ctx.procedure.ball.replace_after_hits:
-        lot = (st.setup or {}).get("ball") or {}
-        in_lot = st.ball_number + int(lot.get("first_ball") or 1)  # the next ball's number in the lot
-        if lot.get("balls") is not None and in_lot > int(lot["balls"]):
+        lot = ctx.recorded_ball()
+        if lot.get("balls") is not None and ctx.lot_ball_number(st.ball_number + 1) > int(lot["balls"]):
             raise RunAborted(
                 f"lot {lot.get('lot')} has {lot['balls']} balls and every one has had its hits: "
                 "name a larger lot (this run resumes with the same lot only)"
@@ -382,7 +381,7 @@ def shoot(ctx: PlanContext, loc_in: float, purpose: str) -> Plan[None]:
         raise RunAborted(f"the operator declined to fire shot {index}")
     yield Checkpoint()
     air: dict[str, float] = {}
-    lot = (st.setup or {}).get("ball") or {}
+    lot = ctx.recorded_ball()
     if lot.get("lot"):  # a named lot: the air at each shot, for its terms and its conditioning window
         env = yield ReadEnvironment()
         air = {"temperature_c": env.temperature_c, "humidity_pct": env.humidity_pct}

@@ -31,6 +31,12 @@ DEVICES = ("cannon", "gates", "clamp")
 BALL_AIM_PRESSURES_KPA = (20.0, 30.0, 40.0, 50.0, 60.0, 80.0, 100.0, 150.0, 200.0, 300.0, 400.0, 500.0, 600.0)
 
 
+def air_starting_at(start_s: float) -> dict[str, dict[str, Any]]:
+    """Effect overrides for `sim_config`: the scene's air starts `start_s` virtual s into its swing
+    (not at the point the seed and the bat draw): the hour a simulated ball test is run at."""
+    return {"environment": {"start_s": start_s, "random_start": False}}
+
+
 def sim_config(
     scene: str = "ideal",
     rig_name: str | None = None,
@@ -46,7 +52,7 @@ def sim_config(
     `target` (kind, diameter in m), the simulated clamp holds the rigid cylinder or plate a ball
     test names, as the lab clamps it (the scene's own [target] table wins), and the aim table
     reaches down to ball-test speeds. `effects` replaces fields of the scene's effects by kind (e.g.
-    {"environment": {"start_s": 900.0, "random_start": False}}: the hour a ball test is run at).
+    `air_starting_at(900.0)`: the hour a ball test is run at).
     """
     from simulators.scene import Scene
     from simulators.urlhandler import install_world, register

@@ -103,11 +103,9 @@ def _rig_config(args: argparse.Namespace, procedure: Any) -> Any:
     from rig.core.config import RigConfig
 
     if args.sim is not None:
-        from rig.session import sim_config
+        from rig.session import air_starting_at, sim_config
 
-        at = None
-        if args.sim_start is not None:
-            at = {"environment": {"start_s": args.sim_start, "random_start": False}}
+        at = None if args.sim_start is None else air_starting_at(args.sim_start)
         return sim_config(args.sim, target=(procedure.target.kind, procedure.target.diameter_m), effects=at)
     if args.sim_start is not None:
         raise ConfigError("--sim-start is for a simulated rig (--sim)", source="command line")

@@ -17,7 +17,7 @@ from protocols.ball_terms import BallTerms, HitBall, adjust, terms_from_lot
 from rig.balls import run_ball_test
 from rig.core.ball import BallLot, CcorPoint, Conditioning, LotResult
 from rig.physics import rigid_cor
-from rig.session import sim_config
+from rig.session import air_starting_at, sim_config
 from rig.store import Store
 from simulators.scene import Scene
 
@@ -208,7 +208,7 @@ def test_lot_tests_at_three_hours_measure_the_simulated_lab(tmp_path: object) ->
     with Store.open(f"{tmp_path}/lot.db") as store:
         store.register_lot(lot)
         for k in range(3):
-            at = {"environment": {"start_s": env.period_s * (k + 0.25) / 3, "random_start": False}}
+            at = air_starting_at(env.period_s * (k + 0.25) / 3)
             run_ball_test(store, procedure, lot, sim_config("lab", target=("plate", None), effects=at))
         lot_now, results = store.ball_lot("AIR")
     terms = terms_from_lot(lot_now, results)

@@ -255,7 +255,7 @@ def test_an_unknown_lot_names_the_known_ones(store: Store) -> None:
 
 def test_math_of_the_wear_slope() -> None:
     """Two balls at different levels, one common slope: the fit finds it exactly."""
-    from protocols.ball_eval import wear_slope
+    from protocols.ball_eval import within_ball_fit
     from rig.core.ball import CcorPoint
 
     pts = [
@@ -265,6 +265,7 @@ def test_math_of_the_wear_slope() -> None:
         for i, (b, base) in enumerate((("A", 0.52), ("B", 0.50)))
         for n in (1, 2, 3)
     ]
-    slope, u, _ = wear_slope(pts)
+    fit = within_ball_fit(pts)
+    slope, u = fit.slope, fit.slope_u
     assert slope == pytest.approx(-0.001) and u == pytest.approx(0.0, abs=1e-12)
     assert math.isfinite(slope)
