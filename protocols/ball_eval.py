@@ -67,7 +67,8 @@ def shot(
         v_at_target = inbound_at_impact(
             passes, record.gate_positions_m, record.gate_config, p.ball.mass_kg, drag
         )
-        out["aim_factor"] = learned_aim(state.aim_factor, target_speed, v_at_target)
+        out["aim_factor"] = learned_aim(state.aim_factor, target_speed, v_at_target, state.aim_shots)
+        out["aim_shots"] = state.aim_shots + 1
     limits = ValidityLimits(speed_tolerance_m_s=p.speed_tolerance_m_s)
     reasons = check_shot(
         speeds,

@@ -80,7 +80,8 @@ def shot(
     out["inbound_speed_m_s"], out["rebound_speed_m_s"] = v_in, v_out
     out["aim_factor"] = state.aim_factor
     if v_in_bat is not None:
-        out["aim_factor"] = learned_aim(state.aim_factor, p.target_speed_m_s, v_in_bat)
+        out["aim_factor"] = learned_aim(state.aim_factor, p.target_speed_m_s, v_in_bat, state.aim_shots)
+        out["aim_shots"] = state.aim_shots + 1
     if v_in is not None and v_out is not None and v_out > 0:
         inputs = ShotInputs.from_passes(
             passes,

@@ -273,6 +273,18 @@ class Scene(BaseModel):
         except ValidationError as exc:
             raise _config_error(f"simulated rig {self.name!r}, {kind}", exc) from None
 
+    def run_key(self) -> str:
+        """What tells one run in the simulated lab from another: the seed, what the clamp holds (the
+        bat's id, or the target) and when (the environment's start in its swing of air).
+
+        The effects' random streams are keyed by it: two runs of one scene repeat each other's
+        noise, while two bats, or one ball test at two hours, draw their own (as on a real rig).
+        """
+        held = self.bat.id if self.target.kind == "bat" else f"{self.target.kind}-{self.target.diameter_m}"
+        air = [e for e in self.active_effects() if e.kind == "environment"]
+        start = float(getattr(air[0], "start_s", 0.0)) if air else 0.0
+        return f"{self.seed}/{held}/{start:g}"
+
     def active_effects(self) -> list[Any]:
         """The effect configurations that are enabled, in scene order."""
         return [e for e in self.effects if e.enabled]

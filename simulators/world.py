@@ -50,13 +50,15 @@ class SimWorld:
     def __init__(self, scene: Scene) -> None:
         self.scene = scene
         self.clock = 0.0  # virtual seconds since the world started
-        self.rng = random.Random(scene.seed)
+        self.rng = random.Random(scene.run_key())
         self.lock = threading.RLock()
         self.changed = threading.Condition(self.lock)  # notified whenever output is queued
         self._schedule = Schedule()
-        # Each effect draws from its own stream, so adding one never shifts another's numbers.
+        # Each effect draws from its own stream, so adding one never shifts another's numbers; the
+        # streams are the run's own (Scene.run_key): another bat or another hour draws other noise.
+        run = scene.run_key()
         self.effects: tuple[Effect, ...] = tuple(
-            spec.build(scene, random.Random(f"{scene.seed}/{i}/{spec.kind}"))
+            spec.build(scene, random.Random(f"{run}/{i}/{spec.kind}"))
             for i, spec in enumerate(scene.effects)
             if spec.enabled
         )

@@ -77,6 +77,7 @@ class RunState:
     best_location_in: float | None = None
     location_in: float | None = None
     aim_factor: float = 1.0
+    aim_shots: int = 0  # shots that taught aim_factor since the run (or its last resume) started
     extra_locations: list[float] = field(default_factory=list)  # scan extensions, in order
     invalid_at_last_check: int = 0  # invalid shots already counted when the rig was last checked
     ended: dict[str, Any] | None = None  # ended on the operator's word, no verdict
@@ -125,7 +126,7 @@ class RunState:
         elif kind == ev.RUN_RESUMED:
             # a new session may have a repaired cannon or a corrected rig config: aim from the
             # calibration again rather than from what the last session learned
-            self.aim_factor = 1.0
+            self.aim_factor, self.aim_shots = 1.0, 0
         elif kind == ev.MOI_MEASURED:
             self.moi = d
         elif kind == ev.ENVIRONMENT_CHECKED:
@@ -150,6 +151,7 @@ class RunState:
             if shot.valid:
                 shot.measured = d
             self.aim_factor = d.get("aim_factor", self.aim_factor)
+            self.aim_shots = d.get("aim_shots", self.aim_shots)
         elif kind == ev.SHOT_OVERRULED:
             shot = self._shot(d["index"])
             shot.valid = False

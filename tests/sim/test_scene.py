@@ -112,3 +112,24 @@ def test_a_disabled_effect_does_not_count_for_its_slot() -> None:
 def test_unknown_scene_lists_the_builtins() -> None:
     with pytest.raises(ConfigError, match="built-in scenes: drag, faulty, ideal, lab"):
         Scene.load("no-such-scene")
+
+
+def _first_draws(scene: Scene) -> list[float]:
+    """Each enabled effect's first random draw in a fresh world of `scene`."""
+    from simulators.world import SimWorld
+
+    return [e.rng.random() for e in SimWorld(scene).effects]
+
+
+def test_each_run_draws_its_own_noise_and_a_repeated_run_repeats_it() -> None:
+    """Noise is a run's own (Scene.run_key): before, every bat of a population met the same speed
+    scatter, timing jitter and sensor noise, so their errors did not average out over the bats."""
+    lab = Scene.load("lab")
+    a, b = lab.with_bat(id="BAT-A"), lab.with_bat(id="BAT-B")
+    assert _first_draws(a) == _first_draws(a)  # the same run repeats
+    pairs = zip(_first_draws(a), _first_draws(b), strict=True)
+    assert all(x != y for x, y in pairs)  # another bat: every effect draws other numbers
+    later = a.with_effect("environment", start_s=1200.0)  # a ball test at another hour
+    assert all(x != y for x, y in zip(_first_draws(a), _first_draws(later), strict=True))
+    plate = lab.with_target("plate")
+    assert plate.run_key() != a.run_key() and plate.run_key().startswith(f"{lab.seed}/plate")
