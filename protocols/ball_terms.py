@@ -57,6 +57,8 @@ class BallTerms(BaseModel):
     temp_c: float = 21.0  # the lot's nominal (conditioning) temperature
     rh_pct: float = 50.0
     law: dict[str, float] | None = None  # the ball law's constants (BALL.json), else the paper's
+    law_sha256: str | None = None  # the ball file's sha256 (given by --ball, or the lot's recorded law)
+    law_from: str | None = None  # where the law came from: "--ball FILE" or "lot LOT's recorded law"
 
 
 @dataclass(frozen=True)

@@ -30,7 +30,7 @@ from rig.measure.metrics import DEFAULT_SWING, DEFINITIONS, compute_metrics
 from rig.measure.model import OUTPUTS, ShotInputs, outputs
 from rig.measure.tradeoff import tradeoff_table
 from rig.measure.uncertainty import budget, u_with_scatter
-from rig.physics import DEFAULT_PARAMS, PivotedBat, predict_bat
+from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat, predict_bat
 from rig.population.calfile import CalibrationFile, load_calibration
 from rig.population.crosscheck import crosscheck_at
 
@@ -85,6 +85,7 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> d
     zone = (
         "pass" if passed else ("fail: within the guard band" if mean <= p.limit else "fail: above the limit")
     )
+    law = ((state.setup or {}).get("ball") or {}).get("law")  # the run's ball law, if it named one
     v_in_mean = (
         sum(h.measured.get("inbound_at_impact_m_s", h.measured["inbound_speed_m_s"]) for h in hits) / n
     )
@@ -108,7 +109,7 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> d
         "budget": per_bat.as_dict(),
         **({"ball": {**ball.as_dict(), "u_measurement": u_measured}} if ball is not None else {}),
         "drag": drag_summary(config, state, inputs, name, per_bat.value(name)),
-        "cross_check": cross_check(p, bat, v_in_mean, q, moi, mean, u, state.calibration),
+        "cross_check": cross_check(p, bat, v_in_mean, q, moi, mean, u, state.calibration, law),
         "tradeoff": [
             r.as_dict() for r in tradeoff_table(per_hit, name, max_hits=12, cycle_s=config.cannon_cycle_s)
         ],
@@ -177,11 +178,25 @@ def run_calibration(p: Procedure, config: RigConfig) -> dict[str, Any] | None:
     }
 
 
+def same_law(x: dict[str, float] | None, y: dict[str, float] | None) -> bool:
+    """Whether two recorded ball laws' constants are one (None: the paper's ball)."""
+    if x is None or y is None:
+        return x is None and y is None
+    return set(x) == set(y) and all(abs(x[n] - y[n]) <= 1e-12 * max(abs(x[n]), 1.0) for n in x)
+
+
 def _uncalibrated(
-    p: Procedure, bat: BatSpec, v_in: float, q: float, moi: float, measured: float, note: str
+    p: Procedure,
+    bat: BatSpec,
+    v_in: float,
+    q: float,
+    moi: float,
+    measured: float,
+    note: str,
+    law: dict[str, float] | None = None,
 ) -> dict[str, Any]:
     hoop = None if bat.barrel is Barrel.WOOD else bat.hoop_hz
-    params = DEFAULT_PARAMS.model_copy(update={"m1": p.ball.mass_kg})
+    params = CollisionParams.build(**{**DEFAULT_PARAMS.model_dump(), "m1": p.ball.mass_kg, **(law or {})})
     pred = predict_bat(params, v_in, hoop, PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q))
     m = compute_metrics(v_in, pred.e_a * v_in, q, moi, p.ball.mass_kg, bat.length_m)
     predicted = m.as_dict()[p.standard.value]
@@ -222,11 +237,14 @@ def cross_check(
     measured: float,
     u: float | None = None,
     calibration: dict[str, Any] | None = None,
+    law: dict[str, float] | None = None,
 ) -> dict[str, Any]:
     """The model's prediction at the bat's hoop frequency next to the measured value (u: its k = 1 u).
 
     With `calibration` (as run_calibration records it) the calibrated prediction interval and the
-    flag; without, the uncalibrated prediction and no flag.
+    flag; without, the uncalibrated prediction and no flag. `law`: the run's recorded ball law
+    (`--ball`, or the lot's), which the prediction uses; a calibration made with another ball is
+    not used (its barrel was fitted for that ball), the prediction is then uncalibrated.
     """
     if bat.hoop_hz is None and bat.barrel is not Barrel.WOOD:
         return {
@@ -235,12 +253,17 @@ def cross_check(
             "note": "no hoop frequency in the bat file: no model cross-check",
         }
     if calibration is None:
-        return _uncalibrated(p, bat, v_in, q, moi, measured, UNCALIBRATED)
+        return _uncalibrated(p, bat, v_in, q, moi, measured, UNCALIBRATED, law)
     if bat.barrel is Barrel.WOOD or bat.hoop_hz is None:
         note = "the calibration is of the barrel's hoop mode; a wood barrel is rigid: " + UNCALIBRATED
-        return _uncalibrated(p, bat, v_in, q, moi, measured, note)
+        return _uncalibrated(p, bat, v_in, q, moi, measured, note, law)
     try:
         cal = CalibrationFile.model_validate(calibration["file"])
+        made_with = None if cal.ball is None else dict(cal.ball["constants"])
+        if not same_law(law, made_with):
+            which = "the paper's ball" if made_with is None else "another ball law"
+            note = f"the calibration was made with {which}, not this run's: {UNCALIBRATED}"
+            return _uncalibrated(p, bat, v_in, q, moi, measured, note, law)
         c = crosscheck_at(
             cal, bat.hoop_hz, moi, q, bat.length_in, measured, u, p.cross_check_coverage, bat_id=bat.id
         )
@@ -248,7 +271,7 @@ def cross_check(
         errors = getattr(exc, "errors", None)  # a pydantic ValidationError: its first message
         reason = errors()[0]["msg"] if callable(errors) else str(exc).splitlines()[0]
         return _uncalibrated(
-            p, bat, v_in, q, moi, measured, f"recorded calibration not usable ({reason}): {UNCALIBRATED}"
+            p, bat, v_in, q, moi, measured, f"recorded calibration not usable ({reason}): {UNCALIBRATED}", law
         )
     prov = cal.provenance
     where = f" (outside the calibration's {prov.hoop_min_hz:.0f}-{prov.hoop_max_hz:.0f} Hz: extrapolated)"

@@ -49,13 +49,22 @@ def qualify(lot: BallLot, results: list[LotResult], procedure: Procedure) -> lis
     return cor
 
 
-def lot_terms(store: Any, lot_id: str, procedure: Procedure, law: Any = None) -> BallTerms:
+def lot_terms(
+    store: Any, lot_id: str, procedure: Procedure, law: Any = None, law_sha256: str | None = None
+) -> BallTerms:
     """The ball terms of registered lot `lot_id` for a certification with `procedure`.
 
-    `law`: a rig.physics.ball_law.BallLaw (`--ball`), refused if it was fitted on another lot.
+    `law`: a rig.physics.ball_law.BallLaw (`--ball`, the file's sha256 `law_sha256`), refused if
+    it was fitted on another lot; without it, the lot's recorded ball law if it has one.
     """
     lot, results = store.ball_lot(lot_id)
     cor = qualify(lot, results, procedure)
+    law_from = "--ball"
+    if law is None:
+        recorded = lot_law(store, lot_id)
+        if recorded is not None:
+            law, law_sha256 = recorded
+            law_from = f"lot {lot_id}'s recorded law"
     if law is not None and law.lot not in (None, lot.id):
         raise ConfigError(
             f"the ball law was fitted on lot {law.lot}, not {lot.id}: fit one on this lot "
@@ -73,7 +82,36 @@ def lot_terms(store: Any, lot_id: str, procedure: Procedure, law: Any = None) ->
             f"{procedure.ball.replace_after_hits} hits)",
             source=f"--ball-lot {lot.id}",
         )
-    return terms.model_copy(update={"balls": lot.balls, "first_ball": first})
+    named = {} if law is None else {"law_sha256": law_sha256, "law_from": law_from}
+    return terms.model_copy(update={"balls": lot.balls, "first_ball": first, **named})
+
+
+def record_lot_law(store: Any, lot_id: str, path: str) -> tuple[Any, str]:
+    """Record the ball file at `path` as lot `lot_id`'s ball law (its exact text); (entry, sha256).
+
+    Refused (ConfigError) if the file is not a ball law, or was fitted on another lot or on none.
+    """
+    from pathlib import Path
+
+    from rig.physics.ball_law import BallLaw
+
+    law, sha = BallLaw.read(path)
+    if law.lot != lot_id:
+        fitted = f"lot {law.lot}" if law.lot else "no lot"
+        raise ConfigError(f"the ball law was fitted on {fitted}, not lot {lot_id}", source=str(path))
+    entry = store.record_ball_law(lot_id, Path(path).read_bytes().decode("utf-8"))
+    return entry, sha
+
+
+def lot_law(store: Any, lot_id: str) -> tuple[Any, str] | None:
+    """The lot's latest recorded ball law (rig.physics.ball_law.BallLaw, its sha256), None if none."""
+    from rig.physics.ball_law import BallLaw
+
+    recorded = store.ball_laws(lot_id)
+    if not recorded:
+        return None
+    last = recorded[-1]
+    return BallLaw.parse_text(last.text, f"lot {lot_id}'s recorded ball law (entry {last.seq})"), last.sha256
 
 
 def first_unused_ball(store: Any, lot: BallLot) -> int:
@@ -95,6 +133,11 @@ def balls_needed(procedure: Procedure) -> int:
     return -(-shots // procedure.ball.replace_after_hits)
 
 
-def law_terms(law: Any) -> BallTerms:
+def law_terms(law: Any, sha256: str | None = None) -> BallTerms:
     """The terms of a run that names a ball law but no lot: the law recorded, the rest assumed."""
-    return BallTerms(law=dict(law.constants), source="ball law given, no lot named: assumed defaults [U]")
+    return BallTerms(
+        law=dict(law.constants),
+        law_sha256=sha256,
+        law_from=None if sha256 is None else "--ball",
+        source="ball law given, no lot named: assumed defaults [U]",
+    )

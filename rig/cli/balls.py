@@ -1,4 +1,4 @@
-"""`rig balls register|test|list|show`: ball lots in the store and the ball tests that measure them."""
+"""`rig balls register|test|list|show|law`: ball lots in the store and the ball tests that measure them."""
 
 from __future__ import annotations
 
@@ -6,6 +6,7 @@ import argparse
 import json
 import shlex
 import sys
+from pathlib import Path
 from typing import Any
 
 from rig.cli.common import add_columns, add_rig_options, new_table, open_db, resolve_run, shown_db
@@ -170,8 +171,10 @@ def cmd_show(args: argparse.Namespace) -> int:
     """rig balls show: one lot, its specification and conditioning, and every result measured."""
     with open_db(args) as store:
         lot, results = store.ball_lot(args.lot)
+        laws = store.ball_laws(args.lot)
     if args.json:
-        json.dump(_lot_row(lot, results), sys.stdout, indent=2)
+        recorded = [{"sha256": w.sha256, "t_utc": w.t_utc, "entry": w.seq} for w in laws]
+        json.dump({**_lot_row(lot, results), "ball_laws": recorded}, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
     spec, cond = lot.specification, lot.conditioning
@@ -188,6 +191,31 @@ def cmd_show(args: argparse.Namespace) -> int:
         print("  no results yet: rig balls test --procedure ball-cor|ccor --lot " + lot.id)
     for r in results:
         print("  " + _result_line(lot.id, r.run_id, r.model_dump(mode="json")))
+    for law in laws:
+        print(f"  ball law recorded {law.t_utc} (sha256 {law.sha256[:12]}, entry {law.seq})")
+    if laws:
+        print(f"  the latest is the lot's: rig balls law {lot.id} --output BALL.json writes it")
+    return 0
+
+
+def cmd_law(args: argparse.Namespace) -> int:
+    """rig balls law: write the lot's recorded ball law (the file rig model fit-ball --db --lot wrote)."""
+    with open_db(args) as store:
+        store.ball_lot(args.lot)  # an unknown lot: one line naming the known ones
+        recorded = store.ball_laws(args.lot)
+    if not recorded:
+        raise ConfigError(
+            f"lot {args.lot} has no recorded ball law: rig model fit-ball --db STORE --lot {args.lot}"
+            " --output BALL.json records one",
+            source="rig balls law",
+        )
+    last = recorded[-1]
+    target = Path(args.output)
+    target.write_bytes(last.text.encode("utf-8"))  # as recorded, byte for byte: the recorded sha256
+    print(
+        f"wrote {target}: lot {args.lot}'s ball law of {last.t_utc} (sha256 {last.sha256[:12]})",
+        file=sys.stderr,
+    )
     return 0
 
 
@@ -224,6 +252,14 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--db", metavar="FILE", help=DB_HELP)
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(handler=cmd_list)
+
+    p = bsub.add_parser(
+        "law", help="write the lot's recorded ball law to a file", description=cmd_law.__doc__
+    )
+    p.add_argument("lot", metavar="LOT", help="the lot's id")
+    p.add_argument("--output", required=True, metavar="BALL.json", help="where to write the ball file")
+    p.add_argument("--db", metavar="FILE", help=DB_HELP)
+    p.set_defaults(handler=cmd_law)
 
     p = bsub.add_parser("show", help="one lot and every result", description=cmd_show.__doc__)
     p.add_argument("lot", metavar="LOT", help="the lot's id")

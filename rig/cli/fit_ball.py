@@ -94,6 +94,18 @@ def cmd_fit_ball(args: argparse.Namespace) -> int:
     else:
         _print(law)
     print(f"wrote {output}", file=sys.stderr)
+    if args.db:  # fitted on the lot's own tests: the lot's ball law from now on
+        from rig.ball_rules import record_lot_law
+        from rig.cli.common import shown_db
+        from rig.store import Store
+
+        with Store.open(args.db, create=False) as store:
+            entry, sha = record_lot_law(store, args.lot, str(output))
+        print(
+            f"recorded as lot {args.lot}'s ball law in {shown_db(args.db)} (entry {entry.seq}, sha256"
+            f" {sha[:12]}): rig certify --ball-lot {args.lot} uses it; rig balls law {args.lot} writes it",
+            file=sys.stderr,
+        )
     return 0
 
 
@@ -102,10 +114,6 @@ def load_ball(path: str) -> tuple[Any, str]:
     from rig.physics.ball_law import BallLaw
 
     return BallLaw.read(path)
-
-
-def _same_constants(x: dict[str, float], y: dict[str, float]) -> bool:
-    return set(x) == set(y) and all(abs(x[n] - y[n]) <= 1e-12 * max(abs(x[n]), 1.0) for n in x)
 
 
 def check_calibration_ball(cal: Any, ball: str, who: str) -> None:
@@ -123,7 +131,9 @@ def check_calibration_ball(cal: Any, ball: str, who: str) -> None:
             " recalibrate with --ball or drop --ball",
             source=who,
         )
-    if not _same_constants(dict(recorded["constants"]), dict(law.constants)):
+    from protocols.verdict import same_law
+
+    if not same_law(dict(recorded["constants"]), dict(law.constants)):
         raise ConfigError(
             f"--ball {ball} (lot {law.lot or '-'}, sha256 {sha[:12]}) differs from the calibration's ball"
             f" (lot {recorded.get('lot') or '-'}, sha256 {str(recorded.get('sha256'))[:12]});"
@@ -208,7 +218,8 @@ def add_parser(msub: Any) -> None:
             " COR measured against a rigid cylinder at several inbound speeds (the founding paper's Fig. 3);"
             " the model's CCOR is the COR of the ball on a rigid immovable surface. The variant is chosen"
             " by leave-one-out error. CSV columns: speed_m_s, ccor, optional u_ccor and ball_id; or, instead"
-            " of a file, --db STORE --lot LOT: the valid hits of the lot's finished ccor tests in the store."
+            " of a file, --db STORE --lot LOT: the valid hits of the lot's finished ccor tests in the store;"
+            " the law is then recorded in the store as the lot's (rig certify --ball-lot LOT uses it)."
             f" Needs at least {MIN_SPEEDS} distinct speeds, the highest at least {MIN_SPEED_RATIO:g} x the"
             " lowest."
         ),

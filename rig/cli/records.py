@@ -165,10 +165,10 @@ def _ball_terms(store: Any, args: argparse.Namespace, procedure: Any) -> dict[st
     from rig.ball_rules import law_terms, lot_terms
     from rig.cli.fit_ball import load_ball
 
-    law = load_ball(args.ball)[0] if args.ball else None
-    if args.ball_lot:
-        return lot_terms(store, args.ball_lot, procedure, law).model_dump(mode="json")
-    return None if law is None else law_terms(law).model_dump(mode="json")
+    law, sha = load_ball(args.ball) if args.ball else (None, None)
+    if args.ball_lot:  # without --ball, the lot's recorded law (rig model fit-ball --db --lot) if any
+        return lot_terms(store, args.ball_lot, procedure, law, sha).model_dump(mode="json")
+    return None if law is None else law_terms(law, sha).model_dump(mode="json")
 
 
 @contextlib.contextmanager

@@ -128,24 +128,36 @@ class BallLaw(BaseModel):
         """The ball law and the sha256 of the file's bytes (what a calibration records)."""
         path = Path(path)
         raw = read_bounded(path, MAX_BYTES, "a ball file")
+        return cls.parse_bytes(raw, str(path)), hashlib.sha256(raw).hexdigest()
+
+    @classmethod
+    def parse_text(cls, text: str, source: str = "recorded ball law") -> BallLaw:
+        """A ball law from a ball file's text (as a store records it); ConfigError as `read`."""
+        raw = text.encode("utf-8")
+        if len(raw) > MAX_BYTES:
+            raise ConfigError(f"not a ball file: larger than {MAX_BYTES} bytes", source=source)
+        return cls.parse_bytes(raw, source)
+
+    @classmethod
+    def parse_bytes(cls, raw: bytes, source: str) -> BallLaw:
+        """Validate a ball file's bytes; ConfigError names `source` and the first problem."""
         try:
             data = json.loads(raw.decode("utf-8"))
         except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
             reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise ConfigError(f"not a ball file: {reason}", source=str(path)) from None
+            raise ConfigError(f"not a ball file: {reason}", source=source) from None
         if not isinstance(data, dict) or data.get("kind") != KIND:
-            raise ConfigError(f"not a ball file: its kind is not {KIND!r}", source=str(path))
+            raise ConfigError(f"not a ball file: its kind is not {KIND!r}", source=source)
         try:
-            law = cls.model_validate(data)
+            return cls.model_validate(data)
         except ValidationError as exc:
             first = exc.errors()[0]
             field = ".".join(str(p) for p in first["loc"]) or "file"
-            raise ConfigError(first["msg"], source=str(path), field=field) from None
+            raise ConfigError(first["msg"], source=source, field=field) from None
         except ConfigError as exc:
-            raise ConfigError(exc.reason, source=str(path), field=exc.field) from None
+            raise ConfigError(exc.reason, source=source, field=exc.field) from None
         except ValueError as exc:  # a ParameterError from the constants' ranges
-            raise ConfigError(str(exc), source=str(path), field="constants") from None
-        return law, hashlib.sha256(raw).hexdigest()
+            raise ConfigError(str(exc), source=source, field="constants") from None
 
 
 def ball_record(law: BallLaw, sha256: str, path: str | Path | None = None) -> dict[str, Any]:

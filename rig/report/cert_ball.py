@@ -36,7 +36,10 @@ def _law_text(terms: dict[str, Any]) -> str:
     if not law:
         return PAPER_LAW
     names = [k for k in _LAW_ORDER if k in law] + sorted(k for k in law if k not in _LAW_ORDER)
-    return "fitted ball law: " + ", ".join(f"{k} = {_sig(law[k], 5)}" for k in names)
+    text = "fitted ball law: " + ", ".join(f"{k} = {_sig(law[k], 5)}" for k in names)
+    if terms.get("law_sha256"):  # recorded since the lot's law could be named by the lot
+        text += f" ({terms.get('law_from') or 'ball file'}, sha256 {str(terms['law_sha256'])[:12]})"
+    return text
 
 
 def _lot_text(terms: dict[str, Any]) -> str:

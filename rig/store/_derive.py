@@ -8,6 +8,7 @@ from typing import Any
 from rig.core.errors import StoreError
 from rig.store._codec import canonical_json, decode_payload
 from rig.store._records import (
+    BALL_LAW_RECORDED,
     BALL_LOT_REGISTERED,
     BAT_REGISTERED,
     CLOSED_STATUSES,
@@ -45,6 +46,10 @@ class Deriver:
             if lot_id in self.lots:
                 self.problems.append(f"seq {seq}: ball lot {lot_id} registered twice")
             self.lots.add(lot_id)
+        elif kind == BALL_LAW_RECORDED:
+            lot_id = _decoded(payload)["lot_id"]
+            if lot_id not in self.lots:
+                self.problems.append(f"seq {seq}: a ball law for lot {lot_id}, which was never registered")
         elif kind == RUN_CREATED:
             self._created(seq, run_id, _decoded(payload), t_utc)
         if run_id is None:
@@ -91,9 +96,9 @@ def derive(conn: sqlite3.Connection) -> Deriver:
     """Replay the whole log (reserved kinds decoded only) into a Deriver."""
     deriver = Deriver()
     rows = conn.execute(
-        "SELECT seq, run_id, kind, CASE WHEN kind IN (?, ?, ?, ?) THEN payload END, t_utc "
+        "SELECT seq, run_id, kind, CASE WHEN kind IN (?, ?, ?, ?, ?) THEN payload END, t_utc "
         "FROM log ORDER BY seq",
-        (BAT_REGISTERED, RUN_CREATED, RUN_STATUS_CHANGED, BALL_LOT_REGISTERED),
+        (BAT_REGISTERED, RUN_CREATED, RUN_STATUS_CHANGED, BALL_LOT_REGISTERED, BALL_LAW_RECORDED),
     )
     for seq, run_id, kind, payload, t_utc in rows:
         deriver.feed(seq, run_id, kind, payload, t_utc)

@@ -9,13 +9,15 @@ recomputed from its run's shots at any time.
 
 from __future__ import annotations
 
+import hashlib
+from dataclasses import dataclass
 from typing import Any
 
 from rig.core import events as ev
 from rig.core.ball import BALL_TESTS, BallLot, LotResult
 from rig.core.errors import RecordRefused, UnknownRecord
 from rig.store._codec import decode_payload
-from rig.store._records import BALL_LOT_REGISTERED
+from rig.store._records import BALL_LAW_RECORDED, BALL_LOT_REGISTERED
 from rig.store._rows import known_ids
 
 CcorPoint = tuple[float, float, float, str]  # (speed_m_s, ccor, u_ccor, ball_id)
@@ -29,6 +31,34 @@ def registered(conn: Any) -> dict[str, BallLot]:
         data = decode_payload(payload)
         lots.setdefault(data["lot_id"], BallLot.model_validate(data["lot"]))
     return lots
+
+
+@dataclass(frozen=True)
+class RecordedLaw:
+    """A lot's ball law as recorded: the ball file's exact text, its sha256, when, and the entry."""
+
+    lot_id: str
+    text: str
+    sha256: str
+    t_utc: str
+    seq: int
+
+
+def laws(conn: Any, lot_id: str) -> list[RecordedLaw]:
+    """The ball laws recorded for `lot_id`, oldest first (the last is the lot's ball law)."""
+    sql = "SELECT seq, payload, t_utc FROM log WHERE kind = ? ORDER BY seq"
+    rows = conn.execute(sql, (BALL_LAW_RECORDED,))
+    out = []
+    for seq, payload, t_utc in rows:
+        data = decode_payload(payload)
+        if data.get("lot_id") == lot_id:
+            out.append(RecordedLaw(lot_id, str(data["text"]), str(data["sha256"]), str(t_utc), int(seq)))
+    return out
+
+
+def law_sha256(text: str) -> str:
+    """The sha256 of a ball file's text, as recorded (the file's bytes in UTF-8)."""
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
 def checked_lot(lot: BallLot | dict[str, Any]) -> dict[str, Any]:
@@ -67,9 +97,13 @@ def points(found: list[LotResult]) -> list[CcorPoint]:
 
 
 __all__ = [
+    "BALL_LAW_RECORDED",
     "BALL_LOT_REGISTERED",
     "RecordRefused",
+    "RecordedLaw",
     "checked_lot",
+    "law_sha256",
+    "laws",
     "points",
     "registered",
     "results",

@@ -24,6 +24,7 @@ RUN_OPENED = "RunOpened"
 RUN_SEALED = "RunSealed"
 RUN_SYNCED = "RunSynced"  # rig sync copied entries of a run from another store
 BALL_LOT_REGISTERED = "BallLotRegistered"  # lab-level: a ball lot (rig balls register)
+BALL_LAW_RECORDED = "BallLawRecorded"  # lab-level: a lot's fitted ball law (rig model fit-ball --db --lot)
 RESERVED_KINDS = frozenset(
     {
         BAT_REGISTERED,
@@ -34,6 +35,7 @@ RESERVED_KINDS = frozenset(
         RUN_SEALED,
         RUN_SYNCED,
         BALL_LOT_REGISTERED,
+        BALL_LAW_RECORDED,
     }
 )
 LAB_CHAIN = "lab"  # format 2: the chain of entries that belong to no run (bats, run anchors)

@@ -29,6 +29,7 @@ from rig.store import _derive, _lock, _lots, _signed, _sync, _verify, _views
 from rig.store._codec import GENESIS_HASH, check_kind, check_payload, decode_payload, entry_hash
 from rig.store._pg import connect_pg, db_error_text, is_db_error, is_url, safe_url
 from rig.store._records import (
+    BALL_LAW_RECORDED,
     BALL_LOT_REGISTERED,
     BAT_REGISTERED,
     CLOSED_STATUSES,
@@ -186,6 +187,25 @@ class Store:
         if lot_id not in lots:
             raise _lots.unknown(lot_id, lots)
         return lots[lot_id], _lots.results(self, lot_id)
+
+    def record_ball_law(self, lot_id: str, text: str) -> LogEntry:
+        """Record `text` (a ball file, as `rig model fit-ball` wrote it) as lot `lot_id`'s ball law
+        (lab-level 'BallLawRecorded'); the latest recorded is the lot's. An unknown lot raises
+        UnknownRecord. The caller checks that the text is a ball law of this lot (rig.ball_rules)."""
+        sha = _lots.law_sha256(text)
+        with self._write() as conn:
+            if self.engine != "sqlite":
+                conn.lock_chain(LAB_CHAIN)
+            lots = _lots.registered(conn)
+            if lot_id not in lots:
+                raise _lots.unknown(lot_id, lots)
+            payload = {"lot_id": lot_id, "sha256": sha, "text": text}
+            return self._append(conn, None, BALL_LAW_RECORDED, payload)
+
+    def ball_laws(self, lot_id: str) -> list[_lots.RecordedLaw]:
+        """The ball laws recorded for `lot_id`, oldest first ([] if none; the last is the lot's)."""
+        with self._read() as conn:
+            return _lots.laws(conn, lot_id)
 
     def ccor_points(self, lot_id: str) -> list[tuple[float, float, float, str]]:
         """The lot's CCOR points for fitting the ball law: (speed_m_s, ccor, u_ccor, ball_id).

@@ -118,6 +118,17 @@ def test_a_lots_ccor_tests_on_the_lab_rig_fit_the_ball_law(tmp_path: Path) -> No
     code, out, _ = cli(["verify", "--db", str(db)])
     assert code == 0 and out.startswith("ok:")
 
+    # each fit from the store is recorded as the lot's ball law (the latest is the lot's), byte for byte
+    with Store.open(db, create=False) as store:
+        laws = store.ball_laws("ACME-1")
+    assert [w.sha256 for w in laws] == [BallLaw.read(p)[1] for p in (ball, again)]
+    assert laws[-1].text.encode("utf-8") == again.read_bytes()
+    named = tmp_path / "named.json"
+    code, _, err = cli(["balls", "law", "ACME-1", "--db", str(db), "--output", str(named)])
+    assert code == 0 and named.read_bytes() == again.read_bytes(), err
+    code, out, _ = cli(["balls", "show", "ACME-1", "--db", str(db)])
+    assert out.count("ball law recorded") == 2 and laws[-1].sha256[:12] in out
+
 
 @pytest.fixture
 def db(tmp_path: Path) -> Path:
@@ -177,3 +188,12 @@ def test_the_output_may_not_overwrite_the_store(db: Path) -> None:
     code, _, err = fit(db, "ACME-1", db)
     assert code == 2 and "--output would overwrite the record store" in one_line(err)
     assert db.read_bytes() == before
+
+
+def test_a_lot_without_a_recorded_law_says_how_to_record_one(db: Path, tmp_path: Path) -> None:
+    code, _, err = cli(["balls", "law", "ACME-2", "--db", str(db), "--output", str(tmp_path / "b.json")])
+    line = one_line(err)
+    assert code == 2 and "lot ACME-2 has no recorded ball law" in line and "fit-ball --db" in line
+    assert not (tmp_path / "b.json").exists()
+    code, _, err = cli(["balls", "law", "NOPE", "--db", str(db), "--output", str(tmp_path / "b.json")])
+    assert code == 2 and "no ball lot 'NOPE'" in one_line(err)

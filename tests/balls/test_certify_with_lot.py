@@ -262,3 +262,61 @@ def test_the_hits_scatter_in_the_budget_is_that_of_the_corrected_hits(tmp_path: 
     measured = [float(s.metric or 0.0) for s in hits]
     assert type_a > 3 * statistics.stdev(measured) / math.sqrt(len(measured))  # the corrections spread them
     assert v["ball"]["u_measurement"] >= type_a * (1 - 1e-9)
+
+
+def test_the_lots_recorded_law_is_used_and_named_without_ball(lab: Path, tmp_path: Path) -> None:
+    """A ball file named by the lot: the law recorded for the lot is the run's (its sha256 recorded),
+    unless --ball names another; a law of another lot cannot be recorded for this one."""
+    from rig.ball_rules import record_lot_law
+    from rig.core.errors import ConfigError, UnknownRecord
+    from rig.physics.ball_law import BallLaw
+    from tests.ball.synthetic import ccor_points
+
+    csv = tmp_path / "ccor.csv"
+    rows = ccor_points(seed=3, with_u=True)
+    csv.write_text(
+        "speed_m_s,ccor,u_ccor,ball_id\n"
+        + "".join(f"{p.speed_m_s},{p.ccor},{p.u_ccor},{p.ball_id}\n" for p in rows),
+        encoding="utf-8",
+    )
+    mine, other = tmp_path / "mine.json", tmp_path / "other.json"
+    for lot, path in (("L", mine), ("OTHER", other)):
+        done = run_cli(["model", "fit-ball", "--data", str(csv), "--lot", lot, "--output", str(path)])
+        assert done.code == 0, done.err
+    with Store.open(lab / "s.db") as store:
+        with pytest.raises(ConfigError, match="fitted on lot OTHER, not lot L"):
+            record_lot_law(store, "L", str(other))
+        with pytest.raises(UnknownRecord, match="no ball lot 'NOPE'"):
+            store.record_ball_law("NOPE", mine.read_text(encoding="utf-8"))
+        _, sha = record_lot_law(store, "L", str(mine))
+    assert sha == BallLaw.read(mine)[1]
+    code, err = certify_cli(lab, "--ball-lot", "L")
+    assert code in (0, 1), err
+    with Store.open(lab / "s.db") as store:
+        state = fold(history(store, store.runs()[-1].run_id))
+    recorded = state.setup["ball"]
+    assert recorded["law"] == pytest.approx(dict(BallLaw.load(mine).constants))
+    assert recorded["law_sha256"] == sha and recorded["law_from"] == "lot L's recorded law"
+    # the model's prediction beside the verdict is made with the run's ball law, not the paper's
+    from rig.measure.metrics import compute_metrics
+    from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat, predict_bat
+
+    verdict = state.verdict or {}
+    cc, q, moi = verdict["cross_check"], verdict["impact_from_pivot_m"], verdict["moi_kgm2"]
+    v_in = statistics.mean(
+        h.measured["inbound_at_impact_m_s"] for h in state.valid_shots("valid", state.best_location_in)
+    )
+    bat = BatSpec.load(lab / "bat.toml")
+
+    def predicted(params: CollisionParams) -> float:
+        e_a = predict_bat(params, v_in, bat.hoop_hz, PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q)).e_a
+        return float(compute_metrics(v_in, e_a * v_in, q, moi, params.m1, bat.length_m).bbcor)
+
+    mass = {"m1": state.setup["ball"].get("law", {}).get("m1", DEFAULT_PARAMS.m1)}
+    with_law = DEFAULT_PARAMS.model_copy(update={**mass, **recorded["law"]})
+    assert cc["predicted"] == pytest.approx(predicted(with_law), abs=1e-9)
+    assert abs(predicted(with_law) - predicted(DEFAULT_PARAMS.model_copy(update=mass))) > 1e-4
+    assert run_cli(["verify", "--db", str(lab / "s.db")]).code == 0
+    cert = tmp_path / "cert.md"
+    assert run_cli(["report", "last", "--db", str(lab / "s.db"), "--output", str(cert)]).code == 0
+    assert f"lot L's recorded law, sha256 {sha[:12]}" in cert.read_text(encoding="utf-8")

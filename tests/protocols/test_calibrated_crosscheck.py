@@ -24,6 +24,7 @@ from rig.cli import main
 from rig.core.bat import BatSpec
 from rig.core.config import Model, RigConfig
 from rig.core.errors import ConfigError
+from rig.physics import DEFAULT_PARAMS as PAPER
 from rig.physics import PivotedBat, predict_bat
 from rig.population import write_population_csv
 from rig.population.calfile import load_calibration
@@ -323,3 +324,26 @@ def test_the_console_preview_uses_the_calibration_the_verdict_will(lab: Path) ->
     )
     value, note = predict(plain, 0.19, 6.5)
     assert note.startswith("uncalibrated") and value is not None
+
+
+def test_a_run_with_another_ball_law_than_the_calibrations_is_not_judged_by_it(lab: Path) -> None:
+    """The calibration's barrel was fitted with the paper's ball: a run that names another ball law
+    gets the uncalibrated prediction made with its own law, and no flag."""
+    from protocols.verdict import cross_check
+
+    procedure = Procedure.model_validate(
+        {**Procedure.load("bbcor").model_dump(), "calibration": str(lab / "cal.json")}
+    )
+    cal = run_calibration(procedure, sim_config("ideal"))
+    assert cal is not None
+    q, moi, v_in = 0.5, 0.19, 60.8
+    same = cross_check(procedure, BAT, v_in, q, moi, 0.48, 0.002, cal)
+    assert same["calibrated"] is True
+    law = {"a": 0.31, "b": 0.27}  # not the paper's exponents
+    other = cross_check(procedure, BAT, v_in, q, moi, 0.48, 0.002, cal, law)
+    assert other["calibrated"] is False and other["flagged"] is None
+    assert "the calibration was made with the paper's ball, not this run's" in other["note"]
+    params = PAPER.model_copy(update={"m1": procedure.ball.mass_kg, **law})
+    e_a = predict_bat(params, v_in, BAT.hoop_hz, PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q)).e_a
+    k = params.m1 * q * q / moi
+    assert other["predicted"] == pytest.approx(e_a * (1 + k) + k, abs=1e-12)  # BBCOR written out
