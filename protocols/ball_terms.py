@@ -59,6 +59,7 @@ class BallTerms(BaseModel):
     law: dict[str, float] | None = None  # the ball law's constants (BALL.json), else the paper's
     law_sha256: str | None = None  # the ball file's sha256 (given by --ball, or the lot's recorded law)
     law_from: str | None = None  # where the law came from: "--ball FILE" or "lot LOT's recorded law"
+    results: tuple[str, ...] = ()  # the run ids of the lot's ball-cor results the terms rest on
 
 
 @dataclass(frozen=True)
@@ -186,6 +187,7 @@ def terms_from_lot(lot: Any, results: list[Any], law: dict[str, float] | None = 
     if not cor or wear is None:
         return BallTerms(**base, source=f"lot {lot.id}: no ball-cor result; assumed defaults [U]")
     runs = ", ".join(r.run_id[:8] for r in cor)
+    base["results"] = tuple(r.run_id for r in cor)  # so that `rig verify` can derive the terms again
     # a spread from fewer than MIN_SPREAD_BALLS balls is not called measured: the default stays
     spreads = [
         r.sd_between_balls for r in cor if r.sd_between_balls is not None and r.n_balls >= MIN_SPREAD_BALLS

@@ -139,6 +139,66 @@ def recomputed_problems(store: Store) -> list[str]:
     return problems
 
 
+# the terms a certification derives from its lot's results (the rest is the run's own: balls, law)
+DERIVED_TERMS = (
+    "wear_measured",
+    "conditions_measured",
+    "plate_cor",
+    "wear_per_hit",
+    "wear_per_hit_u",
+    "sd_between_balls",
+    "cor_per_c",
+    "cor_per_c_u",
+    "cor_per_pct_rh",
+    "cor_per_pct_rh_u",
+    "air_cov",
+    "temp_c",
+    "rh_pct",
+)
+
+
+def ball_terms_problems(store: Store) -> list[str]:
+    """Every certification whose recorded ball terms are not what its lot's named results give.
+
+    A run records the run ids of the ball-cor results its terms rest on (BallTerms.results); the
+    terms are derived again from exactly those results (each checked against its own shots by
+    recomputed_problems) and the lot as registered. Runs recorded before the ids were are skipped.
+    """
+    from protocols.ball_terms import BallTerms, terms_from_lot
+
+    problems: list[str] = []
+    lots = store.ball_lots()
+    for run in store.runs():
+        if run.procedure in BALL_TESTS:
+            continue
+        started = store.entries(run.run_id, kinds=[ev.RUN_STARTED])
+        recorded = (started[0].payload.get("ball") if started else None) or {}
+        if not recorded.get("lot") or not recorded.get("results"):
+            continue
+        lot_id, ids = recorded["lot"], list(recorded["results"])
+        if lot_id not in lots:
+            problems.append(f"run {run.run_id}: its ball terms name lot {lot_id}, which is not registered")
+            continue
+        by_id = {r.run_id: r for r in store.ball_lot(lot_id)[1]}
+        missing = [i for i in ids if i not in by_id]
+        if missing:
+            problems.append(
+                f"run {run.run_id}: its ball terms rest on ball-cor run {missing[0]}, which the store does"
+                f" not hold as a finished test of lot {lot_id}"
+            )
+            continue
+        again = terms_from_lot(lots[lot_id], [by_id[i] for i in ids], recorded.get("law"))
+        want = BallTerms.model_validate(recorded).model_dump(mode="json", include=set(DERIVED_TERMS))
+        got = again.model_dump(mode="json", include=set(DERIVED_TERMS))
+        bad = [k for k in DERIVED_TERMS if not _same(got[k], want[k])]
+        if bad:
+            problems.append(
+                f"run {run.run_id}: its recorded ball terms are not what lot {lot_id}'s results give"
+                f" ({bad[0]}: recorded {want[bad[0]]!r}, derived {got[bad[0]]!r})"
+            )
+    return problems
+
+
 def _same(a: Any, b: Any, rel: float = 1e-9) -> bool:
     """Equal JSON values, floats to a relative tolerance (a recomputation may round differently)."""
     if isinstance(a, dict) and isinstance(b, dict):

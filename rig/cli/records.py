@@ -304,9 +304,9 @@ def cmd_verify(args: argparse.Namespace) -> int:
             report = store.verify(anchors)
         distrusted = untrusted(keys_in(store), pins) if pins else []
         if report.ok or report.first_broken_seq is None:  # the chain holds: do the results follow from it?
-            from rig.balls import recomputed_problems
+            from rig.balls import ball_terms_problems, recomputed_problems
 
-            distrusted += recomputed_problems(store)
+            distrusted += recomputed_problems(store) + ball_terms_problems(store)
     if distrusted:
         report = dataclasses.replace(report, ok=False, problems=report.problems + tuple(distrusted))
     signatures = (

@@ -320,3 +320,39 @@ def test_the_lots_recorded_law_is_used_and_named_without_ball(lab: Path, tmp_pat
     cert = tmp_path / "cert.md"
     assert run_cli(["report", "last", "--db", str(lab / "s.db"), "--output", str(cert)]).code == 0
     assert f"lot L's recorded law, sha256 {sha[:12]}" in cert.read_text(encoding="utf-8")
+
+
+def test_verify_derives_a_certifications_ball_terms_again(lab: Path, tmp_path: Path) -> None:
+    """The terms name the ball-cor runs they rest on; verify derives them again from exactly those."""
+    import shutil
+    import sqlite3
+
+    from rig.balls import ball_terms_problems
+
+    code, err = certify_cli(lab, "--ball-lot", "L")
+    assert code in (0, 1), err
+    copy = tmp_path / "copy.db"
+    with Store.open(lab / "s.db") as store:
+        run = store.runs()[-1].run_id
+        recorded = fold(history(store, run)).setup["ball"]
+        _, results = store.ball_lot("L")
+        assert recorded["results"] == [r.run_id for r in results if r.procedure == "ball-cor"]
+        assert ball_terms_problems(store) == []
+    shutil.copy(lab / "s.db", copy)
+    for suffix in ("-wal", "-shm"):
+        if (lab / f"s.db{suffix}").exists():
+            shutil.copy(lab / f"s.db{suffix}", tmp_path / f"copy.db{suffix}")
+    wear = repr(recorded["wear_per_hit"])
+    with sqlite3.connect(copy) as conn:  # someone makes the lot's wear smaller in the run's record
+        conn.execute("DROP TRIGGER log_no_update")
+        seq, payload = conn.execute(
+            "SELECT seq, payload FROM log WHERE run_id = ? AND kind = 'RunStarted'", (run,)
+        ).fetchone()
+        assert wear in payload
+        conn.execute("UPDATE log SET payload = ? WHERE seq = ?", (payload.replace(wear, "-1e-05", 1), seq))
+    with Store.open(copy) as again:
+        problems = ball_terms_problems(again)
+    assert any(
+        f"run {run}: its recorded ball terms are not what lot L's results give (wear_per_hit" in p
+        for p in problems
+    ), problems
