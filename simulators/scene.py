@@ -196,6 +196,9 @@ class Scene(BaseModel):
     lot: SimBallLot = SimBallLot()
     cannon: CannonModel = CannonModel()
     effects: tuple[EffectSpec, ...] = ()
+    # which run of the lab this is, as the host names it (e.g. the store's count of runs): two
+    # runs of one scene with another session draw other noise; "" for a scene used on its own
+    session: str = ""
 
     @model_validator(mode="after")
     def _check(self) -> Scene:
@@ -275,15 +278,17 @@ class Scene(BaseModel):
 
     def run_key(self) -> str:
         """What tells one run in the simulated lab from another: the seed, what the clamp holds (the
-        bat's id, or the target) and when (the environment's start in its swing of air).
+        bat's id, or the target), when (the environment's start in its swing of air) and the
+        session the host names (`session`: the CLI gives each run its own).
 
-        The effects' random streams are keyed by it: two runs of one scene repeat each other's
-        noise, while two bats, or one ball test at two hours, draw their own (as on a real rig).
+        The effects' random streams are keyed by it: a run of one scene in one session repeats
+        exactly, while two bats, a ball test at two hours, or a test run again draw their own
+        noise (as on a real rig).
         """
         held = self.bat.id if self.target.kind == "bat" else f"{self.target.kind}-{self.target.diameter_m}"
         air = [e for e in self.active_effects() if e.kind == "environment"]
         start = float(getattr(air[0], "start_s", 0.0)) if air else 0.0
-        return f"{self.seed}/{held}/{start:g}"
+        return f"{self.seed}/{held}/{start!r}/{self.session}"
 
     def active_effects(self) -> list[Any]:
         """The effect configurations that are enabled, in scene order."""

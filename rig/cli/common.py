@@ -126,17 +126,18 @@ def check_flags(args: argparse.Namespace, bounds: Bounds) -> None:
                 raise ParameterError(name, v, f"must lie within {low:g}-{high:g} {unit}".rstrip())
 
 
-def rig_config(args: argparse.Namespace, bat: Any = None) -> Any:
+def rig_config(args: argparse.Namespace, bat: Any = None, session: str | None = None) -> Any:
     """The rig config from --sim, --config or (where the command has them) the three port URLs.
 
-    With `bat`, a simulated bat takes the bat file's properties as its true ones.
+    With `bat`, a simulated bat takes the bat file's properties as its true ones; `session` names
+    this run of a simulated lab (its own noise, rig.session.sim_config).
     """
     from rig.core.config import RigConfig
 
     if args.sim is not None:
         from rig.session import sim_config
 
-        return sim_config(args.sim, bat=bat)
+        return sim_config(args.sim, bat=bat, session=session)
     if args.config:
         return RigConfig.load(args.config)
     if not hasattr(args, "cannon"):
@@ -146,6 +147,12 @@ def rig_config(args: argparse.Namespace, bat: Any = None) -> Any:
     if missing:
         raise ConfigError(f"give --sim [SCENE], --config RIG.toml, or all of {', '.join(missing)}")
     return RigConfig.from_dict({"ports": ports}, source="command line")
+
+
+def sim_session(store: Any) -> str:
+    """A simulated run's session: the store's count of runs so far, so that a test or certification
+    run again (or resumed) in a store draws its own simulated noise, and a store replays alike."""
+    return f"store-run-{len(store.runs())}"
 
 
 def default_db() -> Path | str:

@@ -22,6 +22,7 @@ from rig.cli.common import (
     resolve_run,
     rig_config,
     shown_db,
+    sim_session,
 )
 from rig.cli.common import console as out
 from rig.core import events as ev
@@ -108,7 +109,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
             bat = with_measured_hoop(store, bat)
             run_id = None
             ball = _ball_terms(store, args, procedure)
-        config = rig_config(args, bat=bat)
+        config = rig_config(args, bat=bat, session=sim_session(store))
         if args.calibration:
             if args.resume:
                 raise ConfigError(
@@ -166,9 +167,10 @@ def _ball_terms(store: Any, args: argparse.Namespace, procedure: Any) -> dict[st
     from rig.cli.fit_ball import load_ball
 
     law, sha = load_ball(args.ball) if args.ball else (None, None)
+    name = Path(args.ball).name if args.ball else None  # the file's name, not this machine's path
     if args.ball_lot:  # without --ball, the lot's recorded law (rig model fit-ball --db --lot) if any
-        return lot_terms(store, args.ball_lot, procedure, law, sha).model_dump(mode="json")
-    return None if law is None else law_terms(law, sha).model_dump(mode="json")
+        return lot_terms(store, args.ball_lot, procedure, law, sha, name).model_dump(mode="json")
+    return None if law is None else law_terms(law, sha, name).model_dump(mode="json")
 
 
 @contextlib.contextmanager
