@@ -200,17 +200,11 @@ def test_a_lot_without_a_recorded_law_says_how_to_record_one(db: Path, tmp_path:
 
 
 def test_balls_law_never_overwrites_the_store_and_writes_an_earlier_law_by_entry(tmp_path: Path) -> None:
-    from tests.ball.synthetic import ccor_points
+    from tests.ball.synthetic import write_ccor_csv
 
     db = tmp_path / "lab.db"
     register(db, "ACME-1")
-    csv = tmp_path / "ccor.csv"
-    rows = ccor_points(seed=4, with_u=True)
-    csv.write_text(
-        "speed_m_s,ccor,u_ccor,ball_id\n"
-        + "".join(f"{p.speed_m_s},{p.ccor},{p.u_ccor},{p.ball_id}\n" for p in rows),
-        encoding="utf-8",
-    )
+    csv = write_ccor_csv(tmp_path / "ccor.csv", seed=4)
     from rig.ball_rules import record_lot_law
 
     files = []

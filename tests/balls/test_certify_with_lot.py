@@ -271,15 +271,9 @@ def test_the_lots_recorded_law_is_used_and_named_without_ball(lab: Path, tmp_pat
     from rig.ball_rules import record_lot_law
     from rig.core.errors import ConfigError, UnknownRecord
     from rig.physics.ball_law import BallLaw
-    from tests.ball.synthetic import ccor_points
+    from tests.ball.synthetic import write_ccor_csv
 
-    csv = tmp_path / "ccor.csv"
-    rows = ccor_points(seed=3, with_u=True)
-    csv.write_text(
-        "speed_m_s,ccor,u_ccor,ball_id\n"
-        + "".join(f"{p.speed_m_s},{p.ccor},{p.u_ccor},{p.ball_id}\n" for p in rows),
-        encoding="utf-8",
-    )
+    csv = write_ccor_csv(tmp_path / "ccor.csv", seed=3)
     mine, other = tmp_path / "mine.json", tmp_path / "other.json"
     for lot, path in (("L", mine), ("OTHER", other)):
         done = run_cli(["model", "fit-ball", "--data", str(csv), "--lot", lot, "--output", str(path)])
