@@ -61,12 +61,10 @@ def cmd_test(args: argparse.Namespace) -> int:
         config = _rig_config(args, procedure)
         past = ev.parse_log(store.entries(run_id)) if run_id is not None else None
         rehearsal = rehearse_test(procedure, lot, config, past)
-        if rehearsal.problems or args.dry_run:
-            fits = f"dry run: the test fits this rig and this lot ({rehearsal.summary()})"
-            for line in rehearsal.problems or [fits]:
-                print(line, file=sys.stderr)
-            if rehearsal.problems:
-                raise ConfigError("; ".join(rehearsal.problems), source="dry run")
+        if rehearsal.problems:  # one line, every problem in it
+            raise ConfigError("; ".join(rehearsal.problems), source="dry run")
+        if args.dry_run:
+            print(f"dry run: the test fits this rig and this lot ({rehearsal.summary()})", file=sys.stderr)
             return 0
         live = LiveConsole(quiet=args.json)
         outcome = run_ball_test(

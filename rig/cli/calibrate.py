@@ -19,7 +19,7 @@ def gather(data: str | None, db: str | None, who: str) -> tuple[list[Any], bytes
     Returns the bats, the bytes the provenance hashes (the file's bytes, then the store's rows as
     canonical JSON), a name for the sources, and notes on store bats left out.
     """
-    from rig.population import load_population
+    from rig.population.dataset import read_population
 
     if not data and not db:
         raise ConfigError("give --data POPULATION, --db STORE or both", source=who)
@@ -28,8 +28,9 @@ def gather(data: str | None, db: str | None, who: str) -> tuple[list[Any], bytes
     notes: list[str] = []
     blob = b""
     if data:
-        bats += load_population(data)
-        blob += Path(data).read_bytes()
+        read, raw = read_population(data)  # the bytes read, not the file again: it may change
+        bats += read
+        blob += raw
         names.append(str(data))
     if db:
         from rig.population.store_source import bats_from_store

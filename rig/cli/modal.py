@@ -61,6 +61,13 @@ def cmd_modal_analyze(args: argparse.Namespace) -> int:
     check_flags(args, BOUNDS)
     if args.db and not args.bat:
         raise ConfigError("--db records the result for a bat: give --bat BAT.toml too", source="command line")
+    bat = None
+    if args.bat:  # a bad bat file is refused before the analysis and the plots
+        from rig.core.bat import BatSpec
+
+        bat = BatSpec.load(args.bat)
+        if Path(args.file).exists() and not Path(args.file).is_file():
+            raise ConfigError("--bat records the file's sha256: give a regular file", source=args.file)
     result = analyze(read_recording(args.file), _modal_settings(args))
     payload = result.as_dict()
     if args.plot:
@@ -68,11 +75,9 @@ def cmd_modal_analyze(args: argparse.Namespace) -> int:
 
         for path in plot_modal(result, args.plot):
             print(f"wrote {path}", file=sys.stderr)
-    if args.bat:
-        from rig.core.bat import BatSpec
+    if bat is not None:
         from rig.modal import record_modal_result
 
-        bat = BatSpec.load(args.bat)
         args.create_db = True
         with open_db(args) as store:
             linked = record_modal_result(store, bat.id, result, args.file)

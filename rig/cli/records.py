@@ -126,12 +126,12 @@ def cmd_certify(args: argparse.Namespace) -> int:
             from protocols.evaluate import run_calibration
 
             run_calibration(procedure, config)  # a named calibration that will not load is named here
-        if problems or args.dry_run:
-            fits = f"dry run: the procedure fits this rig and this bat ({rehearsal.summary()})"
-            for line in problems or [fits]:
-                print(line, file=sys.stderr)
-            if problems:
-                raise ConfigError("; ".join(problems), source="dry run")
+        if problems:  # one line, every problem in it
+            raise ConfigError("; ".join(problems), source="dry run")
+        if args.dry_run:
+            print(
+                f"dry run: the procedure fits this rig and this bat ({rehearsal.summary()})", file=sys.stderr
+            )
             return 0
         if control.aborted:  # a signal before anything was recorded: nothing to resume
             print("rig: stopped by a signal before the run started; nothing recorded", file=sys.stderr)

@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 
 import rig
 from rig.core.errors import ConfigError
+from rig.core.files import DATA_BYTES, read_json_file
 from rig.measure.selection import variant_rows
 from rig.physics import CollisionParams
 from rig.population.calibrate import (
@@ -174,15 +175,14 @@ def write_calibration(record: dict[str, Any], path: str | Path) -> Path:
 
 def load_calibration(path: str | Path) -> CalibrationFile:
     """Read and validate a calibration file; ConfigError names the file and the first problem."""
-    path = Path(path)
+    return read_calibration(path)[0]
+
+
+def read_calibration(path: str | Path) -> tuple[CalibrationFile, bytes]:
+    """The validated calibration and the bytes it was read from (what a run records and hashes)."""
+    data, raw = read_json_file(path, DATA_BYTES, "a calibration file")
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError("no such file", source=str(path)) from None
-    except (UnicodeDecodeError, IsADirectoryError, json.JSONDecodeError) as exc:
-        raise ConfigError(f"not a calibration file: {exc}", source=str(path)) from None
-    try:
-        return CalibrationFile.model_validate(data)
+        return CalibrationFile.model_validate(data), raw
     except ValidationError as exc:
         first = exc.errors()[0]
         field = ".".join(str(p) for p in first["loc"]) or "file"
