@@ -6,10 +6,17 @@ import argparse
 import json
 import shlex
 import sys
-from pathlib import Path
 from typing import Any
 
-from rig.cli.common import add_columns, add_rig_options, new_table, open_db, resolve_run, shown_db
+from rig.cli.common import (
+    add_columns,
+    add_rig_options,
+    new_table,
+    open_db,
+    output_file,
+    resolve_run,
+    shown_db,
+)
 from rig.cli.common import console as out
 from rig.core.dbpath import DB_HELP
 from rig.core.errors import ConfigError, RecordRefused
@@ -198,6 +205,8 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 def cmd_law(args: argparse.Namespace) -> int:
     """rig balls law: write the lot's recorded ball law (the file rig model fit-ball --db --lot wrote)."""
+    target = output_file(args.output, "--output")
+    assert target is not None  # a required flag
     with open_db(args) as store:
         store.ball_lot(args.lot)  # an unknown lot: one line naming the known ones
         recorded = store.ball_laws(args.lot)
@@ -208,7 +217,6 @@ def cmd_law(args: argparse.Namespace) -> int:
             source="rig balls law",
         )
     last = recorded[-1]
-    target = Path(args.output)
     target.write_bytes(last.text.encode("utf-8"))  # as recorded, byte for byte: the recorded sha256
     print(
         f"wrote {target}: lot {args.lot}'s ball law of {last.t_utc} (sha256 {last.sha256[:12]})",

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from rig.cli.common import console as out
-from rig.cli.common import new_table
+from rig.cli.common import new_table, output_file
 from rig.core.errors import ConfigError
 
 
@@ -54,7 +54,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from rig.population.calfile import calibration_record, write_calibration
     from rig.population.calibrate import calibrate
 
-    output = Path(args.output)
+    output = output_file(args.output, "--output")
+    assert output is not None  # a required flag
     for source in (args.data, args.db):
         if (
             source

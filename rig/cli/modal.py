@@ -15,6 +15,8 @@ from rig.cli.common import (
     default_db,
     new_table,
     open_db,
+    output_dir,
+    output_file,
     positive_int,
 )
 from rig.cli.common import console as out
@@ -59,6 +61,7 @@ def cmd_modal_analyze(args: argparse.Namespace) -> int:
     from rig.modal import analyze, read_recording
 
     check_flags(args, BOUNDS)
+    output_file(args.plot, "--plot")
     if args.db and not args.bat:
         raise ConfigError("--db records the result for a bat: give --bat BAT.toml too", source="command line")
     bat = None
@@ -129,6 +132,7 @@ def cmd_modal_simulate(args: argparse.Namespace) -> int:
     from rig.modal.uff import write_uff
 
     check_flags(args, BOUNDS)
+    output_file(args.out, "OUT")
     if args.double_hit is not None and args.double_hit > args.hits:
         raise ConfigError(
             f"--double-hit {args.double_hit} is beyond --hits {args.hits}", source="command line"
@@ -164,6 +168,7 @@ def cmd_study(args: argparse.Namespace) -> int:
     from rig.population import load_population, run_study
 
     check_args(args)
+    output_dir(args.plot_dir, "--plot-dir")
     if args.certify is not None:
         from rig.cli.study_certify import run as certify_population
 

@@ -19,6 +19,8 @@ from rig.cli.common import (
     default_db,
     new_table,
     open_db,
+    output_dir,
+    output_file,
     resolve_run,
     rig_config,
     shown_db,
@@ -241,6 +243,8 @@ def cmd_report(args: argparse.Namespace) -> int:
             )
         args.format = "json"
     args.format = args.format or "md"
+    output_file(args.output, "--output")
+    output_dir(args.figures, "--figures")
     anchor = Anchor.parse(args.anchor) if args.anchor else None
     from rig.report.ball_lot import is_ball_test, lot_record
 
@@ -263,7 +267,6 @@ def cmd_report(args: argparse.Namespace) -> int:
             text = render(record, args.format, figures_dir=args.figures, output=args.output)
             bar.advance()
     if args.output:
-        Path(args.output).parent.mkdir(parents=True, exist_ok=True)
         Path(args.output).write_text(text, encoding="utf-8")
         print(f"wrote {args.output}", file=sys.stderr)
     else:
