@@ -281,6 +281,7 @@ def drive(
                     on_open(session)
                 session.traffic.clear()  # opening chatter belongs to no shot
                 driven, run = start(session, past, emit)
+                driven.control.settled = False  # one control may steer several runs (rig study --certify)
                 try:
                     verdict = run()
                     driven.control.settled = True

@@ -79,9 +79,7 @@ def parse_ccor_csv(text: str, name: str) -> list[CcorPoint]:
     where = f"{name}: line {lines[0][0]}"
     unknown = [c for c in header if c not in COLUMNS]
     if unknown:
-        raise ConfigError(
-            f"unknown column(s) {listed(unknown)}; known: {', '.join(COLUMNS)}", source=where
-        )
+        raise ConfigError(f"unknown column(s) {listed(unknown)}; known: {', '.join(COLUMNS)}", source=where)
     missing = [c for c in REQUIRED if c not in header]
     if missing:
         raise ConfigError(f"missing column(s) {', '.join(missing)}", source=where)

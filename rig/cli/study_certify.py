@@ -172,9 +172,12 @@ def certify_population(args: argparse.Namespace) -> Tally:
         TextColumn("{task.fields[last]}"),
     )
     shown = Progress(*columns, console=console, disable=not console.is_terminal)  # a bar only on a terminal
-    with stop_on_signals(control), open_db(args) as store, shown as bar:
+    # the study of the store may follow: a signal then is the user's, not a late one for a run
+    analysis_follows = bool(args.json or args.plot_dir or args.calibration)
+    with stop_on_signals(control, until_exit=not analysis_follows), open_db(args) as store, shown as bar:
         task = bar.add_task("certifying", total=len(bats), last="")
         for bat in bats:
+            control.settled = False  # the last bat's run is recorded: a signal from here stops the study
             state, run_id = _state(store, bat.spec.id)
             if state == "done":
                 tally.skipped += 1
