@@ -124,11 +124,11 @@ def refused(result: Result, target: str) -> None:
     assert result.stray_runs == []
 
 
-@pytest.mark.parametrize("kind", KINDS, ids=str)
-@pytest.mark.parametrize("shape", ["array", "table", "header"])
+SHAPES = {"toml": ("array", "table", "header"), "json": ("array", "table"), "csv": ()}
+
+
+@pytest.mark.parametrize(("kind", "shape"), [(k, s) for k in KINDS for s in SHAPES[k.syntax]], ids=str)
 def test_a_deeply_nested_file_is_refused_in_one_line(kind: Kind, shape: str, tmp_path: Path) -> None:
-    if kind.syntax == "csv" or (kind.syntax == "json" and shape == "header"):
-        pytest.skip("no nesting in this syntax")
     path = tmp_path / f"hostile{kind.suffix}"
     path.write_bytes(nested(kind.syntax, 5000, shape))
     result = run(kind, tmp_path, str(path))
