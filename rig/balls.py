@@ -20,7 +20,17 @@ from protocols.dryrun import Rehearsal, rehearse
 from protocols.executor import Executor, LiveRig
 from protocols.state import fold
 from rig import __version__
-from rig.certification import Emit, Outcome, _running, _traffic_drain, drive, history, register_item
+from rig.certification import (
+    Emit,
+    Outcome,
+    _running,
+    _traffic_drain,
+    create_run,
+    drive,
+    history,
+    open_before_run,
+    register_item,
+)
 from rig.core import events as ev
 from rig.core.ball import BALL_TESTS, BallLot
 from rig.core.config import RigConfig
@@ -84,7 +94,10 @@ def run_ball_test(
         refusal = ConfigError(f"target {target.id} is registered with other properties", source="procedure")
         register_item(store, target.id, target.spec(), refusal)
         meta = {"procedure": procedure.name, "rig": identity, "lot": lot.id, "test": procedure.test}
-        run_id = store.create_run(procedure.test, target.id, meta)
+        session = open_before_run(config)  # a port that will not open: refused, no run created
+        run_id = create_run(store, session, procedure.test, target.id, meta)
+    else:
+        session = None  # a resumed test opens its devices under its lock
 
     def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Executor, Callable[[], Any]]:
         operator_ = operator or ScriptedOperator()
@@ -106,7 +119,17 @@ def run_ball_test(
         )
         return executor, lambda: executor.run(ball_test)
 
-    return drive(store, run_id, config, list(subscribers), signer, start, resuming=resuming, what="ball test")
+    return drive(
+        store,
+        run_id,
+        config,
+        list(subscribers),
+        signer,
+        start,
+        resuming=resuming,
+        what="ball test",
+        session=session,
+    )
 
 
 def recomputed_problems(store: Store) -> list[str]:

@@ -107,6 +107,7 @@ class RigSession:
     gates: GatesDriver
     clamp: ClampDriver
     traffic: list[tuple[str, TrafficRecord]] = field(default_factory=list)
+    closed: bool = field(default=False, init=False)
 
     @classmethod
     def open(cls, config: RigConfig) -> RigSession:
@@ -140,7 +141,10 @@ class RigSession:
         return cls(config, cannon, gates, clamp, traffic)
 
     def close(self) -> None:
-        """Leave the cannon safe (vent), then close every port."""
+        """Leave the cannon safe (vent), then close every port; a second call does nothing."""
+        if self.closed:
+            return
+        self.closed = True
         # Closing must go on even when the cannon's port is already gone.
         with contextlib.suppress(Exception):
             self.cannon.vent()

@@ -15,6 +15,7 @@ from rig.cli.common import (
     default_db,
     new_table,
     open_db,
+    output_file,
     resolve_run,
     shown_db,
     sim_session,
@@ -70,12 +71,10 @@ def cmd_test(args: argparse.Namespace) -> int:
         config = _rig_config(args, procedure, sim_session(store))
         past = ev.parse_log(store.entries(run_id)) if run_id is not None else None
         rehearsal = rehearse_test(procedure, lot, config, past)
-        if rehearsal.problems or args.dry_run:
-            fits = f"dry run: the test fits this rig and this lot ({rehearsal.summary()})"
-            for line in rehearsal.problems or [fits]:
-                print(line, file=sys.stderr)
-            if rehearsal.problems:
-                raise ConfigError("; ".join(rehearsal.problems), source="dry run")
+        if rehearsal.problems:  # one line, every problem in it
+            raise ConfigError("; ".join(rehearsal.problems), source="dry run")
+        if args.dry_run:
+            print(f"dry run: the test fits this rig and this lot ({rehearsal.summary()})", file=sys.stderr)
             return 0
         live = LiveConsole(quiet=args.json)
         outcome = run_ball_test(
@@ -221,7 +220,8 @@ def cmd_law(args: argparse.Namespace) -> int:
     from rig.store import is_url
     from rig.store._lots import law_sha256
 
-    target = Path(args.output)
+    target = output_file(args.output, "--output")
+    assert target is not None  # a required flag
     where = args.db or default_db()
     if not is_url(str(where)) and any(
         target.resolve() == Path(f"{where}{suffix}").resolve() for suffix in ("", "-wal", "-shm", "-journal")

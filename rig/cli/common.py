@@ -155,6 +155,32 @@ def sim_session(store: Any) -> str:
     return f"store-run-{len(store.runs())}"
 
 
+def output_file(value: str | None, flag: str) -> Path | None:
+    """The file a flag (--output, --plot, OUT) names, checked before any work: ConfigError if it
+    names a folder, or if its folder does not exist (a missing folder is not made)."""
+    if value is None:
+        return None
+    path = Path(value).expanduser()
+    if path.is_dir() or value.endswith("/"):
+        raise ConfigError(f"{value}: a folder; give a file name", source=flag)
+    if not path.parent.is_dir():
+        raise ConfigError(f"{value}: its folder {path.parent} does not exist (create it first)", source=flag)
+    return path
+
+
+def output_dir(value: str | None, flag: str) -> Path | None:
+    """The folder a flag (--figures, --plot-dir) names: made if missing, but its own folder must
+    exist; ConfigError if it is a file."""
+    if value is None:
+        return None
+    path = Path(value).expanduser()
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"{value}: not a folder", source=flag)
+    if not path.parent.is_dir():
+        raise ConfigError(f"{value}: its folder {path.parent} does not exist (create it first)", source=flag)
+    return path
+
+
 def default_db() -> Path | str:
     """Where records go when no --db is given: $RIG_DB, else rig-records.db in the working directory."""
     from rig.core.dbpath import default_db as where

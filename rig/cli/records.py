@@ -19,6 +19,8 @@ from rig.cli.common import (
     default_db,
     new_table,
     open_db,
+    output_dir,
+    output_file,
     resolve_run,
     rig_config,
     shown_db,
@@ -127,12 +129,12 @@ def cmd_certify(args: argparse.Namespace) -> int:
             from protocols.evaluate import run_calibration
 
             run_calibration(procedure, config)  # a named calibration that will not load is named here
-        if problems or args.dry_run:
-            fits = f"dry run: the procedure fits this rig and this bat ({rehearsal.summary()})"
-            for line in problems or [fits]:
-                print(line, file=sys.stderr)
-            if problems:
-                raise ConfigError("; ".join(problems), source="dry run")
+        if problems:  # one line, every problem in it
+            raise ConfigError("; ".join(problems), source="dry run")
+        if args.dry_run:
+            print(
+                f"dry run: the procedure fits this rig and this bat ({rehearsal.summary()})", file=sys.stderr
+            )
             return 0
         if control.aborted:  # a signal before anything was recorded: nothing to resume
             print("rig: stopped by a signal before the run started; nothing recorded", file=sys.stderr)
@@ -243,6 +245,8 @@ def cmd_report(args: argparse.Namespace) -> int:
             )
         args.format = "json"
     args.format = args.format or "md"
+    output_file(args.output, "--output")
+    output_dir(args.figures, "--figures")
     anchor = Anchor.parse(args.anchor) if args.anchor else None
     from rig.report.ball_lot import is_ball_test, lot_record
 
@@ -265,7 +269,6 @@ def cmd_report(args: argparse.Namespace) -> int:
             text = render(record, args.format, figures_dir=args.figures, output=args.output)
             bar.advance()
     if args.output:
-        Path(args.output).parent.mkdir(parents=True, exist_ok=True)
         Path(args.output).write_text(text, encoding="utf-8")
         print(f"wrote {args.output}", file=sys.stderr)
     else:

@@ -77,7 +77,7 @@ def test_a_file_overrides_only_what_it_lists(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("text", "field", "words"),
     [
-        ("seed = ", "", "invalid TOML"),
+        ("seed = ", "", "not valid TOML"),
         ('[[effects]]\nkind = "wormhole"\n', "effects.0", "wormhole"),
         (
             '[[effects]]\nkind = "drag"\ndrag_coefficient = -1.0\n',
