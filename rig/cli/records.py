@@ -191,21 +191,31 @@ def _certify_store(args: argparse.Namespace) -> Iterator[Any]:
 
 def cmd_runs(args: argparse.Namespace) -> int:
     """rig runs: the recorded runs, newest last."""
+    from rig.store import shown_status
+
     with open_db(args) as store:
         runs = store.runs()
-        stopped = {r.run_id for r in runs if _stopped(store, r)}
+        shown = {r.run_id: shown_status(store, r) for r in runs}  # one word, as every output shows it
         rigs = _rigs(store)
     if args.rig is not None:
         runs = [r for r in runs if (rigs.get(r.run_id) or {}).get("name") == args.rig]
     if args.json:
-        rows = [{**r.__dict__, "interrupted": r.run_id in stopped, "rig": rigs.get(r.run_id)} for r in runs]
+        rows = [
+            {
+                **r.__dict__,
+                "status": shown[r.run_id],
+                "interrupted": shown[r.run_id] == "interrupted",
+                "rig": rigs.get(r.run_id),
+            }
+            for r in runs
+        ]
         json.dump(rows, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
     table = new_table(title=f"Runs in {shown_db(args.db or default_db())}")
     add_columns(table, "run", "procedure", "bat", "rig", "started (UTC)", "status", "verdict")
     for r in runs:
-        status = "interrupted" if r.run_id in stopped else r.status
+        status = shown[r.run_id]
         rig = (rigs.get(r.run_id) or {}).get("name") or "-"
         table.add_row(r.run_id[:12], r.procedure, r.bat_id, rig, r.started_utc, status, r.verdict or "")
     out().print(table)
@@ -220,13 +230,6 @@ def _rigs(store: Any) -> dict[str, dict[str, Any] | None]:
         rig = meta.get("rig") if isinstance(meta, dict) else None
         rigs[entry.run_id] = rig if isinstance(rig, dict) else None
     return rigs
-
-
-def _stopped(store: Any, run: Any) -> bool:
-    """An open run whose last entry records its interruption: nothing is running it."""
-    from rig.store import shown_status
-
-    return shown_status(store, run) == "interrupted"
 
 
 def cmd_report(args: argparse.Namespace) -> int:

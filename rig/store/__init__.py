@@ -18,7 +18,7 @@ from rig.store._records import (
     VerifyReport,
 )
 from rig.store._schema import SCHEMA_VERSION
-from rig.store._status import shown_status
+from rig.store._status import SHOWN_STATUSES, shown_status, status_word
 from rig.store._store import DEFAULT_LEASE_S, EntrySpec, Store
 
 __all__ = [
@@ -27,6 +27,7 @@ __all__ = [
     "RESERVED_KINDS",
     "RUN_STATUSES",
     "SCHEMA_VERSION",
+    "SHOWN_STATUSES",
     "Anchor",
     "EntrySpec",
     "LogEntry",
@@ -47,4 +48,5 @@ __all__ = [
     "is_url",
     "safe_url",
     "shown_status",
+    "status_word",
 ]

@@ -116,8 +116,8 @@ class HistoryScreen(Screen[None]):
     def action_resume(self) -> None:
         """Resume the highlighted run if it never finished, on the rig chosen in set-up."""
         run = self._selected()
-        if run is None or run.status == "finished":
-            self.notify("choose a run that has not finished", severity="warning")
+        if run is None or run.status != "running":  # finished, or ended without a verdict
+            self.notify("choose a run that is interrupted (not finished or ended)", severity="warning")
             return
         if getattr(self.app, "run_active", False):
             self.notify("a run is already active", severity="warning")
