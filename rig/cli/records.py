@@ -193,7 +193,7 @@ def cmd_runs(args: argparse.Namespace) -> int:
     """rig runs: the recorded runs, newest last."""
     from rig.store import shown_status
 
-    with open_db(args) as store:
+    with open_db(args, readonly=True) as store:
         runs = store.runs()
         shown = {r.run_id: shown_status(store, r) for r in runs}  # one word, as every output shows it
         rigs = _rigs(store)
@@ -247,7 +247,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     anchor = Anchor.parse(args.anchor) if args.anchor else None
     from rig.report.ball_lot import is_ball_test, lot_record
 
-    with open_db(args) as store:
+    with open_db(args, readonly=True) as store:
         run_id = resolve_run(store, args.run)
         ball = is_ball_test(store, run_id)
         record = lot_record(store, run_id, anchor) if ball else run_record(store, run_id, anchor)
@@ -298,7 +298,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
 
     anchors = [Anchor.parse(args.anchor)] if args.anchor else []
     pins = parse_trusted(args.trusted_key)
-    with open_db(args) as store:
+    with open_db(args, readonly=True) as store:
         if args.run:
             if anchors:
                 raise ConfigError("--anchor checks the whole store; leave out --run", source="command line")

@@ -77,6 +77,7 @@ class Store:
         self._clock = clock
         self._lock = threading.RLock()
         self._held: dict[str, str] = {}  # run_id -> owner token of the run locks this Store holds
+        self.readonly = False  # opened to read only (Store.open(readonly=True)): every write refused
 
     @classmethod
     def open(
@@ -87,16 +88,18 @@ class Store:
         busy_timeout_s: float = 5.0,
         clock: Clock | None = None,
         chain_format: int | None = None,
+        readonly: bool = False,
     ) -> Store:
         """Open (and with `create`, make) a store; a bad or foreign file raises StoreFileError.
 
         `chain_format` chooses the chain of a store with no entries yet (default 2, a chain per run
         and the lab's; 1 is the single chain of stores written before it, kept for them).
+        `readonly`: only read (a store on read-only media reads; a write raises StoreError saying so).
         """
         if is_url(path):
             return cls._open_url(str(path), create, busy_timeout_s, clock, chain_format)
         path = Path(path)
-        conn = connect(path, create=create, busy_timeout_s=busy_timeout_s)
+        conn = connect(path, create=create, busy_timeout_s=busy_timeout_s, readonly=readonly)
         if chain_format is not None:
             try:
                 conn.execute("BEGIN IMMEDIATE")
@@ -107,7 +110,9 @@ class Store:
                     conn.execute("ROLLBACK")
                 conn.close()
                 raise
-        return cls(conn, path, clock or _utc_now)
+        store = cls(conn, path, clock or _utc_now)
+        store.readonly = readonly
+        return store
 
     @classmethod
     def _open_url(
@@ -526,6 +531,8 @@ class Store:
     def _write(self) -> Iterator[Any]:
         # IMMEDIATE takes the write lock before reading the head, so that two writers (even in
         # two processes) can never both append after the same entry.
+        if self.readonly:
+            raise StoreError(f"{self._path}: opened read-only; writing to it needs a store opened to write")
         with self._read() as conn:
             conn.execute("BEGIN IMMEDIATE")
             try:
