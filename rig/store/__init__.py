@@ -6,6 +6,7 @@ rebuilt from it at will. See docs/records.md for the schema, the chain and its l
 
 from rig.core.errors import RecordRefused, StoreError, StoreFileError, UnknownRecord
 from rig.store._codec import GENESIS_HASH, canonical_json, decode_bytes, encode_bytes, entry_hash
+from rig.store._guard import StoreGone
 from rig.store._lock import RunLock, RunLocked
 from rig.store._pg import is_url, safe_url
 from rig.store._records import (
@@ -39,6 +40,7 @@ __all__ = [
     "Store",
     "StoreError",
     "StoreFileError",
+    "StoreGone",
     "UnknownRecord",
     "VerifyReport",
     "canonical_json",

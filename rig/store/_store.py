@@ -25,7 +25,7 @@ from types import TracebackType
 from typing import Any, Self
 
 from rig.core.errors import RecordRefused, StoreError, StoreFileError, UnknownRecord
-from rig.store import _derive, _lock, _lots, _signed, _sync, _verify, _views
+from rig.store import _derive, _guard, _integrity, _lock, _lots, _signed, _sync, _verify, _views
 from rig.store._codec import GENESIS_HASH, check_kind, check_payload, decode_payload, entry_hash
 from rig.store._pg import connect_pg, db_error_text, is_db_error, is_url, safe_url
 from rig.store._records import (
@@ -78,6 +78,7 @@ class Store:
         self._lock = threading.RLock()
         self._held: dict[str, str] = {}  # run_id -> owner token of the run locks this Store holds
         self.readonly = False  # opened to read only (Store.open(readonly=True)): every write refused
+        self._guard: _guard.FileGuard | None = None  # a SQLite writer's files (rig.store._guard)
 
     @classmethod
     def open(
@@ -112,6 +113,8 @@ class Store:
                 raise
         store = cls(conn, path, clock or _utc_now)
         store.readonly = readonly
+        if not readonly:  # a writer notices its files deleted, replaced or cut short at the next write
+            store._guard = _guard.FileGuard(path)
         return store
 
     @classmethod
@@ -494,6 +497,18 @@ class Store:
         with self._snapshot() as conn:
             return _verify.verify_run(conn, run_id, self.engine)
 
+    def check_integrity(self, run_id: str | None = None) -> None:
+        """The cheap check before recording a run (rig.store._integrity): the file is sound (SQLite's
+        quick_check), the chain head the next entry links to holds, and with `run_id` its chain
+        holds; else StoreError naming the first problem."""
+        with self._read() as conn:  # outside a transaction: a damaged page may end it
+            found = _integrity.file_problem(conn) if self.engine == "sqlite" else None
+        if not found:
+            with self._snapshot() as conn:
+                found = _integrity.chain_problem(conn, self.chain_format, run_id)
+        if found:
+            raise StoreError(f"{self._path}: {found}; nothing recorded (rig verify says more)")
+
     def pragmas(self) -> dict[str, Any]:
         """The connection's journal_mode, synchronous, foreign_keys and busy_timeout (diagnostics)."""
         names = ("journal_mode", "synchronous", "foreign_keys", "busy_timeout")
@@ -534,6 +549,8 @@ class Store:
         if self.readonly:
             raise StoreError(f"{self._path}: opened read-only; writing to it needs a store opened to write")
         with self._read() as conn:
+            if self._guard is not None:
+                self._guard.check()
             conn.execute("BEGIN IMMEDIATE")
             try:
                 yield conn
@@ -542,6 +559,8 @@ class Store:
                 if conn.in_transaction:  # also when COMMIT itself failed
                     conn.execute("ROLLBACK")
                 raise
+            if self._guard is not None:  # committed, but into the files this store opened?
+                self._guard.check()
 
     def _append(
         self,
