@@ -27,12 +27,12 @@ from rig import __version__
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
-from rig.core.errors import ConfigError, RecordRefused, RigError
+from rig.core.errors import ConfigError, RecordRefused, RigError, StoreError
 from rig.core.events import RunEvent, Subscriber
 from rig.keys import Signer, load_signer, recorded_rig, sign_run
 from rig.modal.link import with_measured_hoop
 from rig.session import RigSession
-from rig.store import Store
+from rig.store import RunLocked, Store, StoreGone
 
 log = logging.getLogger(__name__)
 
@@ -98,10 +98,21 @@ def _running(store: Store, run_id: str, source: str) -> None:
 
 
 def _seal(store: Store, run_id: str, status: str, verdict: str | None, signer: Signer | None) -> None:
-    """Seal the run; with the rig's key, sign the anchor of its last entry (RunSigned)."""
-    store.set_run_status(run_id, status, verdict)
+    """Seal the run; with the rig's key, sign the anchor of its last entry (RunSigned); then read it
+    back from the store as another reader would (Store.confirm_sealed): only then is it reported."""
+    seal = store.set_run_status(run_id, status, verdict)
     if signer is not None:
         sign_run(store, run_id, signer)
+    store.confirm_sealed(run_id, seal)
+
+
+class RunNotRecorded(StoreError):
+    """The store failed a run after it was created (full, gone, unwritable): the run stopped with no
+    verdict, and its interruption may not be recorded; `resumable` once the store takes writes again."""
+
+    def __init__(self, run_id: str, message: str, *, resumable: bool) -> None:
+        super().__init__(message)
+        self.run_id, self.resumable = run_id, resumable
 
 
 def end_run(store: Store, run_id: str, signoff: Signoff) -> Outcome:
@@ -168,6 +179,7 @@ def certify(
     signer = load_signer((recorded_rig(store, run_id) if run_id else None) or identity["name"])
     if run_id is None:
         run_calibration(procedure, config)  # a named calibration that will not load stops us here
+        store.check_integrity()  # nothing is recorded into a damaged store (a resumed run: in drive)
         bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
         refusal = ConfigError(
             f"bat {bat.id} is registered with other properties; give it a new id", source="bat file"
@@ -230,16 +242,51 @@ def drive(
     """Run one recorded run on the rig under its lock: every persisted event committed before the
     plan goes on, any error recorded as the run's interruption (resumable), the run sealed (and
     signed) at its end. `start` builds the runner from the open session, the record and `emit`, and
-    returns it with the call that runs it to its verdict."""
+    returns it with the call that runs it to its verdict.
+
+    The store is checked before any device opens (Store.check_integrity); the verdict reaches the
+    listeners only once the run is sealed and read back; a store that fails the run (full, gone)
+    raises RunNotRecorded naming the run."""
+    verdicts: list[RunEvent] = []  # RunFinished: shown once sealed and read back, never before
 
     def emit(event: RunEvent) -> None:
         if event.persisted:
             store.append(run_id, event.kind, event.data)
+        if event.kind == ev.RUN_FINISHED:
+            verdicts.append(event)
+            return
         for listener in listeners:
             listener(event)
 
+    try:
+        outcome = _drive(store, run_id, config, emit, signer, start, resuming, on_open, what)
+    except (RunLocked, RunNotRecorded):
+        raise
+    except StoreError as exc:  # the store failed the run after it was created: say which run
+        gone = isinstance(exc, StoreGone)
+        raise RunNotRecorded(
+            run_id, f"{exc}; run {run_id} stopped without a verdict", resumable=not gone
+        ) from exc
+    for event in verdicts if outcome.status == "finished" else []:
+        for listener in listeners:
+            listener(event)
+    return outcome
+
+
+def _drive(
+    store: Store,
+    run_id: str,
+    config: RigConfig,
+    emit: Emit,
+    signer: Signer | None,
+    start: Callable[[RigSession, list[RunEvent], Emit], tuple[Driven, Callable[[], Any]]],
+    resuming: bool,
+    on_open: Callable[[RigSession], None] | None,
+    what: str,
+) -> Outcome:
     # One runner per run: a second one is refused here (RunLocked), before any device opens.
     with store.run_lock(run_id):
+        store.check_integrity(run_id)  # never record into a store that verify would call damaged
         try:
             session = RigSession.open(config)
         except (RigError, OSError) as exc:  # an unplugged or busy port: nothing moved, resumable
@@ -274,6 +321,13 @@ def drive(
                     emit(ev.event(ev.RUN_INTERRUPTED, **detail))
                 except KeyboardInterrupt:  # forced while recording: the record stays whole, resumable
                     pass
+                except StoreError as failed:  # the store that failed the run refuses its interruption too
+                    message = (
+                        f"{failed}; run {run_id} stopped without a verdict (its interruption is not recorded)"
+                    )
+                    raise RunNotRecorded(
+                        run_id, message, resumable=not isinstance(failed, StoreGone)
+                    ) from exc
                 return Outcome(run_id, "interrupted", None, reason, budget)
             _seal(store, run_id, "finished", str(verdict["verdict"]), signer)  # sealed under the lock
     return Outcome(run_id, "finished", verdict)

@@ -509,6 +509,39 @@ class Store:
         if found:
             raise StoreError(f"{self._path}: {found}; nothing recorded (rig verify says more)")
 
+    def confirm_sealed(self, run_id: str, seal: LogEntry) -> None:
+        """After sealing a run: read it back as another reader would (a SQLite store through a new
+        connection to its path: a file deleted or replaced meanwhile is found) and check that it is
+        sealed at `seal` and holds (check_integrity; in chain format 2 also its anchors in the lab
+        chain). A verdict is reported only after this; else StoreError naming what is wrong."""
+        if self._guard is not None:
+            self._guard.check()
+        if self.engine != "sqlite":
+            self._confirm(run_id, seal)
+            return
+        try:
+            fresh = Store.open(self.path, create=False, readonly=True)
+        except StoreError as exc:
+            raise StoreError(f"{exc}; run {run_id} was sealed but cannot be read back") from None
+        with fresh:
+            fresh._confirm(run_id, seal)
+
+    def _confirm(self, run_id: str, seal: LogEntry) -> None:
+        run = self.run(run_id)
+        last = self.entry(run.last_seq)
+        if run.status not in _CLOSED_STATUSES or last is None or last.hash != seal.hash:
+            raise StoreError(
+                f"{self._path}: run {run_id} does not read back as sealed at entry {seal.seq} "
+                f"(status {run.status}, last entry {run.last_seq})"
+            )
+        self.check_integrity(run_id)
+        if self.chain_format == 2:
+            report = self.verify_run(run_id)
+            if not report.ok:
+                raise StoreError(
+                    f"{self._path}: run {run_id} does not verify once sealed: {report.problems[0]}"
+                )
+
     def pragmas(self) -> dict[str, Any]:
         """The connection's journal_mode, synchronous, foreign_keys and busy_timeout (diagnostics)."""
         names = ("journal_mode", "synchronous", "foreign_keys", "busy_timeout")
