@@ -20,7 +20,16 @@ from protocols.dryrun import Rehearsal, rehearse
 from protocols.executor import Executor, LiveRig
 from protocols.state import fold
 from rig import __version__
-from rig.certification import Emit, Outcome, _running, _traffic_drain, drive, history, register_item
+from rig.certification import (
+    Emit,
+    Outcome,
+    _checked,
+    _running,
+    _traffic_drain,
+    drive,
+    history,
+    register_item,
+)
 from rig.core import events as ev
 from rig.core.ball import BALL_TESTS, BallLot
 from rig.core.config import RigConfig
@@ -80,7 +89,7 @@ def run_ball_test(
     identity = config.identity_record(__version__)
     signer = load_signer((recorded_rig(store, run_id) if run_id else None) or identity["name"])
     if run_id is None:
-        store.check_integrity()  # nothing is recorded into a damaged store (a resumed run: in drive)
+        _checked(store)  # nothing is recorded into a damaged store (a resumed run: in drive)
         target = procedure.target
         refusal = ConfigError(f"target {target.id} is registered with other properties", source="procedure")
         register_item(store, target.id, target.spec(), refusal)

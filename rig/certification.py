@@ -32,7 +32,7 @@ from rig.core.events import RunEvent, Subscriber
 from rig.keys import Signer, load_signer, recorded_rig, sign_run
 from rig.modal.link import with_measured_hoop
 from rig.session import RigSession
-from rig.store import RunLocked, Store, StoreGone
+from rig.store import RunLocked, Store, StoreDamaged, StoreGone
 
 log = logging.getLogger(__name__)
 
@@ -103,7 +103,19 @@ def _seal(store: Store, run_id: str, status: str, verdict: str | None, signer: S
     seal = store.set_run_status(run_id, status, verdict)
     if signer is not None:
         sign_run(store, run_id, signer)
-    store.confirm_sealed(run_id, seal)
+    try:
+        store.confirm_sealed(run_id, seal)
+    except StoreError as exc:  # sealed, so not resumable: nothing the store does not hold is reported
+        message = f"{exc}; run {run_id} was sealed but does not read back whole: no verdict is given"
+        raise RunNotRecorded(run_id, message, resumable=False) from exc
+
+
+def _checked(store: Store, run_id: str | None = None) -> None:
+    """Store.check_integrity, its refusal saying that nothing was recorded."""
+    try:
+        store.check_integrity(run_id)
+    except StoreDamaged as exc:
+        raise StoreDamaged(f"{exc}; nothing recorded") from None
 
 
 class RunNotRecorded(StoreError):
@@ -179,7 +191,7 @@ def certify(
     signer = load_signer((recorded_rig(store, run_id) if run_id else None) or identity["name"])
     if run_id is None:
         run_calibration(procedure, config)  # a named calibration that will not load stops us here
-        store.check_integrity()  # nothing is recorded into a damaged store (a resumed run: in drive)
+        _checked(store)  # nothing is recorded into a damaged store (a resumed run: in drive)
         bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
         refusal = ConfigError(
             f"bat {bat.id} is registered with other properties; give it a new id", source="bat file"
@@ -260,7 +272,7 @@ def drive(
 
     try:
         outcome = _drive(store, run_id, config, emit, signer, start, resuming, on_open, what)
-    except (RunLocked, RunNotRecorded):
+    except (RunLocked, RunNotRecorded, StoreDamaged):  # refused before anything was recorded, or said
         raise
     except StoreError as exc:  # the store failed the run after it was created: say which run
         gone = isinstance(exc, StoreGone)
@@ -286,7 +298,7 @@ def _drive(
 ) -> Outcome:
     # One runner per run: a second one is refused here (RunLocked), before any device opens.
     with store.run_lock(run_id):
-        store.check_integrity(run_id)  # never record into a store that verify would call damaged
+        _checked(store, run_id)  # never record into a store that verify would call damaged
         try:
             session = RigSession.open(config)
         except (RigError, OSError) as exc:  # an unplugged or busy port: nothing moved, resumable

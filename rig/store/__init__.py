@@ -7,6 +7,7 @@ rebuilt from it at will. See docs/records.md for the schema, the chain and its l
 from rig.core.errors import RecordRefused, StoreError, StoreFileError, UnknownRecord
 from rig.store._codec import GENESIS_HASH, canonical_json, decode_bytes, encode_bytes, entry_hash
 from rig.store._guard import StoreGone
+from rig.store._integrity import StoreDamaged
 from rig.store._lock import RunLock, RunLocked
 from rig.store._pg import is_url, safe_url
 from rig.store._records import (
@@ -38,6 +39,7 @@ __all__ = [
     "RunStatus",
     "RunSummary",
     "Store",
+    "StoreDamaged",
     "StoreError",
     "StoreFileError",
     "StoreGone",

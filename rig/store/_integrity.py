@@ -12,11 +12,16 @@ from __future__ import annotations
 import sqlite3
 from typing import Any
 
+from rig.core.errors import StoreError
 from rig.store._chains import check_chain
 from rig.store._codec import GENESIS_HASH, entry_hash
 from rig.store._records import LAB_CHAIN
 
 _COLUMNS = "seq, chain_seq, run_id, kind, payload, hash, prev_hash, t_utc"
+
+
+class StoreDamaged(StoreError):
+    """The store's file or a chain it appends to does not hold (Store.check_integrity)."""
 
 
 def file_problem(conn: Any) -> str | None:

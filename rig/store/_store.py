@@ -500,14 +500,14 @@ class Store:
     def check_integrity(self, run_id: str | None = None) -> None:
         """The cheap check before recording a run (rig.store._integrity): the file is sound (SQLite's
         quick_check), the chain head the next entry links to holds, and with `run_id` its chain
-        holds; else StoreError naming the first problem."""
+        holds; else StoreDamaged (a StoreError) naming the first problem."""
         with self._read() as conn:  # outside a transaction: a damaged page may end it
             found = _integrity.file_problem(conn) if self.engine == "sqlite" else None
         if not found:
             with self._snapshot() as conn:
                 found = _integrity.chain_problem(conn, self.chain_format, run_id)
         if found:
-            raise StoreError(f"{self._path}: {found}; nothing recorded (rig verify says more)")
+            raise _integrity.StoreDamaged(f"{self._path}: {found} (rig verify says more)")
 
     def confirm_sealed(self, run_id: str, seal: LogEntry) -> None:
         """After sealing a run: read it back as another reader would (a SQLite store through a new
@@ -534,7 +534,7 @@ class Store:
                 f"{self._path}: run {run_id} does not read back as sealed at entry {seal.seq} "
                 f"(status {run.status}, last entry {run.last_seq})"
             )
-        self.check_integrity(run_id)
+        self.check_integrity(run_id)  # StoreDamaged names what is wrong
         if self.chain_format == 2:
             report = self.verify_run(run_id)
             if not report.ok:
