@@ -125,13 +125,14 @@ def _procedure(procedure: str | Path | Procedure) -> Procedure:
     return procedure if isinstance(procedure, Procedure) else Procedure.load(procedure)
 
 
-def _recorded(store: Store, run_id: str) -> tuple[Procedure, BatSpec]:
-    """The procedure and bat a run started with (re-validated), for its resume."""
-    started = store.entries(run_id, kinds=[ev.RunStarted.kind])
-    if not started:
-        raise ConfigError(f"run {run_id} never started; start a new one", source="resume")
-    payload = started[0].payload
-    return Procedure.model_validate(payload["procedure"]), BatSpec.model_validate(payload["bat"])
+def _recorded(store: Store, run_id: str, procedure: Procedure | None) -> tuple[Procedure, BatSpec]:
+    """The procedure and bat a run started with (re-validated), for its resume; a run that never
+    started (a full disk, a port that would not open) starts with what its RunCreated names
+    (rig.resume: a lab's own procedure given again)."""
+    from rig.resume import recorded_inputs
+
+    recorded = recorded_inputs(store, run_id, procedure)
+    return recorded.procedure, recorded.bat
 
 
 def _same(given: Any, recorded: Any, what: str, run_id: str) -> None:
@@ -175,7 +176,7 @@ def certify(
         if calibration is not None:
             raise ConfigError("a resumed run keeps the calibration it recorded", "calibration")
         store.run(run_id)  # an unknown run: UnknownRecord naming the ids that exist
-        proc, spec = _recorded(store, run_id)
+        proc, spec = _recorded(store, run_id, None if procedure is None else _procedure(procedure))
         _same(None if procedure is None else _procedure(procedure), proc, "procedure", run_id)
         _same(bat, spec, "bat", run_id)
     else:

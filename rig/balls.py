@@ -23,6 +23,7 @@ from rig import __version__
 from rig.certification import (
     Emit,
     Outcome,
+    _checked,
     _running,
     _traffic_drain,
     create_run,
@@ -90,6 +91,7 @@ def run_ball_test(
     identity = config.identity_record(__version__)
     signer = load_signer((recorded_rig(store, run_id) if run_id else None) or identity["name"])
     if run_id is None:
+        _checked(store)  # nothing is recorded into a damaged store (a resumed run: in drive)
         target = procedure.target
         refusal = ConfigError(f"target {target.id} is registered with other properties", source="procedure")
         register_item(store, target.id, target.spec(), refusal)

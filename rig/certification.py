@@ -27,12 +27,12 @@ from rig import __version__
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
-from rig.core.errors import ConfigError, RecordRefused, RigError
+from rig.core.errors import ConfigError, RecordRefused, RigError, StoreError
 from rig.core.events import RunEvent, Subscriber
 from rig.keys import Signer, load_signer, recorded_rig, sign_run
 from rig.modal.link import with_measured_hoop
 from rig.session import RigSession
-from rig.store import Store
+from rig.store import RunLocked, Store, StoreDamaged, StoreGone
 
 log = logging.getLogger(__name__)
 
@@ -98,10 +98,33 @@ def _running(store: Store, run_id: str, source: str) -> None:
 
 
 def _seal(store: Store, run_id: str, status: str, verdict: str | None, signer: Signer | None) -> None:
-    """Seal the run; with the rig's key, sign the anchor of its last entry (RunSigned)."""
-    store.set_run_status(run_id, status, verdict)
+    """Seal the run; with the rig's key, sign the anchor of its last entry (RunSigned); then read it
+    back from the store as another reader would (Store.confirm_sealed): only then is it reported."""
+    seal = store.set_run_status(run_id, status, verdict)
     if signer is not None:
         sign_run(store, run_id, signer)
+    try:
+        store.confirm_sealed(run_id, seal)
+    except StoreError as exc:  # sealed, so not resumable: nothing the store does not hold is reported
+        message = f"{exc}; run {run_id} was sealed but does not read back whole: no verdict is given"
+        raise RunNotRecorded(run_id, message, resumable=False) from exc
+
+
+def _checked(store: Store, run_id: str | None = None) -> None:
+    """Store.check_integrity, its refusal saying that nothing was recorded."""
+    try:
+        store.check_integrity(run_id)
+    except StoreDamaged as exc:
+        raise StoreDamaged(f"{exc}; nothing recorded") from None
+
+
+class RunNotRecorded(StoreError):
+    """The store failed a run after it was created (full, gone, unwritable): the run stopped with no
+    verdict, and its interruption may not be recorded; `resumable` once the store takes writes again."""
+
+    def __init__(self, run_id: str, message: str, *, resumable: bool) -> None:
+        super().__init__(message)
+        self.run_id, self.resumable = run_id, resumable
 
 
 def end_run(store: Store, run_id: str, signoff: Signoff) -> Outcome:
@@ -168,6 +191,7 @@ def certify(
     signer = load_signer((recorded_rig(store, run_id) if run_id else None) or identity["name"])
     if run_id is None:
         run_calibration(procedure, config)  # a named calibration that will not load stops us here
+        _checked(store)  # nothing is recorded into a damaged store (a resumed run: in drive)
         bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
         refusal = ConfigError(
             f"bat {bat.id} is registered with other properties; give it a new id", source="bat file"
@@ -255,61 +279,103 @@ def drive(
     plan goes on, any error recorded as the run's interruption (resumable), the run sealed (and
     signed) at its end. `start` builds the runner from the open session, the record and `emit`, and
     returns it with the call that runs it to its verdict. `session`: a new run's devices, opened
-    before the run was created (open_before_run); None: opened here, under the lock."""
+    before the run was created (open_before_run); None: opened here, under the lock.
+
+    The store is checked before the run goes on (Store.check_integrity); the verdict reaches the
+    listeners only once the run is sealed and read back; a store that fails the run (full, gone)
+    raises RunNotRecorded naming the run."""
+    verdicts: list[RunEvent] = []  # RunFinished: shown once sealed and read back, never before
 
     def emit(event: RunEvent) -> None:
         if event.persisted:
             store.append(run_id, event.kind, event.data)
+        if event.kind == ev.RUN_FINISHED:
+            verdicts.append(event)
+            return
         for listener in listeners:
             listener(event)
 
     opened = session  # a new run's devices: closed below however the lock goes (close is idempotent)
     try:
-        # One runner per run: a second one is refused here (RunLocked), before it opens a device (a
-        # new run's are open already: no other runner can know the run yet).
-        with store.run_lock(run_id):
-            if session is None:
-                try:
-                    session = RigSession.open(config)
-                except (RigError, OSError) as exc:  # an unplugged or busy port: nothing moved, resumable
-                    reason = f"the devices could not be opened: {_reason(exc)}"
-                    emit(ev.RunInterrupted(reason=reason, extra={"budget_exceeded": False}))
-                    return Outcome(run_id, "interrupted", None, reason)
-            with session:
-                past = history(store, run_id) if resuming else []  # read under the lock
-                if on_open is not None:
-                    on_open(session)
-                session.traffic.clear()  # opening chatter belongs to no shot
-                driven, run = start(session, past, emit)
-                driven.control.settled = False  # one control may steer several runs (rig study --certify)
-                try:
-                    verdict = run()
-                    driven.control.settled = True
-                except BaseException as exc:
-                    driven.control.settled = True  # stop signals from now on would only tear the record up
-                    if not isinstance(exc, Exception | KeyboardInterrupt):
-                        raise  # SystemExit and the like: not an interruption of the run
-                    ended = driven.state.verdict
-                    if driven.state.finished and ended is not None:  # e.g. a failed ring check: FAIL
-                        _seal(store, run_id, "finished", ended.get("verdict"), signer)
-                        return Outcome(run_id, "finished", ended, str(exc))
-                    reason, budget = _reason(exc), isinstance(exc, BudgetExceeded)
-                    detail: dict[str, Any] = {"reason": reason, "budget_exceeded": budget}
-                    if not isinstance(exc, RigError | KeyboardInterrupt):  # a bug: say where
-                        detail["where"] = _where(exc)
-                        log.debug("%s %s interrupted by an unexpected error", what, run_id, exc_info=exc)
-                    try:
-                        with contextlib.suppress(Exception):
-                            driven.flush_traffic()
-                        emit(ev.event(ev.RUN_INTERRUPTED, **detail))
-                    except KeyboardInterrupt:  # forced while recording: the record stays whole, resumable
-                        pass
-                    return Outcome(run_id, "interrupted", None, reason, budget)
-                _seal(store, run_id, "finished", str(verdict["verdict"]), signer)  # sealed under the lock
-        return Outcome(run_id, "finished", verdict)
+        outcome = _drive(store, run_id, config, emit, signer, start, resuming, on_open, what, session)
+    except (RunLocked, RunNotRecorded, StoreDamaged):  # refused before anything was recorded, or said
+        raise
+    except StoreError as exc:  # the store failed the run after it was created: say which run
+        gone = isinstance(exc, StoreGone)
+        raise RunNotRecorded(
+            run_id, f"{exc}; run {run_id} stopped without a verdict", resumable=not gone
+        ) from exc
     finally:
         if opened is not None:
             opened.close()
+    for event in verdicts if outcome.status == "finished" else []:
+        for listener in listeners:
+            listener(event)
+    return outcome
+
+
+def _drive(
+    store: Store,
+    run_id: str,
+    config: RigConfig,
+    emit: Emit,
+    signer: Signer | None,
+    start: Callable[[RigSession, list[RunEvent], Emit], tuple[Driven, Callable[[], Any]]],
+    resuming: bool,
+    on_open: Callable[[RigSession], None] | None,
+    what: str,
+    session: RigSession | None,
+) -> Outcome:
+    # One runner per run: a second one is refused here (RunLocked), before it opens a device (a new
+    # run's are open already: no other runner can know the run yet).
+    with store.run_lock(run_id):
+        _checked(store, run_id)  # never record into a store that verify would call damaged
+        if session is None:
+            try:
+                session = RigSession.open(config)
+            except (RigError, OSError) as exc:  # an unplugged or busy port: nothing moved, resumable
+                reason = f"the devices could not be opened: {_reason(exc)}"
+                emit(ev.RunInterrupted(reason=reason, extra={"budget_exceeded": False}))
+                return Outcome(run_id, "interrupted", None, reason)
+        with session:
+            past = history(store, run_id) if resuming else []  # read under the lock
+            if on_open is not None:
+                on_open(session)
+            session.traffic.clear()  # opening chatter belongs to no shot
+            driven, run = start(session, past, emit)
+            driven.control.settled = False  # one control may steer several runs (rig study --certify)
+            try:
+                verdict = run()
+                driven.control.settled = True
+            except BaseException as exc:
+                driven.control.settled = True  # stop signals from now on would only tear the record up
+                if not isinstance(exc, Exception | KeyboardInterrupt):
+                    raise  # SystemExit and the like: not an interruption of the run
+                ended = driven.state.verdict
+                if driven.state.finished and ended is not None:  # e.g. a failed ring check: FAIL
+                    _seal(store, run_id, "finished", ended.get("verdict"), signer)
+                    return Outcome(run_id, "finished", ended, str(exc))
+                reason, budget = _reason(exc), isinstance(exc, BudgetExceeded)
+                detail: dict[str, Any] = {"reason": reason, "budget_exceeded": budget}
+                if not isinstance(exc, RigError | KeyboardInterrupt):  # a bug: say where, for the developers
+                    detail["where"] = _where(exc)
+                    log.debug("%s %s interrupted by an unexpected error", what, run_id, exc_info=exc)
+                try:
+                    with contextlib.suppress(Exception):
+                        driven.flush_traffic()
+                    emit(ev.event(ev.RUN_INTERRUPTED, **detail))
+                except KeyboardInterrupt:  # forced while recording: the record stays whole, resumable
+                    pass
+                except StoreError as failed:  # the store that failed the run refuses its interruption too
+                    message = (
+                        f"{failed}; run {run_id} stopped without a verdict (its interruption is not recorded)"
+                    )
+                    raise RunNotRecorded(
+                        run_id, message, resumable=not isinstance(failed, StoreGone)
+                    ) from exc
+                return Outcome(run_id, "interrupted", None, reason, budget)
+            _seal(store, run_id, "finished", str(verdict["verdict"]), signer)  # sealed under the lock
+    return Outcome(run_id, "finished", verdict)
 
 
 def register_item(store: Store, item_id: str, spec: dict[str, Any], refusal: ConfigError) -> None:

@@ -195,10 +195,12 @@ def shown_db(db: object) -> str:
     return safe_url(str(db))
 
 
-def open_db(args: argparse.Namespace) -> Any:
+def open_db(args: argparse.Namespace, *, readonly: bool = False) -> Any:
+    """The store --db names (else the default); `readonly` for commands that only read it, so that a
+    store on read-only media reads."""
     from rig.store import Store
 
-    return Store.open(args.db or default_db(), create=getattr(args, "create_db", False))
+    return Store.open(args.db or default_db(), create=getattr(args, "create_db", False), readonly=readonly)
 
 
 def resolve_run(store: Any, text: str) -> str:

@@ -15,7 +15,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     from rig.report.export import check_request, export
 
     check_request(args.view, args.format, args.output)  # before the store is opened
-    with open_db(args) as store:
+    with open_db(args, readonly=True) as store:
         run_id = resolve_run(store, args.run) if args.run else None
         n = export(store, args.view, args.format, args.output, run_id, stdout=sys.stdout)
     if args.output != "-":

@@ -40,12 +40,26 @@ def _signoff(args: argparse.Namespace, flag: str) -> Any:
     return Signoff(args.who, args.why)
 
 
-def _interrupted(outcome: Any, args: argparse.Namespace) -> int:
-    """Tell the operator how to go on after an interruption; exit status 3."""
+def _resume_command(store: Any, run_id: str, args: argparse.Namespace) -> str:
+    """`rig certify --resume RUN ...` as the operator types it: the rig and store of this command;
+    for a run that never started, also what it starts with (a procedure file, balls, calibration)."""
+    from protocols.procedure import BUILTIN
+
     where = ("--config", args.config) if args.config else ("--sim", args.sim) if args.sim else None
     rig = f"{where[0]} {shlex.quote(where[1])}" if where else "--config RIG.toml"
     db = f" --db {shlex.quote(shown_db(args.db))}" if args.db else ""
-    resume = f"rig certify --resume {outcome.run_id} {rig}{db}"
+    inputs = ""
+    if not store.entries(run_id, kinds=[ev.RUN_STARTED]):
+        given = [("--ball-lot", args.ball_lot), ("--ball", args.ball), ("--calibration", args.calibration)]
+        if args.procedure and args.procedure not in BUILTIN:
+            given.insert(0, ("--procedure", args.procedure))
+        inputs = "".join(f" {flag} {shlex.quote(str(value))}" for flag, value in given if value)
+    return f"rig certify --resume {run_id} {rig}{db}{inputs}"
+
+
+def _interrupted(outcome: Any, args: argparse.Namespace, resume: str) -> int:
+    """Tell the operator how to go on after an interruption; exit status 3."""
+    db = f" --db {shlex.quote(shown_db(args.db))}" if args.db else ""
     print(f"rig: run {outcome.run_id} interrupted: {outcome.reason}; resume with: {resume}", file=sys.stderr)
     if outcome.budget_exceeded:
         print(
@@ -72,8 +86,9 @@ def cmd_certify(args: argparse.Namespace) -> int:
     from protocols.dryrun import rehearse
     from protocols.procedure import Procedure
     from protocols.runner import RunControl, ScriptedOperator
-    from rig.certification import certify
+    from rig.certification import RunNotRecorded, certify
     from rig.core.bat import BatSpec
+    from rig.core.errors import StoreError
     from rig.report.live import LiveConsole
     from rig.report.record import run_record
     from rig.run_signals import stop_on_signals
@@ -84,23 +99,25 @@ def cmd_certify(args: argparse.Namespace) -> int:
         return _end(args)
     if args.rig_checked and not args.resume:
         raise ConfigError("--rig-checked goes with --resume RUN", source="command line")
-    if args.resume and (args.ball_lot or args.ball):
-        raise ConfigError(
-            "a resumed run keeps the balls it recorded: drop --ball-lot and --ball", source="--resume"
-        )
     rig_checked = _signoff(args, "--rig-checked") if args.rig_checked else None
     control = RunControl()
     args.create_db = True
     with stop_on_signals(control), _certify_store(args) as store:
         ball: dict[str, Any] | None = None  # a resumed run keeps the ball terms it recorded
+        started = True
         if args.resume:
+            from rig.resume import recorded_inputs
+
             run_id = resolve_run(store, args.resume)
-            started = store.entries(run_id, kinds=[ev.RUN_STARTED])
-            if not started:
-                raise ConfigError(f"run {run_id} never started; start a new one", source="--resume")
-            payload = started[0].payload
-            procedure = Procedure.model_validate(payload["procedure"])
-            bat = BatSpec.model_validate(payload["bat"])
+            given = Procedure.load(args.procedure) if args.procedure else None
+            recorded = recorded_inputs(store, run_id, given)  # never started: what its RunCreated names
+            procedure, bat, started = recorded.procedure, recorded.bat, recorded.started
+            if started and (args.ball_lot or args.ball):
+                raise ConfigError(
+                    "a resumed run keeps the balls it recorded: drop --ball-lot and --ball", source="--resume"
+                )
+            if not started:  # it starts now: with the balls given, as a new run would
+                ball = _ball_terms(store, args, procedure)
         else:
             if not args.procedure or not args.bat:
                 raise ConfigError("give --procedure and --bat (or --resume RUN)", source="command line")
@@ -113,7 +130,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
             ball = _ball_terms(store, args, procedure)
         config = rig_config(args, bat=bat, session=sim_session(store))
         if args.calibration:
-            if args.resume:
+            if args.resume and started:
                 raise ConfigError(
                     "--calibration starts a run; a resumed run keeps the calibration it recorded",
                     source="command line",
@@ -140,26 +157,35 @@ def cmd_certify(args: argparse.Namespace) -> int:
             print("rig: stopped by a signal before the run started; nothing recorded", file=sys.stderr)
             return 3
         live = LiveConsole(quiet=args.json)
-        outcome = certify(
-            store,
-            procedure,
-            bat,
-            config,
-            run_id=run_id,
-            operator=ScriptedOperator(who="script (--sim or scripted run)"),
-            subscribers=[live],
-            control=control,
-            rig_checked=rig_checked,
-            ball=ball,
-        )
-        live.close()
+        try:
+            outcome = certify(
+                store,
+                procedure,
+                bat,
+                config,
+                run_id=run_id,
+                operator=ScriptedOperator(who="script (--sim or scripted run)"),
+                subscribers=[live],
+                control=control,
+                rig_checked=rig_checked,
+                ball=ball,
+            )
+        except RunNotRecorded as exc:  # the store failed the run: one line, and how to go on if it can
+            hint = ""
+            if exc.resumable:
+                resume = _resume_command(store, exc.run_id, args)
+                hint = f"; once the store takes writes again, resume with: {resume}"
+            raise StoreError(f"{exc}{hint}") from None
+        finally:
+            live.close()
+        resume = _resume_command(store, outcome.run_id, args) if outcome.status != "finished" else ""
         if args.json:
             json.dump(run_record(store, outcome.run_id), sys.stdout, indent=2, allow_nan=False)
             sys.stdout.write("\n")
         else:
             live.summary(outcome)
     if outcome.status != "finished":
-        return _interrupted(outcome, args)
+        return _interrupted(outcome, args, resume)
     return 0 if outcome.verdict and outcome.verdict.get("verdict") == Verdict.PASS else 1
 
 
@@ -195,21 +221,31 @@ def _certify_store(args: argparse.Namespace) -> Iterator[Any]:
 
 def cmd_runs(args: argparse.Namespace) -> int:
     """rig runs: the recorded runs, newest last."""
-    with open_db(args) as store:
+    from rig.store import shown_status
+
+    with open_db(args, readonly=True) as store:
         runs = store.runs()
-        stopped = {r.run_id for r in runs if _stopped(store, r)}
+        shown = {r.run_id: shown_status(store, r) for r in runs}  # one word, as every output shows it
         rigs = _rigs(store)
     if args.rig is not None:
         runs = [r for r in runs if (rigs.get(r.run_id) or {}).get("name") == args.rig]
     if args.json:
-        rows = [{**r.__dict__, "interrupted": r.run_id in stopped, "rig": rigs.get(r.run_id)} for r in runs]
+        rows = [
+            {
+                **r.__dict__,
+                "status": shown[r.run_id],
+                "interrupted": shown[r.run_id] == "interrupted",
+                "rig": rigs.get(r.run_id),
+            }
+            for r in runs
+        ]
         json.dump(rows, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
     table = new_table(title=f"Runs in {shown_db(args.db or default_db())}")
     add_columns(table, "run", "procedure", "bat", "rig", "started (UTC)", "status", "verdict")
     for r in runs:
-        status = "interrupted" if r.run_id in stopped else r.status
+        status = shown[r.run_id]
         rig = (rigs.get(r.run_id) or {}).get("name") or "-"
         table.add_row(r.run_id[:12], r.procedure, r.bat_id, rig, r.started_utc, status, r.verdict or "")
     out().print(table)
@@ -224,13 +260,6 @@ def _rigs(store: Any) -> dict[str, dict[str, Any] | None]:
         rig = meta.get("rig") if isinstance(meta, dict) else None
         rigs[entry.run_id] = rig if isinstance(rig, dict) else None
     return rigs
-
-
-def _stopped(store: Any, run: Any) -> bool:
-    """An open run whose last entry records its interruption: nothing is running it."""
-    from rig.store import shown_status
-
-    return shown_status(store, run) == "interrupted"
 
 
 def cmd_report(args: argparse.Namespace) -> int:
@@ -250,7 +279,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     anchor = Anchor.parse(args.anchor) if args.anchor else None
     from rig.report.ball_lot import is_ball_test, lot_record
 
-    with open_db(args) as store:
+    with open_db(args, readonly=True) as store:
         run_id = resolve_run(store, args.run)
         ball = is_ball_test(store, run_id)
         record = lot_record(store, run_id, anchor) if ball else run_record(store, run_id, anchor)
@@ -300,7 +329,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
 
     anchors = [Anchor.parse(args.anchor)] if args.anchor else []
     pins = parse_trusted(args.trusted_key)
-    with open_db(args) as store:
+    with open_db(args, readonly=True) as store:
         if args.run:
             if anchors:
                 raise ConfigError("--anchor checks the whole store; leave out --run", source="command line")

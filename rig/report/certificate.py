@@ -31,6 +31,8 @@ from rig.report.cert_sections import budget_blocks, operator_blocks, shot_blocks
 
 FORMATS = ("md", "html")
 NOT_CERTIFIED = "NOT CERTIFIED — run interrupted"
+NOT_CERTIFIED_ENDED = "NOT CERTIFIED — run ended without a verdict"
+NOT_CERTIFIED_RUNNING = "NOT CERTIFIED — run in progress"
 
 
 def render(
@@ -172,13 +174,14 @@ def _budget_way_out(record: dict[str, Any], stop: dict[str, Any]) -> list[Block]
 
 
 def verdict_blocks(record: dict[str, Any]) -> list[Block]:
-    """The verdict banner and its figures, or NOT CERTIFIED with the resume command."""
+    """The verdict banner and its figures, or NOT CERTIFIED: ended, in progress, or interrupted with
+    the resume command (the run's status as every output shows it)."""
     v = record.get("verdict")
     ended = record.get("ended")
     if not v and ended:
         return [
             Banner(
-                NOT_CERTIFIED,
+                NOT_CERTIFIED_ENDED,
                 (
                     f"Run ended without a verdict by {ended.get('who', '?')} ({ended.get('t_utc', '')}): "
                     f"{ended.get('why', '')}",
@@ -187,6 +190,8 @@ def verdict_blocks(record: dict[str, Any]) -> list[Block]:
                 "none",
             )
         ]
+    if not v and record.get("status") == "running":  # a runner holds it now: no verdict yet
+        return [Banner(NOT_CERTIFIED_RUNNING, ("No verdict yet: this record certifies nothing.",), "none")]
     if not v:
         stops = [i for i in record.get("interruptions", []) if i.get("kind") == ev.RUN_INTERRUPTED]
         reason = stops[-1].get("reason", "") if stops else "the run stopped before a verdict was recorded"

@@ -6,7 +6,7 @@ from typing import Any
 
 from rig.core import events as ev
 from rig.core.run_state import RunState, ShotEntry
-from rig.store import Anchor, LogEntry, RecordRefused, Store
+from rig.store import Anchor, LogEntry, RecordRefused, Store, shown_status, status_word
 
 SHOT_KINDS = ev.SHOT_KINDS
 RUN_LOCK_BROKEN = "RunLockBroken"  # the store's entry for a broken run lock (not a run event)
@@ -26,7 +26,7 @@ def run_record(store: Store, run_id: str, anchor: Anchor | None = None) -> dict[
     closing = [e for e in entries if e.kind == "RunStatusChanged"]
     record: dict[str, Any] = {
         "run_id": run_id,
-        "status": closing[-1].payload.get("status") if closing else "running",
+        "status": _status(store, summary, entries, coverage["by"], closing),
         "procedure": None,
         "bat": None,
         "rig": None,
@@ -53,6 +53,16 @@ def run_record(store: Store, run_id: str, anchor: Anchor | None = None) -> dict[
             st.apply(ev.parse_entry(e), e.t_utc, e.seq)
     _fill(record, st, [e for e in entries if e.kind == RUN_LOCK_BROKEN])
     return record
+
+
+def _status(store: Store, summary: Any, entries: list[LogEntry], by: str, closing: list[LogEntry]) -> str:
+    """The run's status as every output shows it (rig.store.shown_status), as far as the record goes:
+    cut at an anchor, the run was open there and interrupted only if that entry says so."""
+    if closing:
+        return status_word(str(closing[-1].payload.get("status")))
+    if by == "anchor":
+        return status_word("running", entries[-1].kind if entries else None, runner_alive=True)
+    return shown_status(store, summary)
 
 
 def _fill(record: dict[str, Any], st: RunState, locks: list[LogEntry]) -> None:

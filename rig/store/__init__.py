@@ -6,6 +6,8 @@ rebuilt from it at will. See docs/records.md for the schema, the chain and its l
 
 from rig.core.errors import RecordRefused, StoreError, StoreFileError, UnknownRecord
 from rig.store._codec import GENESIS_HASH, canonical_json, decode_bytes, encode_bytes, entry_hash
+from rig.store._guard import StoreGone
+from rig.store._integrity import StoreDamaged
 from rig.store._lock import RunLock, RunLocked
 from rig.store._pg import is_url, safe_url
 from rig.store._records import (
@@ -18,7 +20,7 @@ from rig.store._records import (
     VerifyReport,
 )
 from rig.store._schema import SCHEMA_VERSION
-from rig.store._status import shown_status
+from rig.store._status import SHOWN_STATUSES, shown_status, status_word
 from rig.store._store import DEFAULT_LEASE_S, EntrySpec, Store
 
 __all__ = [
@@ -27,6 +29,7 @@ __all__ = [
     "RESERVED_KINDS",
     "RUN_STATUSES",
     "SCHEMA_VERSION",
+    "SHOWN_STATUSES",
     "Anchor",
     "EntrySpec",
     "LogEntry",
@@ -36,8 +39,10 @@ __all__ = [
     "RunStatus",
     "RunSummary",
     "Store",
+    "StoreDamaged",
     "StoreError",
     "StoreFileError",
+    "StoreGone",
     "UnknownRecord",
     "VerifyReport",
     "canonical_json",
@@ -47,4 +52,5 @@ __all__ = [
     "is_url",
     "safe_url",
     "shown_status",
+    "status_word",
 ]

@@ -13,6 +13,7 @@ import json
 from typing import Any
 
 from rig.store._codec import GENESIS_HASH, entry_hash
+from rig.store._order import out_of_place
 from rig.store._records import LAB_CHAIN, RUN_OPENED, RUN_SEALED, RUN_STATUS_CHANGED, Anchor
 
 # one row: (global seq, chain_seq, run_id, kind, payload, hash, prev_hash, t_utc)
@@ -60,6 +61,7 @@ def check_chain(name: str, rows: list[Row]) -> tuple[list[tuple[int, str]], Anch
         elif entry_hash(prev_hash, number, run_id, kind, t_utc, payload) != hash_:
             problems.append((seq, f"{where}: hash mismatch: the entry was changed after it was written"))
         expected, prev = number + 1, hash_
+    problems += [(seq, f"{_chain_words(name)} {text}") for seq, text in out_of_place(rows)]
     last = max(rows, key=lambda r: r[1]) if rows else None
     return problems, (Anchor(last[0], last[5]) if last else None)
 

@@ -7,6 +7,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from rig.core.errors import StoreFileError
+from rig.store import _readonly
 from rig.store._views import SQLITE_VIEWS
 
 # Written into the SQLite header so that a rig store is recognisable without reading tables.
@@ -74,14 +75,24 @@ SCHEMA_VERSION = len(MIGRATIONS)
 APPEND_ONLY_TRIGGERS = ("log_no_update", "log_no_delete")
 
 
-def connect(path: Path, *, create: bool, busy_timeout_s: float) -> sqlite3.Connection:
-    """An open, migrated connection in WAL mode with synchronous=FULL and foreign keys on."""
-    if not create and not path.exists():
+def connect(path: Path, *, create: bool, busy_timeout_s: float, readonly: bool = False) -> sqlite3.Connection:
+    """An open, migrated connection in WAL mode with synchronous=FULL and foreign keys on.
+
+    `readonly`: open the file for reading only (a store on read-only media reads; see _readonly).
+    """
+    if not (create and not readonly) and not path.exists():
         raise StoreFileError(f"{path}: no such store")
     if path.is_dir():
         raise StoreFileError(f"{path}: is a directory, not a store file")
     if not path.parent.is_dir():
         raise StoreFileError(f"{path}: the folder {path.parent} does not exist")
+    if readonly:
+        conn = _read_only(path, busy_timeout_s)
+        if conn is not None:
+            return conn
+    why = _readonly.cannot_write(path)  # a store on read-only media: say so, not "not a database"
+    if why is not None:
+        raise StoreFileError(f"{path}: read-only ({why}); a store that is written must be on writable media")
     try:
         # isolation_level=None: we issue BEGIN/COMMIT ourselves, so every transaction is explicit.
         # check_same_thread=False: the Store serialises use with its own lock.
@@ -92,6 +103,27 @@ def connect(path: Path, *, create: bool, busy_timeout_s: float) -> sqlite3.Conne
         fresh = _identify(conn, path)
         _configure(conn, path, busy_timeout_s)
         _migrate(conn, path, fresh)
+    except sqlite3.Error as exc:
+        conn.close()
+        raise StoreFileError(f"{path}: not a usable store: {exc}") from None
+    except BaseException:
+        conn.close()
+        raise
+    return conn
+
+
+def _read_only(path: Path, busy_timeout_s: float) -> sqlite3.Connection | None:
+    """A connection that only reads; None if the store must be upgraded first and can be (a writable
+    file of an older schema, or an empty one: opened for writing, as before)."""
+    conn = _readonly.connect(path, busy_timeout_s)
+    try:
+        fresh = _identify(conn, path)
+        version = 0 if fresh else _current_version(conn, path, fresh)
+        if version != SCHEMA_VERSION and _readonly.cannot_write(path) is None:
+            conn.close()
+            return None
+        _readonly.check_current(path, version, SCHEMA_VERSION)
+        conn.execute(f"PRAGMA busy_timeout={int(busy_timeout_s * 1000)}")
     except sqlite3.Error as exc:
         conn.close()
         raise StoreFileError(f"{path}: not a usable store: {exc}") from None
@@ -151,7 +183,8 @@ def _migrate(conn: sqlite3.Connection, path: Path, fresh: bool) -> None:
         conn.execute(f"PRAGMA application_id={APPLICATION_ID}")
         conn.execute("COMMIT")
     except BaseException:
-        conn.execute("ROLLBACK")
+        if conn.in_transaction:  # a full disk may have rolled it back already
+            conn.execute("ROLLBACK")
         raise
 
 

@@ -25,7 +25,7 @@ from types import TracebackType
 from typing import Any, Self
 
 from rig.core.errors import RecordRefused, StoreError, StoreFileError, UnknownRecord
-from rig.store import _derive, _lock, _lots, _signed, _sync, _verify, _views
+from rig.store import _derive, _guard, _integrity, _lock, _lots, _signed, _sync, _verify, _views
 from rig.store._codec import GENESIS_HASH, check_kind, check_payload, decode_payload, entry_hash
 from rig.store._pg import connect_pg, db_error_text, is_db_error, is_url, safe_url
 from rig.store._records import (
@@ -77,6 +77,8 @@ class Store:
         self._clock = clock
         self._lock = threading.RLock()
         self._held: dict[str, str] = {}  # run_id -> owner token of the run locks this Store holds
+        self.readonly = False  # opened to read only (Store.open(readonly=True)): every write refused
+        self._guard: _guard.FileGuard | None = None  # a SQLite writer's files (rig.store._guard)
 
     @classmethod
     def open(
@@ -87,16 +89,18 @@ class Store:
         busy_timeout_s: float = 5.0,
         clock: Clock | None = None,
         chain_format: int | None = None,
+        readonly: bool = False,
     ) -> Store:
         """Open (and with `create`, make) a store; a bad or foreign file raises StoreFileError.
 
         `chain_format` chooses the chain of a store with no entries yet (default 2, a chain per run
         and the lab's; 1 is the single chain of stores written before it, kept for them).
+        `readonly`: only read (a store on read-only media reads; a write raises StoreError saying so).
         """
         if is_url(path):
             return cls._open_url(str(path), create, busy_timeout_s, clock, chain_format)
         path = Path(path)
-        conn = connect(path, create=create, busy_timeout_s=busy_timeout_s)
+        conn = connect(path, create=create, busy_timeout_s=busy_timeout_s, readonly=readonly)
         if chain_format is not None:
             try:
                 conn.execute("BEGIN IMMEDIATE")
@@ -107,7 +111,11 @@ class Store:
                     conn.execute("ROLLBACK")
                 conn.close()
                 raise
-        return cls(conn, path, clock or _utc_now)
+        store = cls(conn, path, clock or _utc_now)
+        store.readonly = readonly
+        if not readonly:  # a writer notices its files deleted, replaced or cut short at the next write
+            store._guard = _guard.FileGuard(path)
+        return store
 
     @classmethod
     def _open_url(
@@ -489,6 +497,51 @@ class Store:
         with self._snapshot() as conn:
             return _verify.verify_run(conn, run_id, self.engine)
 
+    def check_integrity(self, run_id: str | None = None) -> None:
+        """The cheap check before recording a run (rig.store._integrity): the file is sound (SQLite's
+        quick_check), the chain head the next entry links to holds, and with `run_id` its chain
+        holds; else StoreDamaged (a StoreError) naming the first problem."""
+        with self._read() as conn:  # outside a transaction: a damaged page may end it
+            found = _integrity.file_problem(conn) if self.engine == "sqlite" else None
+        if not found:
+            with self._snapshot() as conn:
+                found = _integrity.chain_problem(conn, self.chain_format, run_id)
+        if found:
+            raise _integrity.StoreDamaged(f"{self._path}: {found} (rig verify says more)")
+
+    def confirm_sealed(self, run_id: str, seal: LogEntry) -> None:
+        """After sealing a run: read it back as another reader would (a SQLite store through a new
+        connection to its path: a file deleted or replaced meanwhile is found) and check that it is
+        sealed at `seal` and holds (check_integrity; in chain format 2 also its anchors in the lab
+        chain). A verdict is reported only after this; else StoreError naming what is wrong."""
+        if self._guard is not None:
+            self._guard.check()
+        if self.engine != "sqlite":
+            self._confirm(run_id, seal)
+            return
+        try:
+            fresh = Store.open(self.path, create=False, readonly=True)
+        except StoreError as exc:
+            raise StoreError(f"{exc}; run {run_id} was sealed but cannot be read back") from None
+        with fresh:
+            fresh._confirm(run_id, seal)
+
+    def _confirm(self, run_id: str, seal: LogEntry) -> None:
+        run = self.run(run_id)
+        last = self.entry(run.last_seq)
+        if run.status not in _CLOSED_STATUSES or last is None or last.hash != seal.hash:
+            raise StoreError(
+                f"{self._path}: run {run_id} does not read back as sealed at entry {seal.seq} "
+                f"(status {run.status}, last entry {run.last_seq})"
+            )
+        self.check_integrity(run_id)  # StoreDamaged names what is wrong
+        if self.chain_format == 2:
+            report = self.verify_run(run_id)
+            if not report.ok:
+                raise StoreError(
+                    f"{self._path}: run {run_id} does not verify once sealed: {report.problems[0]}"
+                )
+
     def pragmas(self) -> dict[str, Any]:
         """The connection's journal_mode, synchronous, foreign_keys and busy_timeout (diagnostics)."""
         names = ("journal_mode", "synchronous", "foreign_keys", "busy_timeout")
@@ -526,7 +579,11 @@ class Store:
     def _write(self) -> Iterator[Any]:
         # IMMEDIATE takes the write lock before reading the head, so that two writers (even in
         # two processes) can never both append after the same entry.
+        if self.readonly:
+            raise StoreError(f"{self._path}: opened read-only; writing to it needs a store opened to write")
         with self._read() as conn:
+            if self._guard is not None:
+                self._guard.check()
             conn.execute("BEGIN IMMEDIATE")
             try:
                 yield conn
@@ -535,6 +592,8 @@ class Store:
                 if conn.in_transaction:  # also when COMMIT itself failed
                     conn.execute("ROLLBACK")
                 raise
+            if self._guard is not None:  # committed, but into the files this store opened?
+                self._guard.check()
 
     def _append(
         self,

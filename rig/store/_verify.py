@@ -10,6 +10,7 @@ from rig.core import events as ev
 from rig.store._chains import Chains, check_anchors, check_chain
 from rig.store._codec import GENESIS_HASH, entry_hash
 from rig.store._derive import Deriver, compare_tables
+from rig.store._order import hashed_seq
 from rig.store._records import LAB_CHAIN, Anchor, VerifyReport
 from rig.store._schema import APPEND_ONLY_TRIGGERS
 
@@ -42,6 +43,7 @@ class _Chain:
         self.checked = 0
         self.head = Anchor(0, GENESIS_HASH)
         self.problems: list[tuple[int, str]] = []
+        self.unlinked: dict[int, tuple[str | None, ...]] = {}  # seq -> the fields of a row that does not link
 
     def feed(self, seq: int, raw: tuple[object, ...]) -> tuple[str | None, ...] | None:
         """Check one row; return its decoded text columns, or None if they cannot be read."""
@@ -57,6 +59,8 @@ class _Chain:
         else:
             run_id, kind, payload, t_utc, prev_hash, hash_ = fields
             if prev_hash != self.prev_hash:
+                if len(self.unlinked) < _MAX_LISTED:
+                    self.unlinked[seq] = fields
                 self._broken(
                     seq,
                     "prev_hash mismatch: does not link to the entry before it "
@@ -73,6 +77,25 @@ class _Chain:
 
     def _broken(self, seq: int, reason: str) -> None:
         self.problems.append((seq, reason))
+
+    def moved(self, conn: Any) -> None:
+        """Name the rows that do not link because they were moved: each one's own hash says at which
+        seq it was written (an entry out of place), or its predecessor is the one that moved."""
+        found: dict[int, str] = {}
+        for seq, fields in self.unlinked.items():
+            prev_hash = fields[4]
+            row = conn.execute("SELECT seq FROM log WHERE hash = ?", (prev_hash,)).fetchone()
+            before = 0 if prev_hash == GENESIS_HASH else (row[0] if row else None)
+            candidates = [*self.unlinked, *([] if before is None else [before + 1])]
+            written = hashed_seq(seq, candidates, fields)
+            if written is not None and written != seq:
+                found[seq] = (
+                    f"out of place: its hash places it at seq {written} "
+                    "(moved: entries reordered, inserted or removed)"
+                )
+            elif written == seq and before is not None and before != seq - 1:
+                found[seq] = f"prev_hash mismatch: the entry before it was moved (it is now at seq {before})"
+        self.problems = [(seq, found.get(seq, why)) for seq, why in self.problems]
 
 
 # Entries a run may hold once only, keyed by a payload field (None: once per run at all).
@@ -136,6 +159,8 @@ def verify(
             run_id, kind, payload, t_utc = fields[:4]
             deriver.feed(seq, run_id, kind or "", payload, t_utc or "")
             audit.feed(seq, run_id, kind or "", payload)
+    if chain.unlinked:
+        chain.moved(conn)
     broken = list(chain.problems)
     extra: list[str] = []
     if chain_format == 2:

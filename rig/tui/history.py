@@ -11,12 +11,10 @@ from textual.containers import VerticalScroll
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Header, Markdown
 
-from protocols.procedure import Procedure
 from rig.certification import history
-from rig.core import events as ev
-from rig.core.bat import BatSpec
 from rig.core.errors import RigError
 from rig.report.record import run_record
+from rig.resume import recorded_inputs
 from rig.store import RunSummary, Store, shown_status
 from rig.tui.messages import StartRun
 from rig.tui.report import record_summary
@@ -116,22 +114,17 @@ class HistoryScreen(Screen[None]):
     def action_resume(self) -> None:
         """Resume the highlighted run if it never finished, on the rig chosen in set-up."""
         run = self._selected()
-        if run is None or run.status == "finished":
-            self.notify("choose a run that has not finished", severity="warning")
+        if run is None or run.status != "running":  # finished, or ended without a verdict
+            self.notify("choose a run that is interrupted (not finished or ended)", severity="warning")
             return
         if getattr(self.app, "run_active", False):
             self.notify("a run is already active", severity="warning")
             return
         try:
             with Store.open(self.settings.db) as store:
-                started = store.entries(run.run_id, kinds=[ev.RUN_STARTED])
                 past = history(store, run.run_id)
-                if started:
-                    procedure = Procedure.model_validate(started[0].payload["procedure"])
-                    bat = BatSpec.model_validate(started[0].payload["bat"])
-                else:  # created, then stopped before it started (e.g. a port would not open)
-                    procedure = Procedure.load(run.procedure)
-                    bat = BatSpec.model_validate(store.bats()[run.bat_id])
+                recorded = recorded_inputs(store, run.run_id)  # a run that never started: its RunCreated's
+            procedure, bat = recorded.procedure, recorded.bat
             job = RunJob(procedure, bat, self.rig.config(bat), self.rig.label, run_id=run.run_id)
         except (RigError, ValueError) as exc:
             self.notify(str(exc), title="Cannot resume", severity="error")

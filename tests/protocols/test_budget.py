@@ -89,7 +89,7 @@ def test_end_a_run_without_a_verdict(tmp_path: Path, capsys: pytest.CaptureFixtu
     assert "ended without a verdict" in capsys.readouterr().err
     assert main(["report", run_id, "--format", "json", *db]) == 0
     rec = json.loads(capsys.readouterr().out)
-    assert rec["status"] == "aborted" and rec["verdict"] is None
+    assert rec["status"] == "ended" and rec["verdict"] is None  # stored 'aborted', shown 'ended' everywhere
     assert rec["ended"]["who"] == "Q. Manager" and rec["ended"]["why"] == "cannon sent for repair"
     for fmt in ("md", "html"):
         assert main(["report", run_id, "--format", fmt, *db]) == 0

@@ -52,7 +52,7 @@ def test_cli_mid_run_error_is_an_interruption(tmp_path: Path, capsys: pytest.Cap
     assert requested == resolved  # stopped before requesting a shot it could not aim: none lost
     assert main(["runs", "--db", str(db), "--json"]) == 0  # marked interrupted, not left "running"
     (row,) = json.loads(capsys.readouterr().out)
-    assert row["run_id"] == run_id and row["status"] == "running" and row["interrupted"] is True
+    assert row["run_id"] == run_id and row["status"] == "interrupted" and row["interrupted"] is True
     # the config corrected (here: the simulated rig's own), the run resumes and reaches a verdict
     assert main(["certify", "--resume", run_id, "--sim", "ideal", "--db", str(db)]) in (0, 1)
     with Store.open(db) as store:

@@ -103,3 +103,18 @@ def test_a_failed_migration_leaves_the_file_as_it_was(
         assert db.execute("SELECT count(*) FROM sqlite_master WHERE name = 'extra'").fetchone()[0] == 0
     finally:
         db.close()
+
+
+def test_a_store_opened_read_only_refuses_writes_and_is_not_changed(tmp_path: Path) -> None:
+    path = tmp_path / "rig.db"
+    with Store.open(path) as store:
+        store.append(None, "Note", {"n": 1})
+    before = path.read_bytes()
+    with Store.open(path, readonly=True) as store:
+        assert [e.payload for e in store.entries()] == [{"n": 1}] and store.verify().ok
+        with pytest.raises(StoreError, match="opened read-only"):
+            store.append(None, "Note", {"n": 2})
+    assert path.read_bytes() == before
+    with pytest.raises(StoreFileError, match="no such store"):
+        Store.open(tmp_path / "none.db", readonly=True)
+    assert not (tmp_path / "none.db").exists()

@@ -19,6 +19,15 @@ from rig.store import Store
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures"
 RUNS: dict[str, str] = json.loads((FIXTURES / "log-v1.runs.json").read_text())
+# What the reports show differently since the fixture was written, the record being the same:
+# issue 21 item 6, one word per run state in every output (an ended run, stored 'aborted', is 'ended').
+SHOWN_SINCE: dict[tuple[str, str], tuple[tuple[str, str], ...]] = {
+    ("ended", "json"): (('"status": "aborted"', '"status": "ended"'),),
+    ("ended", "md"): (
+        ("| record status | aborted |", "| record status | ended |"),
+        ("NOT CERTIFIED — run interrupted", "NOT CERTIFIED — run ended without a verdict"),
+    ),
+}
 
 
 @pytest.fixture(scope="module")
@@ -79,6 +88,9 @@ def test_the_old_runs_fold_into_their_resume_state(db: Path) -> None:
 def test_the_old_runs_report_as_they_did(db: Path, name: str, fmt: str) -> None:
     text = _report(db, RUNS[name], fmt)
     golden = (FIXTURES / f"log-v1.{name}.{fmt}").read_text()
+    for old, new in SHOWN_SINCE.get((name, fmt), ()):
+        assert old in golden
+        golden = golden.replace(old, new)
     if fmt == "json":
         assert json.loads(text) == json.loads(golden)
     assert text == golden

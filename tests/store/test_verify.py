@@ -82,7 +82,7 @@ def test_swapped_pair(populated: Populated) -> None:
         db.execute("UPDATE log SET seq = -1 WHERE seq = 4")
         db.execute("UPDATE log SET seq = 4 WHERE seq = 5")
         db.execute("UPDATE log SET seq = 5 WHERE seq = -1")
-    _broken_at(populated.store, 4, "prev_hash mismatch")
+    _broken_at(populated.store, 4, "out of place: its hash places it at seq 5")
 
 
 def test_inserted_row_with_a_valid_hash(populated: Populated) -> None:
@@ -95,7 +95,7 @@ def test_inserted_row_with_a_valid_hash(populated: Populated) -> None:
             COLS + "VALUES (6, ?, 'ShotMeasured', ?, ?, ?, ?)",
             (run, payload, t, before.hash, entry_hash(before.hash, 6, run, "ShotMeasured", t, payload)),
         )
-    _broken_at(populated.store, 7, "prev_hash mismatch")
+    _broken_at(populated.store, 7, "out of place: its hash places it at seq 6")
 
 
 def test_row_appended_behind_the_stores_back(populated: Populated) -> None:

@@ -108,7 +108,8 @@ def summary_from_record(store: Store, run_id: str) -> dict[str, Any]:
         "rig": ((created.get("meta") or {}).get("rig") or {}).get("name"),
         "bat_id": created["bat_id"],
         "procedure": created["procedure"],
-        "status": record["status"],
+        # the view speaks the store's words (an ended run 'aborted', an interrupted one 'running')
+        "status": {"ended": "aborted", "interrupted": "running"}.get(record["status"], record["status"]),
         "verdict": verdict.get("verdict"),
         "mean": verdict.get("mean"),
         "expanded_uncertainty": verdict.get("U"),
