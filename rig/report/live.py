@@ -4,17 +4,16 @@ from __future__ import annotations
 
 from typing import Any
 
-from rich.console import Console
-
 from rig.core import events as ev
 from rig.core.events import RunEvent
+from rig.report.terminal import console
 
 
 class LiveConsole:
     """Prints one line per step as events arrive, to stderr (stdout stays free for JSON)."""
 
     def __init__(self, quiet: bool = False) -> None:
-        self.console = Console(stderr=True, highlight=False)
+        self.console = console(stderr=True, highlight=False)
         self.quiet = quiet
 
     def __call__(self, event: RunEvent) -> None:
@@ -75,7 +74,7 @@ class LiveConsole:
 
     def summary(self, outcome: Any) -> None:
         """The verdict and the model cross-check, on stdout."""
-        out = Console(highlight=False)
+        out = console(highlight=False)
         v = outcome.verdict
         if not v:
             return
