@@ -241,6 +241,12 @@ def cmd_report(args: argparse.Namespace) -> int:
             )
         args.format = "json"
     args.format = args.format or "md"
+    if args.format == "html" and not args.output and sys.stdout.isatty():
+        raise ConfigError(
+            "an HTML certificate is not for reading on a terminal: write it to a file with "
+            "--output FILE.html and open that in a browser",
+            source="--format html",
+        )
     anchor = Anchor.parse(args.anchor) if args.anchor else None
     from rig.report.ball_lot import is_ball_test, lot_record
 
@@ -396,7 +402,12 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--format", choices=("json", "md", "html"), help="output format (default md)")
     p.add_argument("--json", action="store_true", help="the run record as JSON (the same as --format json)")
     p.add_argument("--db", metavar="FILE", help=DB_HELP)
-    p.add_argument("--output", "-o", metavar="FILE", help="write to a file instead of stdout")
+    p.add_argument(
+        "--output",
+        "-o",
+        metavar="FILE",
+        help="write to a file instead of stdout (HTML: needed on a terminal)",
+    )
     p.add_argument(
         "--figures",
         metavar="DIR",

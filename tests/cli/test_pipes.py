@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 from pathlib import Path
 
+from rig.cli import main
 from tests.cli.conftest import GOOD_BAT, QUICK_PROCEDURE, rig
 
 
@@ -22,3 +25,20 @@ def test_certify_in_a_pipe_keeps_each_line_whole_with_its_indent(tmp_path: Path)
     assert any(line.startswith("  ") and line.endswith(f"; {rule}") for line in lines), done.stdout
     note = record["cross_check"]["note"]
     assert len(note) > 80 and any(line.startswith("  model ") and line.endswith(note) for line in lines)
+
+
+class _Terminal(io.StringIO):
+    """Standard output that says it is a terminal."""
+
+    def isatty(self) -> bool:
+        return True
+
+
+def test_an_html_report_is_not_dumped_on_a_terminal(store_db: Path) -> None:
+    """200 KB of HTML on a terminal helps nobody: one line that names --output, exit 2."""
+    out, err = _Terminal(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = main(["report", "last", "--db", str(store_db), "--format", "html"])
+    assert code == 2 and out.getvalue() == ""
+    (line,) = err.getvalue().splitlines()
+    assert "--output" in line and "terminal" in line
