@@ -60,7 +60,7 @@ def _end(args: argparse.Namespace) -> int:
     signoff = _signoff(args, "--end")
     with open_db(args) as store:
         outcome = end_run(store, resolve_run(store, args.end), signoff)
-    print(f"rig: run {outcome.run_id} {outcome.reason}", file=sys.stderr)
+    print(f"run {outcome.run_id} {outcome.reason}")  # a success: stdout, no error prefix
     return 0
 
 
@@ -354,7 +354,7 @@ def _verify_json(report: Any) -> dict[str, Any]:
 
 
 def add_parsers(sub: Any) -> None:
-    """`rig certify|runs|report|tui|verify`."""
+    """`rig certify|runs|report|verify|tui`, in this order: the everyday tasks lead `rig --help`."""
     p = sub.add_parser("certify", help="certify a bat (BBCOR, BESR, BBS)", description=cmd_certify.__doc__)
     p.add_argument("--procedure", help="bbcor, besr, bbs, or a procedure TOML file")
     p.add_argument("--bat", metavar="BAT.toml", help="bat file (table [bat])")
@@ -419,13 +419,6 @@ def add_parsers(sub: Any) -> None:
     )
     p.set_defaults(handler=cmd_report)
 
-    p = sub.add_parser("tui", help="the operator's console (terminal UI)", description=cmd_tui.__doc__)
-    add_rig_options(p)
-    p.add_argument("--db", metavar="FILE", help=DB_HELP)
-    p.add_argument("--bat", metavar="BAT.toml", help="preselect this bat file")
-    p.add_argument("--procedure", help="preselect bbcor, besr, bbs or a procedure TOML file")
-    p.set_defaults(handler=cmd_tui)
-
     p = sub.add_parser("verify", help="check the records' hash chain", description=cmd_verify.__doc__)
     p.add_argument("--db", metavar="FILE", help=DB_HELP)
     p.add_argument("--anchor", metavar="SEQ:HASH", help="a head hash printed on a certificate")
@@ -439,3 +432,10 @@ def add_parsers(sub: Any) -> None:
     )
     p.add_argument("--json", action="store_true", help="print the result as JSON (exit status as without)")
     p.set_defaults(handler=cmd_verify)
+
+    p = sub.add_parser("tui", help="the operator's console (terminal UI)", description=cmd_tui.__doc__)
+    add_rig_options(p)
+    p.add_argument("--db", metavar="FILE", help=DB_HELP)
+    p.add_argument("--bat", metavar="BAT.toml", help="preselect this bat file")
+    p.add_argument("--procedure", help="preselect bbcor, besr, bbs or a procedure TOML file")
+    p.set_defaults(handler=cmd_tui)

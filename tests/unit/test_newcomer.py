@@ -2,8 +2,17 @@
 
 from __future__ import annotations
 
+import ast
+import contextlib
+import io
 import re
+import shlex
 from pathlib import Path
+
+import pytest
+
+from rig.cli import main
+from rig.store import Store
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -32,3 +41,63 @@ def test_the_quick_start_says_how_to_run_rig_after_make_demo() -> None:
     assert "rig runs --db out/demo.db" in quick
     said = " ".join(line for line in _recipe("demo").splitlines() if "echo" in line)
     assert ". .venv/bin/activate" in said and "rig runs --db out/demo.db" in said
+
+
+def test_rig_help_lists_the_everyday_commands_first(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    text = capsys.readouterr().out
+    listed = re.findall(r"^    (\w[\w-]*) ", text.split("COMMAND\n", 2)[-1], flags=re.M)
+    assert listed[:4] == ["certify", "runs", "report", "verify"], listed
+
+
+def test_ending_a_run_says_so_on_stdout_without_the_error_prefix(tmp_path: Path) -> None:
+    """`rig certify --end` succeeds (exit 0): its line goes to stdout, and not as `rig: ...`."""
+    db = tmp_path / "r.db"
+    with Store.open(db) as store:
+        store.register_bat("B1", {"id": "B1"})
+        run_id = store.create_run("bbcor", "B1", {})
+    out, err = io.StringIO(), io.StringIO()
+    argv = ["certify", "--end", run_id[:8], "--who", "ann", "--why", "bat cracked", "--db", str(db)]
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        assert main(argv) == 0
+    assert err.getvalue() == ""
+    assert out.getvalue() == f"run {run_id} ended without a verdict by ann: bat cracked\n"
+
+
+def _code_blocks(text: str) -> list[str]:
+    return re.findall(r"^```[a-z]*\n(.*?)^```", text, flags=re.S | re.M)
+
+
+def test_the_readme_has_a_runnable_model_cor_example(capsys: pytest.CaptureFixture[str]) -> None:
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    lines = [
+        ln for block in _code_blocks(readme) for ln in block.splitlines() if ln.startswith("rig model cor ")
+    ]
+    assert lines, "no `rig model cor` example in a README code block"
+    for line in lines:
+        argv = shlex.split(line.split("#", 1)[0])[1:]
+        assert main(argv) == 0, line
+        assert "cor" in capsys.readouterr().out
+
+
+def test_no_operator_message_names_a_python_call() -> None:
+    """Messages are for lab operators: "call reconnect()" tells them nothing they can do."""
+    call = re.compile(r"\b[A-Za-z_][\w.]*\(\)")
+    found = []
+    for top in ("rig", "drivers", "protocols", "simulators"):
+        for path in sorted((ROOT / top).rglob("*.py")):
+            tree = ast.parse(path.read_text(encoding="utf-8"))
+            docs = {
+                id(node.body[0].value)
+                for node in ast.walk(tree)
+                if isinstance(node, ast.Module | ast.ClassDef | ast.FunctionDef | ast.AsyncFunctionDef)
+                and node.body
+                and isinstance(node.body[0], ast.Expr)
+            }
+            for node in ast.walk(tree):
+                if isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docs:
+                    sql = re.search(r"\b(SELECT|CREATE|EXECUTE FUNCTION)\b", node.value)
+                    if call.search(node.value) and not sql:
+                        found.append(f"{path.relative_to(ROOT)}:{node.lineno}: {node.value!r}")
+    assert not found, found
