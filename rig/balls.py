@@ -10,6 +10,7 @@ built with that target clamped (rig.session.sim_config), a real rig is told by t
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
+from dataclasses import replace
 from typing import Any
 
 from protocols.ball_eval import lot_result
@@ -26,7 +27,7 @@ from rig.core.ball import BALL_TESTS, BallLot
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RigError
 from rig.core.events import RunEvent, Subscriber
-from rig.keys import load_signer, recorded_rig
+from rig.keys import recorded_rig, signing_for
 from rig.session import RigSession
 from rig.store import Store
 
@@ -78,13 +79,17 @@ def run_ball_test(
     if problems:
         raise ConfigError("; ".join(problems), source="dry run")
     identity = config.identity_record(__version__)
-    signer = load_signer((recorded_rig(store, run_id) if run_id else None) or identity["name"])
+    rig = (recorded_rig(store, run_id) if run_id else None) or str(identity["name"])
+    signing = signing_for(store, rig, simulated=config.simulated)  # never a real rig's key for a simulation
     if run_id is None:
         target = procedure.target
         refusal = ConfigError(f"target {target.id} is registered with other properties", source="procedure")
         register_item(store, target.id, target.spec(), refusal)
         meta = {"procedure": procedure.name, "rig": identity, "lot": lot.id, "test": procedure.test}
         run_id = store.create_run(procedure.test, target.id, meta)
+    listeners = list(subscribers)
+    for listener in listeners:  # which rig, and its signature, before the first step
+        listener(ev.RigNamed(name=rig, simulated=config.simulated, signing=signing.note))
 
     def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Executor, Callable[[], Any]]:
         operator_ = operator or ScriptedOperator()
@@ -106,7 +111,10 @@ def run_ball_test(
         )
         return executor, lambda: executor.run(ball_test)
 
-    return drive(store, run_id, config, list(subscribers), signer, start, resuming=resuming, what="ball test")
+    outcome = drive(
+        store, run_id, config, listeners, signing.signer, start, resuming=resuming, what="ball test"
+    )
+    return replace(outcome, signing=signing.note)
 
 
 def recomputed_problems(store: Store) -> list[str]:

@@ -12,7 +12,7 @@ import contextlib
 import logging
 import traceback
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -29,7 +29,7 @@ from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RecordRefused, RigError
 from rig.core.events import RunEvent, Subscriber
-from rig.keys import Signer, load_signer, recorded_rig, sign_run
+from rig.keys import Signer, recorded_rig, recorded_simulated, sign_run, signing_for
 from rig.modal.link import with_measured_hoop
 from rig.session import RigSession
 from rig.store import Store
@@ -46,6 +46,7 @@ class Outcome:
     verdict: dict[str, Any] | None
     reason: str = ""
     budget_exceeded: bool = False  # resume only with a recorded rig check (Signoff), or end the run
+    signing: str = ""  # what the operator should know of the run's signature (rig.keys.Signing)
 
 
 @dataclass(frozen=True)
@@ -107,14 +108,18 @@ def _seal(store: Store, run_id: str, status: str, verdict: str | None, signer: S
 def end_run(store: Store, run_id: str, signoff: Signoff) -> Outcome:
     """End an unfinished run with no verdict, on the operator's recorded word (store status aborted)."""
     _running(store, run_id, "--end")
-    signer = load_signer(recorded_rig(store, run_id))  # a key file open to others stops us here
+    rig = recorded_rig(store, run_id)
+    # a key file open to others stops us here
+    signing = signing_for(store, rig, simulated=recorded_simulated(store, run_id)) if rig else None
+    signer = signing.signer if signing else None
     with store.run_lock(run_id):  # never while a runner is still working on the run
         shots = len(store.entries(run_id, kinds=[ev.SHOT_REQUESTED]))
         said = signoff.as_dict()  # who and why, stripped
         ended = ev.RunEnded(who=said["who"], why=said["why"], shots_so_far=shots)
         store.append(run_id, ended.kind, ended.data)
         _seal(store, run_id, "aborted", None, signer)
-    return Outcome(run_id, "ended", None, f"ended without a verdict by {signoff.who}: {signoff.why}")
+    reason = f"ended without a verdict by {signoff.who}: {signoff.why}"
+    return Outcome(run_id, "ended", None, reason, signing=signing.note if signing else "")
 
 
 def _reason(exc: BaseException) -> str:
@@ -144,6 +149,7 @@ def certify(
     rig_checked: Signoff | None = None,
     plan: PlanFactory = certification,
     ball: dict[str, Any] | None = None,
+    sign_simulated: bool = False,
 ) -> Outcome:
     """Run (or with `run_id`, resume) a certification; returns its outcome.
 
@@ -153,6 +159,8 @@ def certify(
     procedure's plan (protocols.steps.certification, or a lab's own from the same steps). `ball`:
     the ball terms (protocols.ball_terms.BallTerms fields: the lot, its measured wear, spread and
     sensitivities, the ball law), recorded in RunStarted; None: assumed defaults, budgeted whole.
+    `sign_simulated`: sign a simulated run even with a real rig's key (rig.keys.signing_for); the
+    listeners first hear RigNamed: the rig, whether it is simulated, and what its signature will be.
     """
     listeners = list(subscribers)
     resuming = run_id is not None
@@ -165,7 +173,8 @@ def certify(
     if problems:
         raise ConfigError("; ".join(problems), source="dry run")
     identity = config.identity_record(__version__)
-    signer = load_signer((recorded_rig(store, run_id) if run_id else None) or identity["name"])
+    rig = (recorded_rig(store, run_id) if run_id else None) or str(identity["name"])
+    signing = signing_for(store, rig, simulated=config.simulated, sign_simulated=sign_simulated)
     if run_id is None:
         run_calibration(procedure, config)  # a named calibration that will not load stops us here
         bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
@@ -175,6 +184,8 @@ def certify(
         register_item(store, bat.id, bat.model_dump(mode="json"), refusal)
         meta = {"procedure": procedure.name, "rig": identity}
         run_id = store.create_run(procedure.standard.value, bat.id, meta)
+    for listener in listeners:  # which rig, and its signature, before the first step
+        listener(ev.RigNamed(name=rig, simulated=config.simulated, signing=signing.note))
 
     def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Driven, Callable[[], Any]]:
         runner = Runner(
@@ -197,7 +208,10 @@ def certify(
         )
         return runner, lambda: runner.run(rehearse_first=False)  # rehearsed above, before the lock
 
-    return drive(store, run_id, config, listeners, signer, start, resuming=resuming, on_open=on_open)
+    outcome = drive(
+        store, run_id, config, listeners, signing.signer, start, resuming=resuming, on_open=on_open
+    )
+    return replace(outcome, signing=signing.note)
 
 
 Emit = Callable[[RunEvent], None]

@@ -61,6 +61,8 @@ def _end(args: argparse.Namespace) -> int:
     with open_db(args) as store:
         outcome = end_run(store, resolve_run(store, args.end), signoff)
     print(f"run {outcome.run_id} {outcome.reason}")  # a success: stdout, no error prefix
+    if outcome.signing.startswith("warning"):
+        print(outcome.signing, file=sys.stderr)
     return 0
 
 
@@ -148,6 +150,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
             control=control,
             rig_checked=rig_checked,
             ball=ball,
+            sign_simulated=args.sign_simulated,
         )
         live.close()
         if args.json:
@@ -317,7 +320,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
         report = dataclasses.replace(report, ok=False, problems=report.problems + tuple(distrusted))
     signatures = (
         f"{report.runs_signed} runs signed, {report.runs_unsigned} unsigned, {report.runs_bad_signature} bad"
-    )
+    ) + _unlisted(report.unlisted_signatures)
     if args.json:
         json.dump(_verify_json(report), sys.stdout, indent=2)
         sys.stdout.write("\n")
@@ -338,6 +341,18 @@ def cmd_verify(args: argparse.Namespace) -> int:
     return 1
 
 
+def _unlisted(rigs: tuple[str, ...]) -> str:
+    """A word on unsigned runs whose signature names a key the store does not list (uncheckable)."""
+    if not rigs:
+        return ""
+    n, names = len(rigs), ", ".join(sorted(set(rigs)))
+    runs = "1 unsigned run carries" if n == 1 else f"{n} unsigned runs carry"
+    return (
+        f"\n{runs} a signature by a key this store does not list (rig {names}): "
+        "rig keys register --rig NAME lists it, and verify then checks it"
+    )
+
+
 def _verify_json(report: Any) -> dict[str, Any]:
     """The verification as data: verdict, entries checked, head, where the chain broke, problems."""
     return {
@@ -350,6 +365,7 @@ def _verify_json(report: Any) -> dict[str, Any]:
         "runs_signed": report.runs_signed,
         "runs_unsigned": report.runs_unsigned,
         "runs_bad_signature": report.runs_bad_signature,
+        "unlisted_signatures": list(report.unlisted_signatures),
     }
 
 
@@ -384,6 +400,12 @@ def add_parsers(sub: Any) -> None:
     )
     p.add_argument(
         "--end", metavar="RUN", help="end an unfinished run with no verdict (--who, --why recorded)"
+    )
+    p.add_argument(
+        "--sign-simulated",
+        action="store_true",
+        help="sign a simulated run with its rig's key even where that key is not registered, or is a real"
+        " rig's (by default a simulated run is signed only where its sim-SCENE key is registered)",
     )
     p.add_argument("--who", metavar="NAME", help="who checked the rig or ends the run (recorded)")
     p.add_argument("--why", metavar="TEXT", help="why (recorded)")

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from rich.markup import escape
+
 from rig.core import events as ev
 from rig.core.events import RunEvent
 from rig.report.terminal import console
@@ -18,10 +20,13 @@ class LiveConsole:
 
     def __call__(self, event: RunEvent) -> None:
         line = self._line(event.kind, event.data)
-        if line and not self.quiet:
+        if line and (not self.quiet or event.kind == ev.RIG_NAMED):  # the rig and its signature: always
             self.console.print(line)
 
     def _line(self, kind: str, d: dict[str, Any]) -> str | None:
+        if kind == ev.RIG_NAMED:
+            rig = f"rig {d['name']}" + (" (simulated)" if d["simulated"] else "")
+            return escape(rig + (f": {d['signing']}" if d["signing"] else ""))
         if kind == ev.RUN_STARTED:
             p, b = d["procedure"], d["bat"]
             if "target" in b:  # a ball test: the clamp holds a rigid target, the cannon a lot's balls

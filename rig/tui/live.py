@@ -157,6 +157,11 @@ def _started(r: LiveRun, d: dict[str, Any]) -> None:
     r.note(f"{p.name} on bat {d['bat']['id']}")
 
 
+def _rig_named(r: LiveRun, d: dict[str, Any]) -> None:
+    rig = f"rig {d['name']}" + (" (simulated)" if d["simulated"] else "")
+    r.note(rig + (f": {d['signing']}" if d["signing"] else ""))
+
+
 def _resumed(r: LiveRun, d: dict[str, Any]) -> None:
     r.interrupted = ""
     r.note(f"resumed after {d['shots_so_far']} shot(s)")
@@ -282,6 +287,7 @@ def _continued(r: LiveRun, d: dict[str, Any]) -> None:
 
 
 _HANDLERS = {
+    ev.RIG_NAMED: _rig_named,
     ev.RUN_STARTED: _started,
     ev.RUN_RESUMED: _resumed,
     ev.ENVIRONMENT_CHECKED: _environment,

@@ -13,6 +13,7 @@ import pytest
 
 from rig.cli import main
 from rig.store import Store
+from tests.unit.clirun import QUICK_PROCEDURE
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -101,3 +102,24 @@ def test_no_operator_message_names_a_python_call() -> None:
                     if call.search(node.value) and not sql:
                         found.append(f"{path.relative_to(ROOT)}:{node.lineno}: {node.value!r}")
     assert not found, found
+
+
+def test_the_readme_keys_sequence_signs_a_simulated_run(tmp_path: Path) -> None:
+    """The README's `rig keys` lines, run as written (the store in tmp_path, a quick procedure)."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    (block,) = [b for b in _code_blocks(_section("Signing simulated runs")) if "rig keys create" in b]
+    (tmp_path / "quick.toml").write_text(QUICK_PROCEDURE, encoding="utf-8")
+    results = []
+    for line in block.splitlines():
+        argv = shlex.split(line.split("#", 1)[0])[1:]
+        argv = [str(tmp_path / "demo.db") if a == "out/demo.db" else a for a in argv]
+        argv = [str(tmp_path / "quick.toml") if a == "bbcor" else a for a in argv]
+        argv = [str(ROOT / a) if a.startswith("protocols/") else a for a in argv]
+        out, err = io.StringIO(), io.StringIO()
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            code = main(argv)
+        results.append((code, out.getvalue(), err.getvalue()))
+    assert [r[0] for r in results] == [0, 0, 0, 0], results
+    assert "rig sim-lab (simulated): signed with rig sim-lab's key" in results[2][2]
+    assert "1 runs signed, 0 unsigned, 0 bad" in results[3][1]
+    assert "rig sim-lab (simulated)" in text
