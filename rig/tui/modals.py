@@ -17,12 +17,13 @@ HELP = """\
   Tab / Shift+Tab  move between fields         Esc  leave a field
   s (Enter on Start)  start the run   r  read the devices again   h  history
 [b]Run[/b]
-  f  fire the waiting shot (the key is the confirmation); off while an
-     interlock is open, the cannon's status is unknown or the run is paused
+  f  fire the waiting shot (the key is the confirmation); off (f says why)
+     while an interlock is open, the cannon's status is unknown or paused
   Enter  the answer that needs no thought: the ring passes, accept the
      valid shot (and its ring check after); never fires
   y / n  answer one prompt; n on a ring check asks first (it fails the bat)
-  p  pause / go on   a  abort (resumable)   r  resume   b  back once ended
+  p  pause (PAUSED leads the prompt line) / go on   a  abort (resumable)
+  r  resume   b  back once ended
 [b]History[/b]
   Up / Down  choose a run (report below)   r  resume it   Esc  back
 [b]Anywhere[/b]

@@ -56,10 +56,12 @@ class RunScreen(RunKeys, Screen[None]):
     """
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("f", "fire", "Fire"),
+        Binding("f", "fire_off", "Fire", show=False),  # when the shot may not be fired: says why
         Binding("enter", "quick", "OK"),
         Binding("y", "answer(True)", "Yes"),
         Binding("n", "answer(False)", "No"),
         Binding("p", "pause", "Pause"),
+        Binding("p", "go_on", "Go on"),  # offered instead of Pause while paused
         Binding("a", "abort", "Abort"),
         Binding("r", "resume", "Resume"),
         Binding("b", "back", "Back"),

@@ -78,7 +78,7 @@ def test_open_interlock_disables_fire(make_settings: Callable[..., ConsoleSettin
             get_world(rig).set_interlock("door", True)
             await until(pilot, lambda: not screen.fire_block(), "the door to close")
             await pilot.press("p")  # paused: no firing either
-            assert screen.fire_block() == "paused" and "FIRE DISABLED: paused" in screen_text(app, "#prompt")
+            assert screen.fire_block() == "paused" and "PAUSED p goes on" in screen_text(app, "#prompt")
             await pilot.press("f", "enter", "y")  # neither the fire key nor the answer keys fire it
             assert pending.pending is not None and pending.pending.prompt_id == "fire-1"
             await pilot.press("p")

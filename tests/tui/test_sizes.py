@@ -18,7 +18,7 @@ from textual.widgets import Static
 from rig.report.record import run_record
 from rig.store import Store
 from rig.tui import ConsoleSettings, RigConsole
-from rig.tui.modals import TooSmallScreen
+from rig.tui.modals import ConfirmScreen, TooSmallScreen
 from rig.tui.run import RunScreen
 from rig.tui.setup import SetupScreen
 from tests.tui.conftest import QUICK, answer_prompts, start_run, until
@@ -200,3 +200,49 @@ def test_q_quits_under_the_size_notice(make_settings: Callable[..., ConsoleSetti
             return app.is_running
 
     assert asyncio.run(body()) is False
+
+
+def test_a_pause_shows_while_a_prompt_waits_and_fire_is_not_offered(
+    make_settings: Callable[..., ConsoleSettings],
+) -> None:
+    """'Paused' appeared only once the waiting prompt was answered, the footer still offered `f Fire`
+    and f did nothing, silently. Now the prompt line says PAUSED at once, the footer offers `p Go on`
+    instead of Fire and Pause, and f says why it does not fire."""
+    settings = make_settings(procedure=str(QUICK))
+
+    async def body() -> None:
+        app = RigConsole(settings)
+        async with app.run_test(size=(80, 24)) as pilot:
+            screen = await start_run(pilot)
+            op = screen.operator
+            await until(pilot, lambda: op.pending is not None and not screen.fire_block(), "fire-1")
+            await pilot.press("f")
+            await until(
+                pilot, lambda: op.pending is not None and op.pending.prompt_id == "review-1", "review"
+            )
+            await pilot.press("p")
+            await pilot.pause()
+            shown = screen_text(app)
+            assert "PAUSED" in shown
+            assert op.pending is not None and flat(op.pending.text) in shown  # still shown, answerable
+            assert "p Go on" in shown and "f Fire" not in shown and "p Pause" not in shown
+            await pilot.press("enter")  # accepted: the run now holds before shot 2
+            await until(pilot, lambda: op.pending is None, "the hold")
+            await pilot.pause()
+            shown = screen_text(app)
+            assert "PAUSED p goes on: the run holds before the next shot" in shown and "f Fire" not in shown
+            app.clear_notifications()
+            await pilot.press("f")
+            await pilot.pause()
+            assert [n.message for n in app._notifications] == ["not fired: paused (p goes on)"]
+            await pilot.press("p")
+            await until(pilot, lambda: op.pending is not None and not screen.fire_block(), "fire-2")
+            await pilot.pause()
+            shown = screen_text(app)
+            assert "PAUSED" not in shown and "f Fire" in shown and "p Pause" in shown
+            await pilot.press("a")
+            await until(pilot, lambda: isinstance(app.screen, ConfirmScreen), "the abort question")
+            await pilot.press("y")
+            await until(pilot, lambda: not screen.running, "the run to stop")
+
+    asyncio.run(body())
