@@ -291,8 +291,17 @@ def cmd_tui(args: argparse.Namespace) -> int:
     settings = ConsoleSettings.from_args(
         args.sim, args.config, args.db or default_db(), bat=args.bat or "", procedure=args.procedure or ""
     )
-    RigConsole(settings).run()
-    return 0
+    console = RigConsole(settings)
+    console.run()
+    db = f" --db {shlex.quote(shown_db(args.db))}" if args.db else ""
+    for left in console.left_open:  # as rig certify says it of an interrupted run: exit 3
+        rig = f"--{left.rig.kind} {shlex.quote(left.rig.ref)}" if left.rig else "--config RIG.toml"
+        print(
+            f"rig: run {left.run_id} interrupted: {left.reason}; resume with: rig certify --resume "
+            f"{left.run_id} {rig}{db}, or in rig tui {rig}{db}: h, the run, r",
+            file=sys.stderr,
+        )
+    return 3 if console.left_open else 0
 
 
 def cmd_verify(args: argparse.Namespace) -> int:

@@ -132,7 +132,9 @@ class HistoryScreen(Screen[None]):
                 else:  # created, then stopped before it started (e.g. a port would not open)
                     procedure = Procedure.load(run.procedure)
                     bat = BatSpec.model_validate(store.bats()[run.bat_id])
-            job = RunJob(procedure, bat, self.rig.config(bat), self.rig.label, run_id=run.run_id)
+            job = RunJob(
+                procedure, bat, self.rig.config(bat), self.rig.label, run_id=run.run_id, rig=self.rig
+            )
         except (RigError, ValueError) as exc:
             self.notify(str(exc), title="Cannot resume", severity="error")
             return

@@ -28,8 +28,9 @@ from rig.core.events import RunEvent
 from rig.tui import render, situation
 from rig.tui.jobs import JobResult, predict, run_job
 from rig.tui.live import LiveRun
+from rig.tui.messages import RunEnded
 from rig.tui.operator import CannonRead, ConsoleOperator, GatesRead, Notice, PromptPending
-from rig.tui.rigs import ConsoleSettings, RunJob
+from rig.tui.rigs import ConsoleSettings, LeftOpen, RunJob
 from rig.tui.run_keys import RunKeys
 from rig.tui.situation import Situation
 
@@ -184,7 +185,15 @@ class RunScreen(RunKeys, Screen[None]):
             self.notify(outcome.reason, title="Run interrupted (resumable)", severity="warning")
         if result.run_id:
             self.live.note(f"run {result.run_id[:8]}; records in {self.settings.db.name}")
+            self.post_message(RunEnded(*self.left_open()))
         self.refresh_view()
+
+    def left_open(self) -> tuple[LeftOpen, bool]:
+        """The run as the console may leave it, and whether it is still open (resumable)."""
+        outcome, run_id = self.outcome, self.job.run_id or ""
+        reason = self.failure if outcome is None else outcome.reason
+        still_open = outcome is None or outcome.status not in ("finished", "ended")
+        return LeftOpen(run_id, reason, self.job.rig), still_open
 
     # -- the model's prediction -----------------------------------------------------------------
     def _predict_soon(self) -> None:
