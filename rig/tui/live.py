@@ -81,6 +81,7 @@ class LiveRun:
     hits_needed: int = 0
     cannon: CannonStatus | None = None
     cannon_error: str = ""
+    cannon_note: str = ""  # why the status is unknown now (the run ended: the rig vented, nothing read)
     gate_config: GateConfig | None = None
     pressure_kpa: float | None = None  # at the last shot
     environment: str = ""

@@ -24,8 +24,8 @@ HELP = """\
   y / n  answer one prompt; n on a ring check asks first (it fails the bat)
   p  pause (PAUSED leads the prompt line) / go on   a  abort (resumable)
   r  resume   b  back once ended
-[b]History[/b]
-  Up / Down  choose a run (report below)   r  resume it   Esc  back
+[b]History[/b]  Up / Down  choose a run   r  resume it   Esc  back
+  PgDn / PgUp  scroll the run's report (a certificate takes a moment)
 [b]Anywhere[/b]
   ?  this help (Esc closes it)    q  quit (asks first during a run)
 Needs 80x24; from 120x40 the run shows plots, the budget and the traffic."""

@@ -118,7 +118,7 @@ class RunScreen(RunKeys, Screen[None]):
         self.running, self.failure, self.outcome = True, "", None
         self.control = RunControl()
         self.operator = ConsoleOperator(self._notice, poll_s=self.settings.poll_s)
-        self.live.interrupted = ""
+        self.live.interrupted, self.live.cannon_note = "", ""
         self._predict_soon()
         self._worker = self._certify(self.job)
         self.refresh_view()
@@ -173,6 +173,9 @@ class RunScreen(RunKeys, Screen[None]):
     def _ended(self, result: JobResult) -> None:
         outcome = result.outcome
         self.running, self.outcome, self.failure = False, outcome, result.failure
+        # the session closed: it vented the cannon, and nothing reads its status any more
+        self.live.cannon, self.live.cannon_error = None, ""
+        self.live.cannon_note = "since the run ended\n(vented on closing; not read)"
         self.job = replace(self.job, run_id=result.run_id)
         if outcome is None:
             self.live.note(f"stopped by a fault: {result.failure}")

@@ -302,3 +302,17 @@ def test_rig_tui_quit_mid_run_says_how_to_resume_and_exits_3(
     assert f"rig certify --resume abc123 --sim lab --db {db}" in line and "rig tui" in line
     monkeypatch.setattr(RigConsole, "run", lambda app: None)  # nothing left open: exit 0, no word
     assert main(["tui", "--sim", "lab", "--db", str(db)]) == 0 and capsys.readouterr().err == ""
+
+
+def test_the_title_line_docs_tui_quotes_is_what_sim_lab_shows(tmp_path: Path) -> None:
+    """docs/tui.md quoted `SIMULATED: ideal`, which `rig tui --sim lab` (the README's) never shows."""
+    from protocols.procedure import Procedure
+    from rig.core.bat import BatSpec
+    from rig.tui.rigs import RunJob
+
+    settings = ConsoleSettings.from_args("lab", None, tmp_path / "r.db", bat=str(SAMPLE_BAT))
+    bat, choice = BatSpec.load(SAMPLE_BAT), settings.rigs[0]
+    job = RunJob(Procedure.load("bbcor"), bat, choice.config(bat), choice.label, rig=choice)
+    title = RunScreen(settings, job)._title()
+    docs = " ".join((Path(__file__).resolve().parents[2] / "docs" / "tui.md").read_text().split())
+    assert f"`{title}` for `rig tui --sim lab` with the sample bat" in docs

@@ -246,3 +246,38 @@ def test_a_pause_shows_while_a_prompt_waits_and_fire_is_not_offered(
             await until(pilot, lambda: not screen.running, "the run to stop")
 
     asyncio.run(body())
+
+
+def test_at_80x24_the_model_the_cannon_after_the_run_and_the_speeds_say_what_they_are(
+    make_settings: Callable[..., ConsoleSettings],
+) -> None:
+    """'uncalibrated model at ...' was cut for the whole run; the cannon panel kept the last pressure
+    read after the run had vented; the live inbound speed (at the gates) and the invalid reason's
+    (at the impact point) differed with no word of which is where; 'Fire shot 10 (valid)' read like
+    a verdict before the shot."""
+    settings = make_settings(procedure=str(QUICK))
+
+    async def body() -> tuple[str, str, str, str]:
+        app = RigConsole(settings)
+        async with app.run_test(size=(80, 24)) as pilot:
+            screen = await start_run(pilot)
+            await until(pilot, lambda: screen.live.prediction is not None, "the model's prediction")
+            await pilot.pause()
+            during = f"model {screen.live.prediction:.4f} {screen.live.prediction_note}", screen_text(app)
+            await answer_prompts(pilot, screen)
+            await pilot.pause()
+            after = f"model {screen.live.prediction:.4f} {screen.live.prediction_note}", screen_text(app)
+            return (*during, *after)
+
+    note, during, note_after, after = asyncio.run(body())
+    assert "uncalibrated" in note and flat(note) in during, note  # whole, on one line of its panel
+    assert "uncalibrated" in note_after and flat(note_after) in after, note_after
+    cannon = after.split("Cannon")[1].split("Live shot")[0]
+    assert "kPa" not in cannon and "UNKNOWN since the run ended" in after and "vented on closing" in after
+    assert re.search(r"at the gates in \d+\.\d\d out \d+\.\d\d m/s", after), after
+    with Store.open(settings.db, create=False) as store:
+        (run,) = store.runs()
+        asked = [e.payload["text"] for e in store.entries(run.run_id, kinds=["OperatorPrompted"])]
+    fires = [t for t in asked if t.startswith("Fire shot")]
+    assert fires and not [t for t in fires if "(valid)" in t]
+    assert [t for t in fires if "(for the result)" in t] and [t for t in fires if "(scan)" in t]
