@@ -87,9 +87,7 @@ def run_ball_test(
         register_item(store, target.id, target.spec(), refusal)
         meta = {"procedure": procedure.name, "rig": identity, "lot": lot.id, "test": procedure.test}
         run_id = store.create_run(procedure.test, target.id, meta)
-    listeners = list(subscribers)
-    for listener in listeners:  # which rig, and its signature, before the first step
-        listener(ev.RigNamed(name=rig, simulated=config.simulated, signing=signing.note))
+    named = ev.RigNamed(name=rig, simulated=config.simulated, signing=signing.note)
 
     def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Executor, Callable[[], Any]]:
         operator_ = operator or ScriptedOperator()
@@ -112,7 +110,15 @@ def run_ball_test(
         return executor, lambda: executor.run(ball_test)
 
     outcome = drive(
-        store, run_id, config, listeners, signing.signer, start, resuming=resuming, what="ball test"
+        store,
+        run_id,
+        config,
+        list(subscribers),
+        signing.signer,
+        start,
+        resuming=resuming,
+        what="ball test",
+        named=named,
     )
     return replace(outcome, signing=signing.note)
 

@@ -184,8 +184,7 @@ def certify(
         register_item(store, bat.id, bat.model_dump(mode="json"), refusal)
         meta = {"procedure": procedure.name, "rig": identity}
         run_id = store.create_run(procedure.standard.value, bat.id, meta)
-    for listener in listeners:  # which rig, and its signature, before the first step
-        listener(ev.RigNamed(name=rig, simulated=config.simulated, signing=signing.note))
+    named = ev.RigNamed(name=rig, simulated=config.simulated, signing=signing.note)
 
     def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Driven, Callable[[], Any]]:
         runner = Runner(
@@ -209,7 +208,15 @@ def certify(
         return runner, lambda: runner.run(rehearse_first=False)  # rehearsed above, before the lock
 
     outcome = drive(
-        store, run_id, config, listeners, signing.signer, start, resuming=resuming, on_open=on_open
+        store,
+        run_id,
+        config,
+        listeners,
+        signing.signer,
+        start,
+        resuming=resuming,
+        on_open=on_open,
+        named=named,
     )
     return replace(outcome, signing=signing.note)
 
@@ -240,11 +247,13 @@ def drive(
     resuming: bool,
     on_open: Callable[[RigSession], None] | None = None,
     what: str = "run",
+    named: RunEvent | None = None,
 ) -> Outcome:
     """Run one recorded run on the rig under its lock: every persisted event committed before the
     plan goes on, any error recorded as the run's interruption (resumable), the run sealed (and
     signed) at its end. `start` builds the runner from the open session, the record and `emit`, and
-    returns it with the call that runs it to its verdict."""
+    returns it with the call that runs it to its verdict. `named` (RigNamed) goes to the listeners
+    first, once the run's lock is held: a runner refused the run says nothing else."""
 
     def emit(event: RunEvent) -> None:
         if event.persisted:
@@ -254,6 +263,8 @@ def drive(
 
     # One runner per run: a second one is refused here (RunLocked), before any device opens.
     with store.run_lock(run_id):
+        for listener in listeners if named is not None else ():
+            listener(named)
         try:
             session = RigSession.open(config)
         except (RigError, OSError) as exc:  # an unplugged or busy port: nothing moved, resumable

@@ -20,6 +20,7 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
 from rig.core.config import RIG_NAME_PATTERN
 from rig.core.errors import ConfigError, RecordRefused
+from rig.core.events import RUN_STARTED
 from rig.store import LogEntry, Store
 from rig.store._records import RUN_CREATED
 from rig.store._signed import (
@@ -177,7 +178,7 @@ def unlisted_warning(store: Store, signer: Signer) -> str:
 
 def recorded_simulated(store: Store, run_id: str) -> bool:
     """Whether a run was recorded on a simulated rig (a sim:// port in its RunStarted)."""
-    started = store.entries(run_id, kinds=["RunStarted"])
+    started = store.entries(run_id, kinds=[RUN_STARTED])
     rig = started[0].payload.get("rig") if started else None
     ports = rig.get("ports") if isinstance(rig, dict) else None
     urls = ports.values() if isinstance(ports, dict) else ()
