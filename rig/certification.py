@@ -263,8 +263,9 @@ def drive(
 
     # One runner per run: a second one is refused here (RunLocked), before any device opens.
     with store.run_lock(run_id):
-        for listener in listeners if named is not None else ():
-            listener(named)
+        for listener in listeners:
+            if named is not None:
+                listener(named)
         try:
             session = RigSession.open(config)
         except (RigError, OSError) as exc:  # an unplugged or busy port: nothing moved, resumable
