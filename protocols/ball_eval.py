@@ -67,8 +67,9 @@ def shot(
         v_at_target = inbound_at_impact(
             passes, record.gate_positions_m, record.gate_config, p.ball.mass_kg, drag
         )
-        out["aim_factor"] = learned_aim(state.aim_factor, target_speed, v_at_target, state.aim_shots)
-        out["aim_shots"] = state.aim_shots + 1
+        taught = min(state.aim_shots, _shots_at(state, target_speed))  # a new speed: its own mean
+        out["aim_factor"] = learned_aim(state.aim_factor, target_speed, v_at_target, taught)
+        out["aim_shots"] = taught + 1
     limits = ValidityLimits(speed_tolerance_m_s=p.speed_tolerance_m_s)
     reasons = check_shot(
         speeds,
@@ -97,6 +98,19 @@ def shot(
             budget=hit.as_dict(),
         )
     return concluded(out, reasons, failure)
+
+
+def _shots_at(state: RunState, target_speed: float) -> int:
+    """How many evaluated shots just before this one were aimed at `target_speed` (a ccor test's
+    speeds each need their own aim factor: the aim table may be off by another ratio at each)."""
+    count = 0
+    for s in reversed(state.shots[:-1]):
+        if s.outcome is None:
+            continue
+        if float((s.requested or {}).get("target_speed_m_s", -1.0)) != target_speed:
+            break
+        count += 1
+    return count
 
 
 def points(shots: Sequence[ShotEntry]) -> list[CcorPoint]:

@@ -33,7 +33,8 @@ def load_table(cls: type[M], name_or_path: str | Path, builtin: tuple[str, ...],
     path = Path(name_or_path)
     if str(name_or_path) in builtin:
         path = BUILTIN_DIR / f"{name_or_path}.toml"
-    data = read_toml(path, missing=f"no such {what}; built-in ones are {', '.join(builtin)}")
+    missing = f"no such {what}; built-in ones are {', '.join(builtin)}"
+    data = read_toml(path, missing=missing, what=f"a {what} file")
     return validate(cls, table(data, "procedure", str(path)), str(path), prefix="procedure."), path
 
 

@@ -31,7 +31,7 @@ from rig.measure.model import OUTPUTS, ShotInputs, outputs
 from rig.measure.tradeoff import tradeoff_table
 from rig.measure.uncertainty import budget, u_with_scatter
 from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat, predict_bat
-from rig.population.calfile import CalibrationFile, load_calibration
+from rig.population.calfile import CalibrationFile, read_calibration
 from rig.population.crosscheck import crosscheck_at
 
 UNCALIBRATED = (
@@ -159,7 +159,7 @@ def run_calibration(p: Procedure, config: RigConfig) -> dict[str, Any] | None:
             source="calibration",
         )
     by, path = next(iter(named.items()))
-    cal = load_calibration(path)
+    cal, data = read_calibration(path)  # the bytes read once: recorded as they were checked
     if cal.metric != p.standard.value:
         raise ConfigError(
             f"a {cal.metric} calibration; the procedure certifies {p.standard.value}", source=path
@@ -169,7 +169,6 @@ def run_calibration(p: Procedure, config: RigConfig) -> dict[str, Any] | None:
             f"calibrated at {cal.speed_m_s:g} m/s; the procedure shoots at {p.target_speed_m_s:g} m/s",
             source=path,
         )
-    data = Path(path).read_bytes()
     return {
         "path": str(path),
         "named_by": by,

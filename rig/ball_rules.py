@@ -11,6 +11,7 @@ conditioning window, balls numbered within the lot).
 
 from __future__ import annotations
 
+import hashlib
 from typing import Any
 
 from protocols.ball_terms import BallTerms, terms_from_lot
@@ -50,7 +51,12 @@ def qualify(lot: BallLot, results: list[LotResult], procedure: Procedure) -> lis
 
 
 def lot_terms(
-    store: Any, lot_id: str, procedure: Procedure, law: Any = None, law_sha256: str | None = None
+    store: Any,
+    lot_id: str,
+    procedure: Procedure,
+    law: Any = None,
+    law_sha256: str | None = None,
+    law_file: str | None = None,
 ) -> BallTerms:
     """The ball terms of registered lot `lot_id` for a certification with `procedure`.
 
@@ -59,7 +65,7 @@ def lot_terms(
     """
     lot, results = store.ball_lot(lot_id)
     cor = qualify(lot, results, procedure)
-    law_from = "--ball"
+    law_from = f"--ball {law_file}" if law_file else "--ball"
     if law is None:
         recorded = lot_law(store, lot_id)
         if recorded is not None:
@@ -111,7 +117,10 @@ def lot_law(store: Any, lot_id: str) -> tuple[Any, str] | None:
     if not recorded:
         return None
     last = recorded[-1]
-    return BallLaw.parse_text(last.text, f"lot {lot_id}'s recorded ball law (entry {last.seq})"), last.sha256
+    source = f"lot {lot_id}'s recorded ball law (entry {last.seq})"
+    if hashlib.sha256(last.text.encode("utf-8")).hexdigest() != last.sha256:
+        raise ConfigError("its text does not match its recorded sha256", source=source)
+    return BallLaw.parse_text(last.text, source), last.sha256
 
 
 def first_unused_ball(store: Any, lot: BallLot) -> int:
@@ -133,11 +142,11 @@ def balls_needed(procedure: Procedure) -> int:
     return -(-shots // procedure.ball.replace_after_hits)
 
 
-def law_terms(law: Any, sha256: str | None = None) -> BallTerms:
+def law_terms(law: Any, sha256: str | None = None, law_file: str | None = None) -> BallTerms:
     """The terms of a run that names a ball law but no lot: the law recorded, the rest assumed."""
     return BallTerms(
         law=dict(law.constants),
         law_sha256=sha256,
-        law_from=None if sha256 is None else "--ball",
+        law_from=None if sha256 is None else (f"--ball {law_file}" if law_file else "--ball"),
         source="ball law given, no lot named: assumed defaults [U]",
     )

@@ -21,7 +21,17 @@ from protocols.dryrun import Rehearsal, rehearse
 from protocols.executor import Executor, LiveRig
 from protocols.state import fold
 from rig import __version__
-from rig.certification import Emit, Outcome, _running, _traffic_drain, drive, history, register_item
+from rig.certification import (
+    Emit,
+    Outcome,
+    _running,
+    _traffic_drain,
+    create_run,
+    drive,
+    history,
+    open_before_run,
+    register_item,
+)
 from rig.core import events as ev
 from rig.core.ball import BALL_TESTS, BallLot
 from rig.core.config import RigConfig
@@ -86,8 +96,10 @@ def run_ball_test(
         refusal = ConfigError(f"target {target.id} is registered with other properties", source="procedure")
         register_item(store, target.id, target.spec(), refusal)
         meta = {"procedure": procedure.name, "rig": identity, "lot": lot.id, "test": procedure.test}
-        run_id = store.create_run(procedure.test, target.id, meta)
-    named = ev.RigNamed(name=rig, simulated=config.simulated, signing=signing.note)
+        session = open_before_run(config)  # a port that will not open: refused, no run created
+        run_id = create_run(store, session, procedure.test, target.id, meta)
+    else:
+        session = None  # a resumed test opens its devices under its lock
 
     def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Executor, Callable[[], Any]]:
         operator_ = operator or ScriptedOperator()
@@ -109,6 +121,7 @@ def run_ball_test(
         )
         return executor, lambda: executor.run(ball_test)
 
+    named = ev.RigNamed(name=rig, simulated=config.simulated, signing=signing.note)
     outcome = drive(
         store,
         run_id,
@@ -118,6 +131,7 @@ def run_ball_test(
         start,
         resuming=resuming,
         what="ball test",
+        session=session,
         named=named,
     )
     return replace(outcome, signing=signing.note)
@@ -172,14 +186,15 @@ DERIVED_TERMS = (
 
 
 def ball_terms_problems(store: Store) -> list[str]:
-    """Every certification whose recorded ball terms are not what its lot's named results give.
+    """Every certification whose recorded ball terms are not what its lot's results give.
 
-    A run records the run ids of the ball-cor results its terms rest on (BallTerms.results); the
-    terms are derived again from exactly those results (each checked against its own shots by
-    recomputed_problems) and the lot as registered. Runs recorded before the ids were are skipped.
+    A run records the run ids of the ball-cor results its terms rest on (BallTerms.results): they
+    must be every ball-cor test of the lot finished before the run started, and the terms are
+    derived again from exactly those (each checked against its own shots by recomputed_problems)
+    and the lot as registered; a law taken from the lot must be one the lot recorded. A run whose
+    lot is not in this store (e.g. copied by `rig sync`, which copies no lots) cannot be derived
+    here and is left to the store it came from; runs recorded before the ids were are skipped.
     """
-    from protocols.ball_terms import BallTerms, terms_from_lot
-
     problems: list[str] = []
     lots = store.ball_lots()
     for run in store.runs():
@@ -187,30 +202,47 @@ def ball_terms_problems(store: Store) -> list[str]:
             continue
         started = store.entries(run.run_id, kinds=[ev.RUN_STARTED])
         recorded = (started[0].payload.get("ball") if started else None) or {}
-        if not recorded.get("lot") or not recorded.get("results"):
+        if not recorded.get("lot") or "results" not in recorded or recorded["lot"] not in lots:
             continue
-        lot_id, ids = recorded["lot"], list(recorded["results"])
-        if lot_id not in lots:
-            problems.append(f"run {run.run_id}: its ball terms name lot {lot_id}, which is not registered")
-            continue
-        by_id = {r.run_id: r for r in store.ball_lot(lot_id)[1]}
-        missing = [i for i in ids if i not in by_id]
-        if missing:
-            problems.append(
-                f"run {run.run_id}: its ball terms rest on ball-cor run {missing[0]}, which the store does"
-                f" not hold as a finished test of lot {lot_id}"
-            )
-            continue
-        again = terms_from_lot(lots[lot_id], [by_id[i] for i in ids], recorded.get("law"))
-        want = BallTerms.model_validate(recorded).model_dump(mode="json", include=set(DERIVED_TERMS))
-        got = again.model_dump(mode="json", include=set(DERIVED_TERMS))
-        bad = [k for k in DERIVED_TERMS if not _same(got[k], want[k])]
-        if bad:
-            problems.append(
-                f"run {run.run_id}: its recorded ball terms are not what lot {lot_id}'s results give"
-                f" ({bad[0]}: recorded {want[bad[0]]!r}, derived {got[bad[0]]!r})"
-            )
+        problem = _terms_problem(store, lots[recorded["lot"]], recorded, started[0].seq)
+        if problem:
+            problems.append(f"run {run.run_id}: {problem}")
     return problems
+
+
+def _terms_problem(store: Store, lot: Any, recorded: dict[str, Any], started_seq: int) -> str | None:
+    """What is wrong with one run's recorded terms of `lot` (None: they are what its results give)."""
+    from pydantic import ValidationError
+
+    from protocols.ball_terms import BallTerms, terms_from_lot
+
+    try:
+        terms = BallTerms.model_validate(recorded)
+    except ValidationError as exc:
+        return f"its recorded ball terms are unreadable ({exc.errors()[0]['msg']})"
+    before = []
+    for r in store.ball_lot(lot.id)[1]:
+        finished = store.entries(r.run_id, kinds=[ev.RUN_FINISHED])
+        if r.procedure == "ball-cor" and r.wear_per_hit is not None and finished[0].seq < started_seq:
+            before.append(r)
+    expected = [r.run_id for r in before]
+    if list(terms.results) != expected:
+        named, due = (", ".join(i[:12] for i in ids) or "none" for ids in (terms.results, expected))
+        return f"its ball terms rest on ball-cor runs {named}, not on lot {lot.id}'s tests before it ({due})"
+    if terms.law_from and terms.law_from.startswith("lot ") and terms.law_sha256 is not None:
+        laws = {w.sha256: w for w in store.ball_laws(lot.id) if w.seq < started_seq}
+        if terms.law_sha256 not in laws:
+            return f"its ball law (sha256 {terms.law_sha256[:12]}) is not one lot {lot.id} had recorded"
+    again = terms_from_lot(lot, before, recorded.get("law"))
+    want = terms.model_dump(mode="json", include=set(DERIVED_TERMS))
+    got = again.model_dump(mode="json", include=set(DERIVED_TERMS))
+    bad = [k for k in DERIVED_TERMS if not _same(got[k], want[k])]
+    if bad:
+        return (
+            f"its recorded ball terms are not what lot {lot.id}'s results give"
+            f" ({bad[0]}: recorded {want[bad[0]]!r}, derived {got[bad[0]]!r})"
+        )
+    return None
 
 
 def _same(a: Any, b: Any, rel: float = 1e-9) -> bool:

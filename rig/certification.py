@@ -183,8 +183,10 @@ def certify(
         )
         register_item(store, bat.id, bat.model_dump(mode="json"), refusal)
         meta = {"procedure": procedure.name, "rig": identity}
-        run_id = store.create_run(procedure.standard.value, bat.id, meta)
-    named = ev.RigNamed(name=rig, simulated=config.simulated, signing=signing.note)
+        session = open_before_run(config)  # a port that will not open: refused, no run created
+        run_id = create_run(store, session, procedure.standard.value, bat.id, meta)
+    else:
+        session = None  # a resumed run opens its devices under its lock (an error: its interruption)
 
     def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Driven, Callable[[], Any]]:
         runner = Runner(
@@ -207,6 +209,7 @@ def certify(
         )
         return runner, lambda: runner.run(rehearse_first=False)  # rehearsed above, before the lock
 
+    named = ev.RigNamed(name=rig, simulated=config.simulated, signing=signing.note)
     outcome = drive(
         store,
         run_id,
@@ -216,6 +219,7 @@ def certify(
         start,
         resuming=resuming,
         on_open=on_open,
+        session=session,
         named=named,
     )
     return replace(outcome, signing=signing.note)
@@ -236,6 +240,24 @@ class Driven(Protocol):
     def flush_traffic(self) -> None: ...
 
 
+def open_before_run(config: RigConfig) -> RigSession:
+    """A new run's devices, opened before the run is created: a port that cannot be opened is a
+    ConfigError naming it, with nothing recorded (not a run created only to be interrupted)."""
+    try:
+        return RigSession.open(config)
+    except (RigError, OSError) as exc:
+        raise ConfigError(f"the devices could not be opened ({_reason(exc)}); no run was started") from None
+
+
+def create_run(store: Store, session: RigSession, kind: str, item_id: str, meta: dict[str, Any]) -> str:
+    """store.create_run, closing the session opened for the run if the store refuses."""
+    try:
+        return store.create_run(kind, item_id, meta)
+    except BaseException:
+        session.close()
+        raise
+
+
 def drive(
     store: Store,
     run_id: str,
@@ -247,13 +269,15 @@ def drive(
     resuming: bool,
     on_open: Callable[[RigSession], None] | None = None,
     what: str = "run",
+    session: RigSession | None = None,
     named: RunEvent | None = None,
 ) -> Outcome:
     """Run one recorded run on the rig under its lock: every persisted event committed before the
     plan goes on, any error recorded as the run's interruption (resumable), the run sealed (and
     signed) at its end. `start` builds the runner from the open session, the record and `emit`, and
-    returns it with the call that runs it to its verdict. `named` (RigNamed) goes to the listeners
-    first, once the run's lock is held: a runner refused the run says nothing else."""
+    returns it with the call that runs it to its verdict. `session`: a new run's devices, opened
+    before the run was created (open_before_run); None: opened here, under the lock. `named`
+    (RigNamed) goes to the listeners first, once the lock is held: a refused runner says nothing else."""
 
     def emit(event: RunEvent) -> None:
         if event.persisted:
@@ -261,48 +285,56 @@ def drive(
         for listener in listeners:
             listener(event)
 
-    # One runner per run: a second one is refused here (RunLocked), before any device opens.
-    with store.run_lock(run_id):
-        for listener in listeners:
-            if named is not None:
-                listener(named)
-        try:
-            session = RigSession.open(config)
-        except (RigError, OSError) as exc:  # an unplugged or busy port: nothing moved, resumable
-            reason = f"the devices could not be opened: {_reason(exc)}"
-            emit(ev.RunInterrupted(reason=reason, extra={"budget_exceeded": False}))
-            return Outcome(run_id, "interrupted", None, reason)
-        with session:
-            past = history(store, run_id) if resuming else []  # read under the lock
-            if on_open is not None:
-                on_open(session)
-            session.traffic.clear()  # opening chatter belongs to no shot
-            driven, run = start(session, past, emit)
-            try:
-                verdict = run()
-                driven.control.settled = True
-            except BaseException as exc:
-                driven.control.settled = True  # stop signals from now on would only tear the record up
-                if not isinstance(exc, Exception | KeyboardInterrupt):
-                    raise  # SystemExit and the like: not an interruption of the run
-                ended = driven.state.verdict
-                if driven.state.finished and ended is not None:  # e.g. a failed ring check: FAIL
-                    _seal(store, run_id, "finished", ended.get("verdict"), signer)
-                    return Outcome(run_id, "finished", ended, str(exc))
-                reason, budget = _reason(exc), isinstance(exc, BudgetExceeded)
-                detail: dict[str, Any] = {"reason": reason, "budget_exceeded": budget}
-                if not isinstance(exc, RigError | KeyboardInterrupt):  # a bug: say where, for the developers
-                    detail["where"] = _where(exc)
-                    log.debug("%s %s interrupted by an unexpected error", what, run_id, exc_info=exc)
+    opened = session  # a new run's devices: closed below however the lock goes (close is idempotent)
+    try:
+        # One runner per run: a second one is refused here (RunLocked), before it opens a device (a
+        # new run's are open already: no other runner can know the run yet).
+        with store.run_lock(run_id):
+            for listener in listeners:
+                if named is not None:
+                    listener(named)
+            if session is None:
                 try:
-                    with contextlib.suppress(Exception):
-                        driven.flush_traffic()
-                    emit(ev.event(ev.RUN_INTERRUPTED, **detail))
-                except KeyboardInterrupt:  # forced while recording: the record stays whole, resumable
-                    pass
-                return Outcome(run_id, "interrupted", None, reason, budget)
-            _seal(store, run_id, "finished", str(verdict["verdict"]), signer)  # sealed under the lock
-    return Outcome(run_id, "finished", verdict)
+                    session = RigSession.open(config)
+                except (RigError, OSError) as exc:  # an unplugged or busy port: nothing moved, resumable
+                    reason = f"the devices could not be opened: {_reason(exc)}"
+                    emit(ev.RunInterrupted(reason=reason, extra={"budget_exceeded": False}))
+                    return Outcome(run_id, "interrupted", None, reason)
+            with session:
+                past = history(store, run_id) if resuming else []  # read under the lock
+                if on_open is not None:
+                    on_open(session)
+                session.traffic.clear()  # opening chatter belongs to no shot
+                driven, run = start(session, past, emit)
+                driven.control.settled = False  # one control may steer several runs (rig study --certify)
+                try:
+                    verdict = run()
+                    driven.control.settled = True
+                except BaseException as exc:
+                    driven.control.settled = True  # stop signals from now on would only tear the record up
+                    if not isinstance(exc, Exception | KeyboardInterrupt):
+                        raise  # SystemExit and the like: not an interruption of the run
+                    ended = driven.state.verdict
+                    if driven.state.finished and ended is not None:  # e.g. a failed ring check: FAIL
+                        _seal(store, run_id, "finished", ended.get("verdict"), signer)
+                        return Outcome(run_id, "finished", ended, str(exc))
+                    reason, budget = _reason(exc), isinstance(exc, BudgetExceeded)
+                    detail: dict[str, Any] = {"reason": reason, "budget_exceeded": budget}
+                    if not isinstance(exc, RigError | KeyboardInterrupt):  # a bug: say where
+                        detail["where"] = _where(exc)
+                        log.debug("%s %s interrupted by an unexpected error", what, run_id, exc_info=exc)
+                    try:
+                        with contextlib.suppress(Exception):
+                            driven.flush_traffic()
+                        emit(ev.event(ev.RUN_INTERRUPTED, **detail))
+                    except KeyboardInterrupt:  # forced while recording: the record stays whole, resumable
+                        pass
+                    return Outcome(run_id, "interrupted", None, reason, budget)
+                _seal(store, run_id, "finished", str(verdict["verdict"]), signer)  # sealed under the lock
+        return Outcome(run_id, "finished", verdict)
+    finally:
+        if opened is not None:
+            opened.close()
 
 
 def register_item(store: Store, item_id: str, spec: dict[str, Any], refusal: ConfigError) -> None:

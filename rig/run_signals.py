@@ -4,7 +4,9 @@ The first signal asks the runner to stop before its next step (the shot in progr
 and recorded first); the run is then recorded as interrupted and stays resumable. A second signal
 raises ForcedStop wherever the runner is: a shot it interrupts is recorded lost (it may have been
 fired), never fired again. Signals are ignored once the runner has stopped and its outcome is
-being recorded (RunControl.settled), and after a stop until the process exits (the CLI's use).
+being recorded (RunControl.settled), and, once a run has ended or been stopped, until the process
+exits (the CLI's use): a late signal must not change the exit status the recorded outcome gives
+(3 for an interruption, the verdict's code), nor end the process by the signal (130/143).
 """
 
 from __future__ import annotations
@@ -44,8 +46,12 @@ class SignalStop:
 
 
 @contextmanager
-def stop_on_signals(control: RunControl) -> Iterator[SignalStop]:
-    """While inside, SIGINT and SIGTERM stop the run `control` steers (main thread only)."""
+def stop_on_signals(control: RunControl, until_exit: bool = True) -> Iterator[SignalStop]:
+    """While inside, SIGINT and SIGTERM stop the run `control` steers (main thread only).
+
+    On the way out, once a signal came or a run ended (`control.settled`), they are ignored from
+    then on (the process is reporting a recorded outcome and exiting); `until_exit=False`: only
+    after a signal (a command that goes on to other work once its runs are done)."""
     stop = SignalStop(control)
     if threading.current_thread() is not threading.main_thread():
         yield stop
@@ -54,6 +60,6 @@ def stop_on_signals(control: RunControl) -> Iterator[SignalStop]:
     try:
         yield stop
     finally:
+        ended = bool(stop.received) or (until_exit and control.settled)
         for s, handler in previous.items():
-            # once stopped, a late signal must not turn the recorded stop into a traceback on the way out
-            signal.signal(s, signal.SIG_IGN if stop.received else handler)
+            signal.signal(s, signal.SIG_IGN if ended else handler)

@@ -43,6 +43,7 @@ def sim_config(
     bat: BatSpec | None = None,
     target: tuple[str, float | None] | None = None,
     effects: Mapping[str, Mapping[str, Any]] | None = None,
+    session: str | None = None,
 ) -> RigConfig:
     """A rig config whose ports are simulated devices of `scene` (a built-in name or a TOML path).
 
@@ -52,7 +53,8 @@ def sim_config(
     `target` (kind, diameter in m), the simulated clamp holds the rigid cylinder or plate a ball
     test names, as the lab clamps it (the scene's own [target] table wins), and the aim table
     reaches down to ball-test speeds. `effects` replaces fields of the scene's effects by kind (e.g.
-    `air_starting_at(900.0)`: the hour a ball test is run at).
+    `air_starting_at(900.0)`: the hour a ball test is run at). `session` names this run of the
+    simulated lab (Scene.run_key): another session draws other noise, the same one repeats it.
     """
     from simulators.scene import Scene
     from simulators.urlhandler import install_world, register
@@ -66,7 +68,9 @@ def sim_config(
         loaded = loaded.with_target(*target)
     for kind, values in (effects or {}).items():
         loaded = loaded.with_effect(kind, **values)
-    if bat is not None or target is not None or effects:
+    if session:
+        loaded = loaded.model_copy(update={"session": session})
+    if bat is not None or target is not None or effects or session:
         install_world(rig, scene, loaded)
     ports = {dev: f"sim://{dev}?scene={quote(scene, safe='')}&rig={rig}" for dev in DEVICES}
     fragment = loaded.rig_config_fragment(BALL_AIM_PRESSURES_KPA) if target else loaded.rig_config_fragment()
@@ -103,6 +107,7 @@ class RigSession:
     gates: GatesDriver
     clamp: ClampDriver
     traffic: list[tuple[str, TrafficRecord]] = field(default_factory=list)
+    closed: bool = field(default=False, init=False)
 
     @classmethod
     def open(cls, config: RigConfig) -> RigSession:
@@ -136,7 +141,10 @@ class RigSession:
         return cls(config, cannon, gates, clamp, traffic)
 
     def close(self) -> None:
-        """Leave the cannon safe (vent), then close every port."""
+        """Leave the cannon safe (vent), then close every port; a second call does nothing."""
+        if self.closed:
+            return
+        self.closed = True
         # Closing must go on even when the cannon's port is already gone.
         with contextlib.suppress(Exception):
             self.cannon.vent()

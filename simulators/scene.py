@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import tomllib
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -17,7 +16,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_valida
 
 from rig.core.bat import HOOP_HZ, LENGTH_IN, MOI_KGM2, PIVOT_FROM_KNOB_M, WEIGHT_OZ
 from rig.core.devices import STAGE_RANGE_MM
-from rig.core.errors import ConfigError, ParameterError
+from rig.core.errors import ConfigError, ParameterError, shown
+from rig.core.files import CONFIG_BYTES, parse_toml, read_text
 from rig.core.units import INCH, OUNCE
 from rig.physics import CollisionParams
 from rig.physics.params import check_physical
@@ -196,6 +196,9 @@ class Scene(BaseModel):
     lot: SimBallLot = SimBallLot()
     cannon: CannonModel = CannonModel()
     effects: tuple[EffectSpec, ...] = ()
+    # which run of the lab this is, as the host names it (e.g. the store's count of runs): two
+    # runs of one scene with another session draw other noise; "" for a scene used on its own
+    session: str = ""
 
     @model_validator(mode="after")
     def _check(self) -> Scene:
@@ -275,15 +278,17 @@ class Scene(BaseModel):
 
     def run_key(self) -> str:
         """What tells one run in the simulated lab from another: the seed, what the clamp holds (the
-        bat's id, or the target) and when (the environment's start in its swing of air).
+        bat's id, or the target), when (the environment's start in its swing of air) and the
+        session the host names (`session`: the CLI gives each run its own).
 
-        The effects' random streams are keyed by it: two runs of one scene repeat each other's
-        noise, while two bats, or one ball test at two hours, draw their own (as on a real rig).
+        The effects' random streams are keyed by it: a run of one scene in one session repeats
+        exactly, while two bats, a ball test at two hours, or a test run again draw their own
+        noise (as on a real rig).
         """
         held = self.bat.id if self.target.kind == "bat" else f"{self.target.kind}-{self.target.diameter_m}"
         air = [e for e in self.active_effects() if e.kind == "environment"]
         start = float(getattr(air[0], "start_s", 0.0)) if air else 0.0
-        return f"{self.seed}/{held}/{start:g}"
+        return f"{self.seed}/{held}/{start!r}/{self.session}"
 
     def active_effects(self) -> list[Any]:
         """The effect configurations that are enabled, in scene order."""
@@ -328,22 +333,16 @@ class Scene(BaseModel):
         path = Path(name_or_path)
         if str(name_or_path) in cls.builtin_names():
             path = SCENES_DIR / f"{name_or_path}.toml"
-        elif not path.is_file():
-            known = ", ".join(cls.builtin_names())
-            raise ConfigError(f"no such scene file; built-in scenes: {known}", str(name_or_path))
-        try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ConfigError(f"cannot read: {exc}", str(path)) from None
+        known = ", ".join(cls.builtin_names())
+        text = read_text(
+            path, CONFIG_BYTES, "a scene file", missing=f"no such scene file; built-in scenes: {known}"
+        )
         return cls.from_toml(text, source=str(path), default_name=path.stem)
 
     @classmethod
     def from_toml(cls, text: str, source: str = "<scene>", default_name: str = "custom") -> Scene:
         """Parse and validate scene TOML; `source` names the file in errors."""
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise ConfigError(f"invalid TOML: {exc}", source) from None
+        data = parse_toml(text, source, "a scene file")
         data.setdefault("name", default_name)
         try:
             return cls.model_validate(data)
@@ -357,7 +356,7 @@ def _config_error(source: str, exc: ValidationError) -> ConfigError:
     field = ".".join(str(p) for p in first["loc"]) or "(scene)"
     reason = first["msg"]
     if first["loc"] and "input" in first and not isinstance(first["input"], dict):
-        reason += f" (got {first['input']!r})"
+        reason += f" (got {shown(first['input'])})"
     if len(errors) > 1:
         reason += f"; and {len(errors) - 1} more error(s)"
     return ConfigError(reason, source, field)

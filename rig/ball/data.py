@@ -14,7 +14,7 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from rig.core.errors import ConfigError
+from rig.core.errors import ConfigError, listed, shown
 from rig.core.files import read_bounded
 
 COLUMNS = ("speed_m_s", "ccor", "u_ccor", "ball_id")
@@ -47,9 +47,9 @@ def _number(cell: str, column: str, where: str) -> float:
     try:
         x = float(cell)
     except ValueError:
-        raise ConfigError(f"{column} {cell!r} is not a number", source=where) from None
+        raise ConfigError(f"{column} {shown(cell)} is not a number", source=where) from None
     if not math.isfinite(x):
-        raise ConfigError(f"{column} {cell!r} is not a finite number", source=where)
+        raise ConfigError(f"{column} {shown(cell)} is not a finite number", source=where)
     return x
 
 
@@ -79,15 +79,13 @@ def parse_ccor_csv(text: str, name: str) -> list[CcorPoint]:
     where = f"{name}: line {lines[0][0]}"
     unknown = [c for c in header if c not in COLUMNS]
     if unknown:
-        raise ConfigError(
-            f"unknown column(s) {', '.join(unknown)}; known: {', '.join(COLUMNS)}", source=where
-        )
+        raise ConfigError(f"unknown column(s) {listed(unknown)}; known: {', '.join(COLUMNS)}", source=where)
     missing = [c for c in REQUIRED if c not in header]
     if missing:
         raise ConfigError(f"missing column(s) {', '.join(missing)}", source=where)
     twice = sorted({c for c in header if header.count(c) > 1})
     if twice:
-        raise ConfigError(f"column(s) {', '.join(twice)} appear twice", source=where)
+        raise ConfigError(f"column(s) {listed(twice)} appear twice", source=where)
     if len(rows) < 2:
         raise ConfigError("a header but no rows", source=name)
     points = []

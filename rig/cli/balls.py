@@ -9,7 +9,17 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from rig.cli.common import add_columns, add_rig_options, new_table, open_db, resolve_run, shown_db
+from rig.cli.common import (
+    add_columns,
+    add_rig_options,
+    default_db,
+    new_table,
+    open_db,
+    output_file,
+    resolve_run,
+    shown_db,
+    sim_session,
+)
 from rig.cli.common import console as out
 from rig.core.dbpath import DB_HELP
 from rig.core.errors import ConfigError, RecordRefused
@@ -58,15 +68,13 @@ def cmd_test(args: argparse.Namespace) -> int:
                     source="--lot",
                 )
             lot, run_id = lots[args.lot], None
-        config = _rig_config(args, procedure)
+        config = _rig_config(args, procedure, sim_session(store))
         past = ev.parse_log(store.entries(run_id)) if run_id is not None else None
         rehearsal = rehearse_test(procedure, lot, config, past)
-        if rehearsal.problems or args.dry_run:
-            fits = f"dry run: the test fits this rig and this lot ({rehearsal.summary()})"
-            for line in rehearsal.problems or [fits]:
-                print(line, file=sys.stderr)
-            if rehearsal.problems:
-                raise ConfigError("; ".join(rehearsal.problems), source="dry run")
+        if rehearsal.problems:  # one line, every problem in it
+            raise ConfigError("; ".join(rehearsal.problems), source="dry run")
+        if args.dry_run:
+            print(f"dry run: the test fits this rig and this lot ({rehearsal.summary()})", file=sys.stderr)
             return 0
         live = LiveConsole(quiet=args.json)
         outcome = run_ball_test(
@@ -83,7 +91,10 @@ def cmd_test(args: argparse.Namespace) -> int:
     if outcome.status != "finished":
         where = ("--config", args.config) if args.config else ("--sim", args.sim)
         db = f" --db {shlex.quote(shown_db(args.db))}" if args.db else ""
-        resume = f"rig balls test --resume {outcome.run_id} {where[0]} {shlex.quote(str(where[1]))}{db}"
+        sim_start = args.sim is not None and args.sim_start is not None
+        start = f" --sim-start {args.sim_start!r}" if sim_start else ""  # the same hour of the lab's air
+        rig = f"{where[0]} {shlex.quote(str(where[1]))}"
+        resume = f"rig balls test --resume {outcome.run_id} {rig}{start}{db}"
         print(
             f"rig: run {outcome.run_id} interrupted: {outcome.reason}; resume with: {resume}", file=sys.stderr
         )
@@ -99,15 +110,17 @@ def cmd_test(args: argparse.Namespace) -> int:
     return 0
 
 
-def _rig_config(args: argparse.Namespace, procedure: Any) -> Any:
-    """The rig: a simulated one holds the procedure's target, as the lab clamps it."""
+def _rig_config(args: argparse.Namespace, procedure: Any, session: str) -> Any:
+    """The rig: a simulated one holds the procedure's target, as the lab clamps it (`session`: its
+    own noise, rig.cli.common.sim_session)."""
     from rig.core.config import RigConfig
 
     if args.sim is not None:
         from rig.session import air_starting_at, sim_config
 
         at = None if args.sim_start is None else air_starting_at(args.sim_start)
-        return sim_config(args.sim, target=(procedure.target.kind, procedure.target.diameter_m), effects=at)
+        target = (procedure.target.kind, procedure.target.diameter_m)
+        return sim_config(args.sim, target=target, effects=at, session=session)
     if args.sim_start is not None:
         raise ConfigError("--sim-start is for a simulated rig (--sim)", source="command line")
     if args.config:
@@ -194,12 +207,26 @@ def cmd_show(args: argparse.Namespace) -> int:
     for law in laws:
         print(f"  ball law recorded {law.t_utc} (sha256 {law.sha256[:12]}, entry {law.seq})")
     if laws:
-        print(f"  the latest is the lot's: rig balls law {lot.id} --output BALL.json writes it")
+        print(
+            f"  the latest is the lot's: rig balls law {lot.id} --output BALL.json writes it"
+            " (--entry SEQ an earlier one)"
+        )
     return 0
 
 
 def cmd_law(args: argparse.Namespace) -> int:
     """rig balls law: write the lot's recorded ball law (the file rig model fit-ball --db --lot wrote)."""
+    from rig.report.export import atomic_write
+    from rig.store import is_url
+    from rig.store._lots import law_sha256
+
+    target = output_file(args.output, "--output")
+    assert target is not None  # a required flag
+    where = args.db or default_db()
+    if not is_url(str(where)) and any(
+        target.resolve() == Path(f"{where}{suffix}").resolve() for suffix in ("", "-wal", "-shm", "-journal")
+    ):
+        raise ConfigError("--output would overwrite the record store (--db)", source=str(target))
     with open_db(args) as store:
         store.ball_lot(args.lot)  # an unknown lot: one line naming the known ones
         recorded = store.ball_laws(args.lot)
@@ -209,9 +236,20 @@ def cmd_law(args: argparse.Namespace) -> int:
             " --output BALL.json records one",
             source="rig balls law",
         )
-    last = recorded[-1]
-    target = Path(args.output)
-    target.write_bytes(last.text.encode("utf-8"))  # as recorded, byte for byte: the recorded sha256
+    chosen = [w for w in recorded if args.entry is None or w.seq == args.entry]
+    if not chosen:
+        entries = ", ".join(str(w.seq) for w in recorded)
+        raise ConfigError(f"lot {args.lot} has no ball law at entry {args.entry} (its laws: {entries})")
+    last = chosen[-1]
+    if law_sha256(last.text) != last.sha256:
+        raise ConfigError(f"lot {args.lot}'s ball law at entry {last.seq} does not match its recorded sha256")
+    # as recorded, byte for byte (the recorded sha256), through a temporary file beside the target
+    data = last.text.encode("utf-8")
+
+    def write(tmp: Path) -> None:
+        tmp.write_bytes(data)
+
+    atomic_write(target, write)
     print(
         f"wrote {target}: lot {args.lot}'s ball law of {last.t_utc} (sha256 {last.sha256[:12]})",
         file=sys.stderr,
@@ -258,6 +296,9 @@ def add_parsers(sub: Any) -> None:
     )
     p.add_argument("lot", metavar="LOT", help="the lot's id")
     p.add_argument("--output", required=True, metavar="BALL.json", help="where to write the ball file")
+    p.add_argument(
+        "--entry", type=int, metavar="SEQ", help="the law recorded at this entry (see rig balls show)"
+    )
     p.add_argument("--db", metavar="FILE", help=DB_HELP)
     p.set_defaults(handler=cmd_law)
 

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from rig.cli.common import console as out
-from rig.cli.common import new_table
+from rig.cli.common import new_table, output_file
 from rig.core.errors import ConfigError
 
 
@@ -19,7 +19,7 @@ def gather(data: str | None, db: str | None, who: str) -> tuple[list[Any], bytes
     Returns the bats, the bytes the provenance hashes (the file's bytes, then the store's rows as
     canonical JSON), a name for the sources, and notes on store bats left out.
     """
-    from rig.population import load_population
+    from rig.population.dataset import read_population
 
     if not data and not db:
         raise ConfigError("give --data POPULATION, --db STORE or both", source=who)
@@ -28,8 +28,9 @@ def gather(data: str | None, db: str | None, who: str) -> tuple[list[Any], bytes
     notes: list[str] = []
     blob = b""
     if data:
-        bats += load_population(data)
-        blob += Path(data).read_bytes()
+        read, raw = read_population(data)  # the bytes read, not the file again: it may change
+        bats += read
+        blob += raw
         names.append(str(data))
     if db:
         from rig.population.store_source import bats_from_store
@@ -53,7 +54,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from rig.population.calfile import calibration_record, write_calibration
     from rig.population.calibrate import calibrate
 
-    output = Path(args.output)
+    output = output_file(args.output, "--output")
+    assert output is not None  # a required flag
     for source in (args.data, args.db):
         if (
             source

@@ -120,17 +120,18 @@ def check_flags(args: argparse.Namespace, bounds: Bounds) -> None:
                 raise ParameterError(name, v, f"must lie within {low:g}-{high:g} {unit}".rstrip())
 
 
-def rig_config(args: argparse.Namespace, bat: Any = None) -> Any:
+def rig_config(args: argparse.Namespace, bat: Any = None, session: str | None = None) -> Any:
     """The rig config from --sim, --config or (where the command has them) the three port URLs.
 
-    With `bat`, a simulated bat takes the bat file's properties as its true ones.
+    With `bat`, a simulated bat takes the bat file's properties as its true ones; `session` names
+    this run of a simulated lab (its own noise, rig.session.sim_config).
     """
     from rig.core.config import RigConfig
 
     if args.sim is not None:
         from rig.session import sim_config
 
-        return sim_config(args.sim, bat=bat)
+        return sim_config(args.sim, bat=bat, session=session)
     if args.config:
         return RigConfig.load(args.config)
     if not hasattr(args, "cannon"):
@@ -140,6 +141,38 @@ def rig_config(args: argparse.Namespace, bat: Any = None) -> Any:
     if missing:
         raise ConfigError(f"give --sim [SCENE], --config RIG.toml, or all of {', '.join(missing)}")
     return RigConfig.from_dict({"ports": ports}, source="command line")
+
+
+def sim_session(store: Any) -> str:
+    """A simulated run's session: the store's count of runs so far, so that a test or certification
+    run again (or resumed) in a store draws its own simulated noise, and a store replays alike."""
+    return f"store-run-{len(store.runs())}"
+
+
+def output_file(value: str | None, flag: str) -> Path | None:
+    """The file a flag (--output, --plot, OUT) names, checked before any work: ConfigError if it
+    names a folder, or if its folder does not exist (a missing folder is not made)."""
+    if value is None:
+        return None
+    path = Path(value).expanduser()
+    if path.is_dir() or value.endswith("/"):
+        raise ConfigError(f"{value}: a folder; give a file name", source=flag)
+    if not path.parent.is_dir():
+        raise ConfigError(f"{value}: its folder {path.parent} does not exist (create it first)", source=flag)
+    return path
+
+
+def output_dir(value: str | None, flag: str) -> Path | None:
+    """The folder a flag (--figures, --plot-dir) names: made if missing, but its own folder must
+    exist; ConfigError if it is a file."""
+    if value is None:
+        return None
+    path = Path(value).expanduser()
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"{value}: not a folder", source=flag)
+    if not path.parent.is_dir():
+        raise ConfigError(f"{value}: its folder {path.parent} does not exist (create it first)", source=flag)
+    return path
 
 
 def default_db() -> Path | str:

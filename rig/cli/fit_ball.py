@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from rig.cli.common import add_overrides, new_table
+from rig.cli.common import add_overrides, new_table, output_file
 from rig.cli.common import console as out
 from rig.core.errors import ConfigError
 
@@ -69,7 +69,9 @@ def cmd_fit_ball(args: argparse.Namespace) -> int:
     from rig.ball.fit import fit_ball
     from rig.ball.record import ball_law
 
-    output = Path(args.output)
+    output = output_file(args.output, "--output")
+    assert output is not None  # a required flag
+    output_file(args.plot, "--plot")
     for flag, given in (("--data", args.data), ("--db", args.db)):
         if given and output.exists() and Path(given).exists() and output.resolve() == Path(given).resolve():
             what = "the data file" if flag == "--data" else "the record store"

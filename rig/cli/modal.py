@@ -15,6 +15,8 @@ from rig.cli.common import (
     default_db,
     new_table,
     open_db,
+    output_dir,
+    output_file,
     positive_int,
 )
 from rig.cli.common import console as out
@@ -59,8 +61,16 @@ def cmd_modal_analyze(args: argparse.Namespace) -> int:
     from rig.modal import analyze, read_recording
 
     check_flags(args, BOUNDS)
+    output_file(args.plot, "--plot")
     if args.db and not args.bat:
         raise ConfigError("--db records the result for a bat: give --bat BAT.toml too", source="command line")
+    bat = None
+    if args.bat:  # a bad bat file is refused before the analysis and the plots
+        from rig.core.bat import BatSpec
+
+        bat = BatSpec.load(args.bat)
+        if Path(args.file).exists() and not Path(args.file).is_file():
+            raise ConfigError("--bat records the file's sha256: give a regular file", source=args.file)
     result = analyze(read_recording(args.file), _modal_settings(args))
     payload = result.as_dict()
     if args.plot:
@@ -68,11 +78,9 @@ def cmd_modal_analyze(args: argparse.Namespace) -> int:
 
         for path in plot_modal(result, args.plot):
             print(f"wrote {path}", file=sys.stderr)
-    if args.bat:
-        from rig.core.bat import BatSpec
+    if bat is not None:
         from rig.modal import record_modal_result
 
-        bat = BatSpec.load(args.bat)
         args.create_db = True
         with open_db(args) as store:
             linked = record_modal_result(store, bat.id, result, args.file)
@@ -124,6 +132,7 @@ def cmd_modal_simulate(args: argparse.Namespace) -> int:
     from rig.modal.uff import write_uff
 
     check_flags(args, BOUNDS)
+    output_file(args.out, "OUT")
     if args.double_hit is not None and args.double_hit > args.hits:
         raise ConfigError(
             f"--double-hit {args.double_hit} is beyond --hits {args.hits}", source="command line"
@@ -159,6 +168,7 @@ def cmd_study(args: argparse.Namespace) -> int:
     from rig.population import load_population, run_study
 
     check_args(args)
+    output_dir(args.plot_dir, "--plot-dir")
     if args.certify is not None:
         from rig.cli.study_certify import run as certify_population
 

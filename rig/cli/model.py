@@ -14,6 +14,7 @@ from rig.cli.common import (
     check_flags,
     emit,
     new_table,
+    output_file,
     positive_int,
 )
 from rig.cli.common import console as out
@@ -118,6 +119,7 @@ def cmd_curve(args: argparse.Namespace) -> int:
     from rig.physics import fast
     from rig.physics.curve import efficiency_curve
 
+    output_file(args.plot, "--plot")
     params = _params(args)
     curve = efficiency_curve(
         params, args.speed, args.hoop_min, args.hoop_max, args.points, rtol=_rtol(args, fast.DEFAULT_RTOL)
@@ -294,6 +296,7 @@ def cmd_accuracy(args: argparse.Namespace) -> int:
     from rig.studies import stamped, stopwatch
 
     check_flags(args, BOUNDS)
+    output_file(args.plot, "--plot")
     from rig.progress import steps
 
     with steps(None, "work-precision: solves timed") as bar:

@@ -19,9 +19,12 @@ from rig.cli.common import (
     default_db,
     new_table,
     open_db,
+    output_dir,
+    output_file,
     resolve_run,
     rig_config,
     shown_db,
+    sim_session,
 )
 from rig.cli.common import console as out
 from rig.core import events as ev
@@ -110,7 +113,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
             bat = with_measured_hoop(store, bat)
             run_id = None
             ball = _ball_terms(store, args, procedure)
-        config = rig_config(args, bat=bat)
+        config = rig_config(args, bat=bat, session=sim_session(store))
         if args.calibration:
             if args.resume:
                 raise ConfigError(
@@ -128,12 +131,12 @@ def cmd_certify(args: argparse.Namespace) -> int:
             from protocols.evaluate import run_calibration
 
             run_calibration(procedure, config)  # a named calibration that will not load is named here
-        if problems or args.dry_run:
-            fits = f"dry run: the procedure fits this rig and this bat ({rehearsal.summary()})"
-            for line in problems or [fits]:
-                print(line, file=sys.stderr)
-            if problems:
-                raise ConfigError("; ".join(problems), source="dry run")
+        if problems:  # one line, every problem in it
+            raise ConfigError("; ".join(problems), source="dry run")
+        if args.dry_run:
+            print(
+                f"dry run: the procedure fits this rig and this bat ({rehearsal.summary()})", file=sys.stderr
+            )
             return 0
         if control.aborted:  # a signal before anything was recorded: nothing to resume
             print("rig: stopped by a signal before the run started; nothing recorded", file=sys.stderr)
@@ -169,9 +172,10 @@ def _ball_terms(store: Any, args: argparse.Namespace, procedure: Any) -> dict[st
     from rig.cli.fit_ball import load_ball
 
     law, sha = load_ball(args.ball) if args.ball else (None, None)
+    name = Path(args.ball).name if args.ball else None  # the file's name, not this machine's path
     if args.ball_lot:  # without --ball, the lot's recorded law (rig model fit-ball --db --lot) if any
-        return lot_terms(store, args.ball_lot, procedure, law, sha).model_dump(mode="json")
-    return None if law is None else law_terms(law, sha).model_dump(mode="json")
+        return lot_terms(store, args.ball_lot, procedure, law, sha, name).model_dump(mode="json")
+    return None if law is None else law_terms(law, sha, name).model_dump(mode="json")
 
 
 @contextlib.contextmanager
@@ -250,6 +254,8 @@ def cmd_report(args: argparse.Namespace) -> int:
             "--output FILE.html and open that in a browser",
             source="--format html",
         )
+    output_file(args.output, "--output")
+    output_dir(args.figures, "--figures")
     anchor = Anchor.parse(args.anchor) if args.anchor else None
     from rig.report.ball_lot import is_ball_test, lot_record
 
@@ -272,7 +278,6 @@ def cmd_report(args: argparse.Namespace) -> int:
             text = render(record, args.format, figures_dir=args.figures, output=args.output)
             bar.advance()
     if args.output:
-        Path(args.output).parent.mkdir(parents=True, exist_ok=True)
         Path(args.output).write_text(text, encoding="utf-8")
         print(f"wrote {args.output}", file=sys.stderr)
     else:

@@ -21,6 +21,7 @@ from typing import Any
 from rig.cli.common import ConfigError, open_db
 from rig.cli.common import console as terminal
 from rig.core.events import Verdict
+from rig.core.files import CONFIG_BYTES, read_json_file, read_text
 from rig.population.simulate import SimulatedBat, simulated_population
 
 MAX_BATS = 500
@@ -94,10 +95,9 @@ def write_bat_files(args: argparse.Namespace, bats: list[SimulatedBat]) -> Path:
     plan_file = folder / "population.json"
     plan = _plan(args)
     if plan_file.exists():
-        try:
-            before = json.loads(plan_file.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as exc:
-            raise ConfigError(f"unreadable: {exc}", source=str(plan_file)) from None
+        before = read_json_file(plan_file, CONFIG_BYTES, "a population plan")[0]
+        if not isinstance(before, dict):
+            raise ConfigError("not a population plan: not a JSON object", source=str(plan_file))
         if before != plan:
             differs = ", ".join(k for k in plan if before.get(k) != plan[k])
             raise ConfigError(
@@ -110,7 +110,7 @@ def write_bat_files(args: argparse.Namespace, bats: list[SimulatedBat]) -> Path:
     for bat in bats:
         path = folder / f"{bat.spec.id}.toml"
         text = bat.toml(args.scene, args.seed)
-        if path.exists() and path.read_text(encoding="utf-8") != text:
+        if path.exists() and read_text(path, CONFIG_BYTES, "a bat file") != text:
             raise ConfigError("the bat file was changed; restore or remove it", source=str(path))
         path.write_text(text, encoding="utf-8")
     return folder
@@ -172,9 +172,12 @@ def certify_population(args: argparse.Namespace) -> Tally:
         TextColumn("{task.fields[last]}"),
     )
     shown = Progress(*columns, console=console, disable=not console.is_terminal)  # a bar only on a terminal
-    with stop_on_signals(control), open_db(args) as store, shown as bar:
+    # the study of the store may follow: a signal then is the user's, not a late one for a run
+    analysis_follows = bool(args.json or args.plot_dir or args.calibration)
+    with stop_on_signals(control, until_exit=not analysis_follows), open_db(args) as store, shown as bar:
         task = bar.add_task("certifying", total=len(bats), last="")
         for bat in bats:
+            control.settled = False  # the last bat's run is recorded: a signal from here stops the study
             state, run_id = _state(store, bat.spec.id)
             if state == "done":
                 tally.skipped += 1

@@ -71,7 +71,7 @@ class BallLot(_Model):
     @classmethod
     def load(cls, path: str | Path) -> BallLot:
         """Read table [lot] of a TOML file; errors name the file and the field."""
-        data = read_toml(path)
+        data = read_toml(path, what="a lot file")
         return validate(cls, table(data, "lot", str(path)), str(path), prefix="lot.")
 
 

@@ -116,7 +116,7 @@ class BatSpec(BaseModel):
     @classmethod
     def load(cls, path: str | Path) -> BatSpec:
         """Read table [bat] of a TOML file; errors name the file and the field."""
-        data = read_toml(path)
+        data = read_toml(path, what="a bat file")
         bat = validate(cls, table(data, "bat", str(path)), str(path), prefix="bat.")
         if "simulated" in data:
             bat._simulated = validate(

@@ -207,7 +207,7 @@ class RigConfig(_Model):
 
         [model] calibration, when relative, is taken relative to the file.
         """
-        config = cls.from_dict(read_toml(path), source=str(path))
+        config = cls.from_dict(read_toml(path, what="a rig config"), source=str(path))
         named = config.model.calibration
         if named is not None:
             where = str(Path(path).parent / Path(named).expanduser())

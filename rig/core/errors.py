@@ -14,7 +14,7 @@ class ParameterError(RigError, ValueError):
         self.name = name
         self.value = value
         self.reason = reason
-        super().__init__(f"{name} = {value!r}: {reason}")
+        super().__init__(f"{name} = {shown(value, 80)}: {reason}")
 
     @classmethod
     def from_validation(cls, exc: Exception) -> ParameterError:
@@ -97,3 +97,16 @@ class RecordRefused(StoreError, ValueError):
 
 class UnknownRecord(StoreError, LookupError):
     """No run or bat with that id; the message lists ids that do exist."""
+
+
+def shown(value: object, limit: int = 60) -> str:
+    """A value as a message quotes it: its repr, cut to `limit` characters (a hostile file's
+    megabyte-long cell must not make a megabyte-long message)."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[: limit - 4]}...{text[-1]}"
+
+
+def listed(names: list[str], most: int = 6) -> str:
+    """Names as a message lists them: each shown, at most `most`, then how many more."""
+    out = ", ".join(n if len(n) <= 40 and n.isprintable() else shown(n, 40) for n in names[:most])
+    return out if len(names) <= most else f"{out} and {len(names) - most} more"

@@ -2,28 +2,23 @@
 
 from __future__ import annotations
 
-import tomllib
 from pathlib import Path
 from typing import Any, TypeVar
 
 from pydantic import BaseModel, ValidationError
 
 from rig.core.errors import ConfigError
+from rig.core.files import CONFIG_BYTES, read_toml_file
 
 M = TypeVar("M", bound=BaseModel)
 
 
-def read_toml(path: str | Path, missing: str = "no such file") -> dict[str, Any]:
-    """The parsed file; a missing file or bad TOML raises ConfigError naming the file."""
-    path = Path(path)
-    try:
-        return tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError(missing, source=str(path)) from None
-    except (UnicodeDecodeError, IsADirectoryError) as exc:
-        raise ConfigError(f"not a readable text file: {exc}", source=str(path)) from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"not valid TOML: {exc}", source=str(path)) from None
+def read_toml(
+    path: str | Path, missing: str = "no such file", what: str = "a TOML file", max_bytes: int = CONFIG_BYTES
+) -> dict[str, Any]:
+    """The parsed file; ConfigError naming the file if it is missing, larger than `max_bytes`,
+    not UTF-8, not TOML or nested too deeply (rig.core.files)."""
+    return read_toml_file(path, max_bytes, what, missing=missing)
 
 
 def validate(model: type[M], data: Any, source: str, prefix: str = "") -> M:

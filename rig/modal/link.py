@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any, Protocol
 from rig.core.bat import BatSpec
 from rig.core.errors import ConfigError
 from rig.modal.errors import NoHoopMode
+from rig.modal.recording import read_recording_bytes
 
 if TYPE_CHECKING:  # only named in annotations: certify needs the link, not the analysis (scipy)
     from rig.modal.analysis import ModalResult
@@ -39,12 +40,8 @@ class ModalLog(Protocol):
 
 
 def sha256_of(path: str | Path) -> str:
-    """Hex sha256 of a file's bytes."""
-    digest = hashlib.sha256()
-    with Path(path).open("rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
+    """Hex sha256 of a recording file's bytes (read within the recordings' bound)."""
+    return hashlib.sha256(read_recording_bytes(path)).hexdigest()
 
 
 def modal_payload(result: ModalResult, bat_id: str, path: str | Path) -> dict[str, Any]:

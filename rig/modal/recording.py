@@ -17,6 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rig.core.errors import ConfigError, listed, shown
+from rig.core.files import read_bounded
 from rig.modal.errors import RecordingFormatError
 
 CSV_COLUMNS = ("time_s", "force_N", "accel1_ms2", "accel2_ms2")
@@ -32,6 +34,9 @@ TIME_UNITS = {"time_s": 1.0, "time_ms": 1e-3, "time_us": 1e-6}
 # Slower than this is no impact test of a bat (its modes lie from about 100 Hz to a few kHz): a time
 # column that gives it is most likely written in another unit than its name says.
 MIN_SAMPLE_RATE_HZ = 200.0
+# A recording of five hits, four channels at 51.2 kHz, is about 1 MB of CSV; a larger file than
+# this is no impact test (and an endless one, /dev/zero or a FIFO, is read no further).
+MAX_BYTES = 200_000_000
 
 
 @dataclass(frozen=True, eq=False)
@@ -235,10 +240,13 @@ def _raise_uneven(
 def read_csv(path: str | Path) -> Recording:
     """Read the documented CSV format; every refusal names the file, the line and the problem."""
     path = Path(path)
+    raw = read_recording_bytes(path)
     try:
-        text = path.read_text(encoding="utf-8-sig")
+        text = raw.decode("utf-8-sig")
     except UnicodeDecodeError:
         raise RecordingFormatError(f"{path}: not a text file") from None
+    if "\x00" in text:
+        raise RecordingFormatError(f"{path}: not a text file: it holds NUL bytes")
     lines = text.splitlines()
     i = 0
     while i < len(lines) and (not lines[i].strip() or lines[i].lstrip().startswith("#")):
@@ -256,7 +264,7 @@ def read_csv(path: str | Path) -> Recording:
         if missing:
             detail.append(f"missing {', '.join(missing)}")
         if extra:
-            detail.append(f"unexpected {', '.join(extra)}")
+            detail.append(f"unexpected {listed(extra)}")
         if not detail:
             detail.append("columns out of order")
         for sep, name in ((";", "semicolons"), ("\t", "tabs")):
@@ -265,7 +273,7 @@ def read_csv(path: str | Path) -> Recording:
         if header and header[-1] == "" and header[:-1] == list(CSV_COLUMNS):
             detail = ["a trailing comma"]
         raise RecordingFormatError(
-            f"{path}: line {i + 1}: header {lines[i].strip()!r} must be exactly {CSV_HEADER!r}"
+            f"{path}: line {i + 1}: header {shown(lines[i].strip())} must be exactly {CSV_HEADER!r}"
             f" ({'; '.join(detail)})"
         )
     # blank lines and comment lines inside the data are skipped; messages give each sample's line
@@ -318,7 +326,7 @@ def _raise_bad_row(path: Path, body: list[tuple[int, str]]) -> None:
                 float(cell)
             except ValueError:
                 raise RecordingFormatError(
-                    f"{path}: line {line_no}: {name} {cell.strip()!r} is not a number"
+                    f"{path}: line {line_no}: {name} {shown(cell.strip())} is not a number"
                 ) from None
     raise RecordingFormatError(f"{path}: unreadable rows")
 
@@ -333,11 +341,18 @@ def write_csv(rec: Recording, path: str | Path, comments: Iterable[str] = ()) ->
     return path
 
 
+def read_recording_bytes(path: str | Path) -> bytes:
+    """A recording file's bytes, at most MAX_BYTES (rig.core.files.read_bounded); a refusal is a
+    RecordingFormatError naming the file."""
+    try:
+        return read_bounded(path, MAX_BYTES, "a recording", binary=True)
+    except ConfigError as exc:
+        raise RecordingFormatError(str(exc)) from None
+
+
 def read_recording(path: str | Path) -> Recording:
     """A recording from a .csv file or a Universal File (.uff, .unv: dataset 58 time records)."""
     path = Path(path)
-    if not path.is_file():
-        raise RecordingFormatError(f"{path}: no such file")
     if path.suffix.lower() in (".uff", ".unv"):
         from rig.modal.uff import read_uff
 

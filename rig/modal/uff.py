@@ -11,13 +11,15 @@ Other datasets in the file are ignored.
 
 from __future__ import annotations
 
+import contextlib
+import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from rig.modal.errors import RecordingFormatError
-from rig.modal.recording import Recording
+from rig.modal.recording import Recording, read_recording_bytes
 
 FORCE_TYPES = (4, 13)
 ACCEL_TYPE = 12
@@ -25,12 +27,23 @@ STANDARD_GRAVITY = 9.80665
 
 
 def _read_sets(path: Path) -> list[dict[str, Any]]:
+    """The file's datasets; read within MAX_BYTES first (pyuff reads a file by name: a device or a
+    FIFO is read once, bounded, and its bytes handed over in a temporary file)."""
     import pyuff
 
-    try:
-        sets = pyuff.UFF(str(path)).read_sets()
-    except Exception as exc:  # pyuff raises bare Exceptions for malformed files
-        raise RecordingFormatError(f"{path}: not a readable Universal File ({exc})") from None
+    raw = read_recording_bytes(path)
+    with contextlib.ExitStack() as stack:
+        name = str(path)
+        if not path.is_file():
+            tmp = stack.enter_context(tempfile.NamedTemporaryFile(suffix=path.suffix))
+            tmp.write(raw)
+            tmp.flush()
+            name = tmp.name
+        try:
+            sets = pyuff.UFF(name).read_sets()
+        except Exception as exc:  # pyuff raises bare Exceptions for malformed files
+            reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise RecordingFormatError(f"{path}: not a readable Universal File ({reason})") from None
     return [sets] if isinstance(sets, dict) else list(sets)
 
 

@@ -18,7 +18,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from rig.core.errors import ConfigError
-from rig.core.files import read_bounded
+from rig.core.files import parse_json, read_bounded
 from rig.physics.params import DEFAULT_PARAMS, CollisionParams, check_physical
 
 KIND = "rig-ball-law"
@@ -142,10 +142,10 @@ class BallLaw(BaseModel):
     def parse_bytes(cls, raw: bytes, source: str) -> BallLaw:
         """Validate a ball file's bytes; ConfigError names `source` and the first problem."""
         try:
-            data = json.loads(raw.decode("utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-            reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-            raise ConfigError(f"not a ball file: {reason}", source=source) from None
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise ConfigError(f"not a ball file: not UTF-8 text (byte {exc.start})", source=source) from None
+        data = parse_json(text, source, "a ball file")
         if not isinstance(data, dict) or data.get("kind") != KIND:
             raise ConfigError(f"not a ball file: its kind is not {KIND!r}", source=source)
         try:

@@ -16,9 +16,11 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 
 import rig
-from rig.core.errors import ConfigError
+from rig.core.errors import ConfigError, ParameterError
+from rig.core.files import DATA_BYTES, read_json_file
 from rig.measure.selection import variant_rows
 from rig.physics import CollisionParams
+from rig.population.calcheck import check_calibration
 from rig.population.calibrate import (
     DEFAULT_LOCATION_IN,
     PAPER_BASE,
@@ -119,6 +121,7 @@ class CalibrationFile(BaseModel):
             raise ValueError(f"variant {self.variant} has parameters {', '.join(names)}")
         if len(self.covariance) != len(names) or any(len(r) != len(names) for r in self.covariance):
             raise ValueError(f"covariance must be {len(names)} x {len(names)}")
+        check_calibration(self)  # physical ranges, a covariance that is one (ParameterError)
         return self
 
 
@@ -185,7 +188,7 @@ def calibration_record(
 
 def write_calibration(record: dict[str, Any], path: str | Path) -> Path:
     """Write the record as JSON (validated first, so that what is written can be read back)."""
-    CalibrationFile.model_validate(record)
+    parse_calibration(record, str(path))
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(record, indent=2, allow_nan=False) + "\n", encoding="utf-8")
@@ -194,19 +197,26 @@ def write_calibration(record: dict[str, Any], path: str | Path) -> Path:
 
 def load_calibration(path: str | Path) -> CalibrationFile:
     """Read and validate a calibration file; ConfigError names the file and the first problem."""
-    path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError("no such file", source=str(path)) from None
-    except (UnicodeDecodeError, IsADirectoryError, json.JSONDecodeError) as exc:
-        raise ConfigError(f"not a calibration file: {exc}", source=str(path)) from None
+    return read_calibration(path)[0]
+
+
+def read_calibration(path: str | Path) -> tuple[CalibrationFile, bytes]:
+    """The validated calibration and the bytes it was read from (what a run records and hashes)."""
+    data, raw = read_json_file(path, DATA_BYTES, "a calibration file")
+    return parse_calibration(data, str(path)), raw
+
+
+def parse_calibration(data: Any, source: str) -> CalibrationFile:
+    """Validate a calibration's parsed JSON; ConfigError names `source` and the first bad field."""
     try:
         return CalibrationFile.model_validate(data)
     except ValidationError as exc:
         first = exc.errors()[0]
+        cause = first.get("ctx", {}).get("error")
+        if isinstance(cause, ParameterError):  # check_calibration's: it names the field itself
+            raise ConfigError(str(cause), source=source) from None
         field = ".".join(str(p) for p in first["loc"]) or "file"
-        raise ConfigError(first["msg"], source=str(path), field=field) from None
+        raise ConfigError(first["msg"], source=source, field=field) from None
 
 
 def covariance_matrix(cal: CalibrationFile) -> np.ndarray:

@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import csv
 import io
-import tomllib
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Annotated, Any
@@ -27,8 +26,10 @@ from typing import Annotated, Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from rig.core.bat import HOOP_HZ, LENGTH_IN, MOI_KGM2, WEIGHT_OZ, Barrel
-from rig.core.errors import ConfigError
+from rig.core.errors import ConfigError, listed, shown
+from rig.core.files import DATA_BYTES, parse_toml, read_bounded
 
+WHAT = "a population file"
 COLUMNS = (
     "bat_id",
     "barrel",
@@ -106,7 +107,7 @@ def _validate(row: dict[str, Any], path: Path, where: str) -> PopulationBat:
         first = exc.errors()[0]
         field = ".".join(str(p) for p in first["loc"]) or "row"
         raise ConfigError(
-            f"{first['msg']} (got {first.get('input')!r})", source=f"{path}: {where}", field=field
+            f"{first['msg']} (got {shown(first.get('input'))})", source=f"{path}: {where}", field=field
         ) from None
 
 
@@ -126,7 +127,7 @@ def _read_csv(path: Path, text: str) -> list[PopulationBat]:
     unknown = [c for c in header if c not in COLUMNS]
     if unknown:
         raise ConfigError(
-            f"unknown column(s) {', '.join(unknown)}; known: {', '.join(COLUMNS)}",
+            f"unknown column(s) {listed(unknown)}; known: {', '.join(COLUMNS)}",
             source=f"{path}: line {lines[0][0]}",
         )
     missing = [c for c in ("bat_id", "barrel", "hoop_hz") if c not in header]
@@ -144,10 +145,7 @@ def _read_csv(path: Path, text: str) -> list[PopulationBat]:
 
 
 def _read_toml(path: Path, text: str) -> list[PopulationBat]:
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError(f"not valid TOML: {exc}", source=str(path)) from None
+    data = parse_toml(text, str(path), WHAT)
     tables = data.get("bat")
     if not isinstance(tables, list) or not all(isinstance(t, dict) for t in tables):
         raise ConfigError("needs [[bat]] tables", source=str(path))
@@ -156,22 +154,24 @@ def _read_toml(path: Path, text: str) -> list[PopulationBat]:
 
 def load_population(path: str | Path) -> list[PopulationBat]:
     """Read a population file (.csv or .toml); ids must be unique."""
+    return read_population(path)[0]
+
+
+def read_population(path: str | Path) -> tuple[list[PopulationBat], bytes]:
+    """The population file's bats and the bytes they were read from (what a calibration hashes)."""
     path = Path(path)
+    raw = read_bounded(path, DATA_BYTES, WHAT)
     try:
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise ConfigError("no such file", source=str(path)) from None
-    except (UnicodeDecodeError, IsADirectoryError) as exc:
-        raise ConfigError(f"not a readable text file: {exc}", source=str(path)) from None
-    if "\x00" in text:
-        raise ConfigError("not a text file: it holds NUL bytes", source=str(path))
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"not {WHAT}: not UTF-8 text (byte {exc.start})", source=str(path)) from None
     bats = _read_toml(path, text) if path.suffix.lower() == ".toml" else _read_csv(path, text)
     seen: set[str] = set()
     for b in bats:
         if b.bat_id in seen:
             raise ConfigError(f"bat {b.bat_id} appears twice", source=str(path))
         seen.add(b.bat_id)
-    return bats
+    return bats, raw
 
 
 def write_population_csv(

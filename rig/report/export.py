@@ -84,12 +84,12 @@ def export(
         write_csv(rows, columns, stdout)
         return len(rows)
     if fmt == "csv":
-        _atomic(Path(output), lambda tmp: _csv_file(tmp, rows, columns))
+        atomic_write(Path(output), lambda tmp: _csv_file(tmp, rows, columns))
     else:
         import pyarrow.parquet as pq
 
         table = arrow_table(rows, columns)
-        _atomic(Path(output), lambda tmp: pq.write_table(table, tmp))
+        atomic_write(Path(output), lambda tmp: pq.write_table(table, tmp))
     return len(rows)
 
 
@@ -98,7 +98,7 @@ def _csv_file(path: Path, rows: Rows, columns: Columns) -> None:
         write_csv(rows, columns, out)
 
 
-def _atomic(path: Path, write: Callable[[Path], None]) -> None:
+def atomic_write(path: Path, write: Callable[[Path], None]) -> None:
     """Write through a temporary file in the same folder, then move it onto `path`."""
     try:
         fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=path.parent)

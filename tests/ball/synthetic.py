@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from functools import cache
+from pathlib import Path
 
 import numpy as np
 
@@ -36,3 +37,11 @@ def ccor_points(
             c = true_ccor(v) + float(rng.normal(0.0, noise))
             out.append(CcorPoint(v, c, noise if with_u else None, f"B{i}-{j}"))
     return out
+
+
+def write_ccor_csv(path: Path, seed: int) -> Path:
+    """A CCOR.csv of `ccor_points(seed, with_u=True)` (speed_m_s, ccor, u_ccor, ball_id), as a lab exports."""
+    rows = ccor_points(seed=seed, with_u=True)
+    lines = "".join(f"{p.speed_m_s},{p.ccor},{p.u_ccor},{p.ball_id}\n" for p in rows)
+    path.write_text("speed_m_s,ccor,u_ccor,ball_id\n" + lines, encoding="utf-8")
+    return path

@@ -197,3 +197,34 @@ def test_a_lot_without_a_recorded_law_says_how_to_record_one(db: Path, tmp_path:
     assert not (tmp_path / "b.json").exists()
     code, _, err = cli(["balls", "law", "NOPE", "--db", str(db), "--output", str(tmp_path / "b.json")])
     assert code == 2 and "no ball lot 'NOPE'" in one_line(err)
+
+
+def test_balls_law_never_overwrites_the_store_and_writes_an_earlier_law_by_entry(tmp_path: Path) -> None:
+    from tests.ball.synthetic import write_ccor_csv
+
+    db = tmp_path / "lab.db"
+    register(db, "ACME-1")
+    csv = write_ccor_csv(tmp_path / "ccor.csv", seed=4)
+    from rig.ball_rules import record_lot_law
+
+    files = []
+    for i, extra in enumerate(([], ["--set", "c1=5200"])):
+        path = tmp_path / f"law{i}.json"
+        code, _, err = cli(
+            ["model", "fit-ball", "--data", str(csv), "--lot", "ACME-1", "--output", str(path), *extra]
+        )
+        assert code == 0, err
+        files.append(path)
+    with Store.open(db) as store:
+        entries = [record_lot_law(store, "ACME-1", str(p))[0].seq for p in files]
+    before = db.read_bytes()
+    code, _, err = cli(["balls", "law", "ACME-1", "--db", str(db), "--output", str(db)])
+    assert code == 2 and "--output would overwrite the record store" in one_line(err)
+    assert db.read_bytes() == before
+    out = tmp_path / "first.json"
+    code, _, err = cli(
+        ["balls", "law", "ACME-1", "--db", str(db), "--output", str(out), "--entry", str(entries[0])]
+    )
+    assert code == 0 and out.read_bytes() == files[0].read_bytes(), err
+    code, _, err = cli(["balls", "law", "ACME-1", "--db", str(db), "--output", str(out), "--entry", "99999"])
+    assert code == 2 and f"its laws: {entries[0]}, {entries[1]}" in one_line(err)

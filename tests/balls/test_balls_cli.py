@@ -170,3 +170,36 @@ def test_ball_cor_on_the_lab_rig_then_list_show_report_verify(db: Path, tmp_path
         assert mark in out.read_text(encoding="utf-8")
     code, text = stdout_of(["verify", "--db", str(db)])
     assert code == 0 and text.startswith("ok:")
+
+
+def test_a_ball_test_run_again_meets_its_own_simulated_noise(db: Path, tmp_path: Path) -> None:
+    """Two ball-cor tests of one lot at the same hour of the simulated lab: each run is its own
+    session of the lab (the store's count of runs), so they do not repeat each other's numbers,
+    which would make a fit over both count every hit twice."""
+    text = (Path(__file__).resolve().parents[2] / "protocols" / "ball-cor.toml").read_text(encoding="utf-8")
+    small = tmp_path / "small.toml"
+    small.write_text(
+        text.replace(
+            next(s for s in text.splitlines() if s.startswith("balls_per_speed =")), "balls_per_speed = 2"
+        ),
+        encoding="utf-8",
+    )
+    results = []
+    for _ in range(2):
+        argv = [
+            "balls",
+            "test",
+            "--procedure",
+            str(small),
+            "--lot",
+            "ACME-1",
+            "--sim",
+            "lab",
+            "--db",
+            str(db),
+        ]
+        code, out = stdout_of([*argv, "--json"])
+        assert code == 0
+        results.append(json.loads(out)["lot_result"])
+    speeds = [[p["speed_m_s"] for p in r["points"]] for r in results]
+    assert speeds[0] != speeds[1] and results[0]["mean"] != results[1]["mean"]

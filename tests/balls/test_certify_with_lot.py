@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 import statistics
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -270,15 +271,9 @@ def test_the_lots_recorded_law_is_used_and_named_without_ball(lab: Path, tmp_pat
     from rig.ball_rules import record_lot_law
     from rig.core.errors import ConfigError, UnknownRecord
     from rig.physics.ball_law import BallLaw
-    from tests.ball.synthetic import ccor_points
+    from tests.ball.synthetic import write_ccor_csv
 
-    csv = tmp_path / "ccor.csv"
-    rows = ccor_points(seed=3, with_u=True)
-    csv.write_text(
-        "speed_m_s,ccor,u_ccor,ball_id\n"
-        + "".join(f"{p.speed_m_s},{p.ccor},{p.u_ccor},{p.ball_id}\n" for p in rows),
-        encoding="utf-8",
-    )
+    csv = write_ccor_csv(tmp_path / "ccor.csv", seed=3)
     mine, other = tmp_path / "mine.json", tmp_path / "other.json"
     for lot, path in (("L", mine), ("OTHER", other)):
         done = run_cli(["model", "fit-ball", "--data", str(csv), "--lot", lot, "--output", str(path)])
@@ -322,37 +317,62 @@ def test_the_lots_recorded_law_is_used_and_named_without_ball(lab: Path, tmp_pat
     assert f"lot L's recorded law, sha256 {sha[:12]}" in cert.read_text(encoding="utf-8")
 
 
-def test_verify_derives_a_certifications_ball_terms_again(lab: Path, tmp_path: Path) -> None:
-    """The terms name the ball-cor runs they rest on; verify derives them again from exactly those."""
+def _tampered(lab: Path, folder: Path, run: str, edit: Any) -> list[str]:
+    """ball_terms_problems of a copy of the lab's store whose run's recorded ball terms `edit` changed."""
+    import json
     import shutil
     import sqlite3
 
     from rig.balls import ball_terms_problems
 
+    folder.mkdir()
+    for suffix in ("", "-wal", "-shm"):
+        if (lab / f"s.db{suffix}").exists():
+            shutil.copy(lab / f"s.db{suffix}", folder / f"copy.db{suffix}")
+    with sqlite3.connect(folder / "copy.db") as conn:  # someone rewrites the run's record
+        conn.execute("DROP TRIGGER log_no_update")
+        seq, payload = conn.execute(
+            "SELECT seq, payload FROM log WHERE run_id = ? AND kind = 'RunStarted'", (run,)
+        ).fetchone()
+        data = json.loads(payload)
+        edit(data["ball"])
+        conn.execute("UPDATE log SET payload = ? WHERE seq = ?", (json.dumps(data), seq))
+    with Store.open(folder / "copy.db") as again:
+        return ball_terms_problems(again)
+
+
+def test_verify_derives_a_certifications_ball_terms_again(lab: Path, tmp_path: Path) -> None:
+    """The terms name the ball-cor runs they rest on (every one of the lot's, finished before the
+    run); verify derives them again from exactly those and names what differs."""
+    from rig.balls import ball_terms_problems
+
     code, err = certify_cli(lab, "--ball-lot", "L")
     assert code in (0, 1), err
-    copy = tmp_path / "copy.db"
     with Store.open(lab / "s.db") as store:
         run = store.runs()[-1].run_id
         recorded = fold(history(store, run)).setup["ball"]
         _, results = store.ball_lot("L")
         assert recorded["results"] == [r.run_id for r in results if r.procedure == "ball-cor"]
         assert ball_terms_problems(store) == []
-    shutil.copy(lab / "s.db", copy)
-    for suffix in ("-wal", "-shm"):
-        if (lab / f"s.db{suffix}").exists():
-            shutil.copy(lab / f"s.db{suffix}", tmp_path / f"copy.db{suffix}")
-    wear = repr(recorded["wear_per_hit"])
-    with sqlite3.connect(copy) as conn:  # someone makes the lot's wear smaller in the run's record
-        conn.execute("DROP TRIGGER log_no_update")
-        seq, payload = conn.execute(
-            "SELECT seq, payload FROM log WHERE run_id = ? AND kind = 'RunStarted'", (run,)
-        ).fetchone()
-        assert wear in payload
-        conn.execute("UPDATE log SET payload = ? WHERE seq = ?", (payload.replace(wear, "-1e-05", 1), seq))
-    with Store.open(copy) as again:
-        problems = ball_terms_problems(again)
-    assert any(
-        f"run {run}: its recorded ball terms are not what lot L's results give (wear_per_hit" in p
-        for p in problems
-    ), problems
+
+    def smaller_wear(terms: dict[str, Any]) -> None:
+        terms["wear_per_hit"] = -1e-05
+
+    def no_results(terms: dict[str, Any]) -> None:
+        terms["results"] = []
+
+    def unknown_field(terms: dict[str, Any]) -> None:
+        terms["made_up"] = 1
+
+    def another_lot(terms: dict[str, Any]) -> None:
+        terms["lot"] = "NOT-HERE"  # e.g. a run copied by rig sync, which copies no lots
+
+    cases = [
+        (smaller_wear, f"run {run}: its recorded ball terms are not what lot L's results give (wear_per_hit"),
+        (no_results, f"run {run}: its ball terms rest on ball-cor runs none, not on lot L's tests before it"),
+        (unknown_field, f"run {run}: its recorded ball terms are unreadable"),
+    ]
+    for i, (edit, said) in enumerate(cases):
+        problems = _tampered(lab, tmp_path / f"t{i}", run, edit)
+        assert any(p.startswith(said) for p in problems), (edit.__name__, problems)
+    assert _tampered(lab, tmp_path / "sync", run, another_lot) == []  # not derivable here: not a problem

@@ -76,7 +76,11 @@ class Responder:
         # close the connection instead of answering this verb; set before the thread starts
         self.drop_on = drop_on
         self.thread = threading.Thread(target=self.run, daemon=True)
+
+    def start(self) -> Responder:
+        """Answer from now on (a fixture publishes the responder first: it may answer at once)."""
         self.thread.start()
+        return self
 
     def run(self) -> None:
         while not self.stop.is_set():
@@ -106,7 +110,7 @@ def pty_device() -> Iterator[tuple[str, list[int]]]:
         return os.read(fds[0], 256) if ready else None
 
     fds = [master]
-    device = Responder(read, lambda b: os.write(fds[0], b))
+    device = Responder(read, lambda b: os.write(fds[0], b)).start()
     yield path, fds
     device.stop.set()
     device.thread.join(1)
@@ -169,7 +173,9 @@ class TcpDevice:
 
             responder = Responder(read, conn.sendall, drop_on=self.drop_on)
             self.drop_on = None
+            # published before it answers: a client holding its first reply may hang_up() at once
             self.current = responder
+            responder.start()
             responder.thread.join()
             conn.close()
 

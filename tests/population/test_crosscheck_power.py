@@ -118,6 +118,7 @@ def test_gradient_step_stays_below_the_bats_own_mass() -> None:
     cov[0, 0] = (0.5 * eff) ** 2  # sigma of m2 half the bat's mass: a step of 0.05 sigma crosses it
     cov[0, 1:] = cov[1:, 0] = 0.0
     record["covariance"] = cov.tolist()
+    record["uncertainty"] = {**record["uncertainty"], "m2": 0.5 * eff}  # the root of its variance
     (check,) = crosscheck_bats(CalibrationFile.model_validate(record), [bat])
     assert math.isfinite(check.u_model) and check.u_model > 0.0
 

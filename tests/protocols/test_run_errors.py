@@ -8,9 +8,11 @@ from pathlib import Path
 import pytest
 
 from protocols.procedure import Procedure
+from protocols.runner import RunControl
 from rig.certification import certify
 from rig.cli import main
 from rig.core.bat import BatSpec
+from rig.core.errors import ConfigError
 from rig.session import sim_config
 from rig.store import Store
 from tests.protocols.wire import check_fires
@@ -94,20 +96,25 @@ def test_api_mid_run_error_records_the_interruption_and_resumes(
         assert store.verify().ok
 
 
-def test_unplugged_device_interrupts_the_new_run_and_it_resumes(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    """A port that cannot be opened: the run records why (nothing moved) and resumes once plugged in."""
+def test_unplugged_device_refuses_a_new_run_and_interrupts_a_resumed_one(tmp_path: Path) -> None:
+    """A port that cannot be opened: a new run is refused, nothing recorded (issue 21, item 10); a
+    resumed run records why (nothing moved) and resumes once plugged in."""
     bat = BatSpec.load(SAMPLE_BAT)
     good = sim_config("ideal", bat=bat)
     ports = {**good.ports.model_dump(), "gates": str(tmp_path / "no-such-port")}
     unplugged = good.model_copy(update={"ports": type(good.ports).model_validate(ports)})
     with Store.open(tmp_path / "r.db") as store:
-        out = certify(store, Procedure.load("bbcor"), bat, unplugged)
-        assert out.status == "interrupted" and "no-such-port" in out.reason
+        with pytest.raises(ConfigError, match=r"no-such-port.*no run was started"):
+            certify(store, Procedure.load("bbcor"), bat, unplugged)
+        assert store.runs() == []
+        control = RunControl()
+        control.abort("stopped before its first step")
+        out = certify(store, Procedure.load("bbcor"), bat, good, control=control)
+        assert out.status == "interrupted"
+        again = certify(store, Procedure.load("bbcor"), bat, unplugged, run_id=out.run_id)
+        assert again.status == "interrupted" and "no-such-port" in again.reason
         (last,) = store.entries(out.run_id)[-1:]
-        assert last.kind == "RunInterrupted" and last.payload["reason"] == out.reason
-        assert not store.entries(out.run_id, kinds=["RunStarted", "ShotRequested"])
+        assert last.kind == "RunInterrupted" and last.payload["reason"] == again.reason
         done = certify(store, Procedure.load("bbcor"), bat, good, run_id=out.run_id)
         assert done.status == "finished" and store.verify().ok
         assert all(n == 1 for n in check_fires(store.entries(out.run_id)).values())

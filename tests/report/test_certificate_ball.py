@@ -50,9 +50,12 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict[str, Any], list[
     """A BBCOR certification on the lab rig with a named lot's terms: its record and its log."""
     with Store.open(tmp_path_factory.mktemp("store") / "r.db") as store:
         bat = SAMPLE_BAT
+        bbcor = Procedure.load("bbcor")
+        # a new ball every 6 hits: the valid hits span two balls whatever the scan took
+        six = bbcor.model_copy(update={"ball": bbcor.ball.model_copy(update={"replace_after_hits": 6})})
         out = certify(
             store,
-            Procedure.load("bbcor"),
+            six,
             bat,
             sim_config("lab", bat=bat),
             ball=TERMS.model_dump(mode="json"),

@@ -77,7 +77,7 @@ def test_a_file_overrides_only_what_it_lists(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("text", "field", "words"),
     [
-        ("seed = ", "", "invalid TOML"),
+        ("seed = ", "", "not valid TOML"),
         ('[[effects]]\nkind = "wormhole"\n', "effects.0", "wormhole"),
         (
             '[[effects]]\nkind = "drag"\ndrag_coefficient = -1.0\n',
@@ -133,3 +133,11 @@ def test_each_run_draws_its_own_noise_and_a_repeated_run_repeats_it() -> None:
     assert all(x != y for x, y in zip(_first_draws(a), _first_draws(later), strict=True))
     plate = lab.with_target("plate")
     assert plate.run_key() != a.run_key() and plate.run_key().startswith(f"{lab.seed}/plate")
+
+
+def test_a_session_or_a_nearby_hour_is_another_run() -> None:
+    lab = Scene.load("lab").with_bat(id="BAT-A")
+    again = lab.model_copy(update={"session": "store-run-1"})
+    assert all(x != y for x, y in zip(_first_draws(lab), _first_draws(again), strict=True))
+    near = [lab.with_effect("environment", start_s=s).run_key() for s in (100000.2, 100000.4)]
+    assert near[0] != near[1]

@@ -183,14 +183,16 @@ def test_a_port_that_does_not_open_is_a_message(tmp_path: Path) -> None:
             assert "no-such-cannon" in screen_text(app, "#devices")
             screen = await start_run(pilot)
             await until(pilot, lambda: not screen.running, "the run to fail")
-            message = screen_text(app, "#message")  # recorded as an interruption of the run
-            assert "interrupted: the devices could not be opened" in message
+            message = screen_text(app, "#message")  # refused before the run: nothing to resume
+            assert "the devices could not be opened" in message and "no run was started" in message
             assert "cannon: cannot open '/dev/no-such-cannon'" in message
-            assert screen.check_action("resume", ()) is True  # try again once the cable is in
+            assert screen.check_action("resume", ()) is True  # r tries again (a new run) once the cable is in
             await pilot.press("b")
             await until(pilot, lambda: isinstance(app.screen, SetupScreen), "back to set-up")
 
     asyncio.run(body())
+    with Store.open(settings.db) as store:
+        assert store.runs() == []
 
 
 def test_help_overlay_and_quit(make_settings: Callable[..., ConsoleSettings]) -> None:

@@ -151,8 +151,9 @@ def test_bat_file(content: bytes) -> None:
     check(_certify({"bat.toml": content}, ["--sim", "ideal"]))
 
 
-# Ports too: a port that cannot be opened is an interruption on the record (exit 3), like any error
-# during a run; so is a scene ball whose COR sends the aim beyond the calibration mid-run.
+# Ports too: a port that cannot be opened is refused before the run is created (exit 2); a scene
+# ball whose COR sends the aim beyond the calibration mid-run is an interruption on the record
+# (exit 3), like any error during a run.
 @settings(max_examples=EXAMPLES)
 @given(mutated(RIG))
 def test_rig_config_file(content: bytes) -> None:
