@@ -24,6 +24,8 @@ demo: $(STAMP)
 	$(BIN)/rig report last --db out/demo.db --format html --output out/certificate.html --figures out/figures
 	$(BIN)/rig verify --db out/demo.db
 	@echo "certificate: out/certificate.md (and .html); records: out/demo.db"
+	@echo "the rig command is in .venv/bin: run . .venv/bin/activate, then rig runs --db out/demo.db"
+	@echo "(or, without activating: .venv/bin/rig runs --db out/demo.db)"
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

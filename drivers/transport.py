@@ -282,7 +282,11 @@ class LineTransport:
         if self._closed:
             raise DeviceGone(self.device, f"port {self.url} is closed")
         if self._gone is not None:
-            raise DeviceGone(self.device, f"port {self.url} lost ({self._gone}); call reconnect()")
+            raise DeviceGone(
+                self.device,
+                f"port {self.url} lost ({self._gone}); check its cable and power, "
+                "then resume the run or try again",
+            )
 
     # -- lifecycle --------------------------------------------------------------------------
 
@@ -290,7 +294,7 @@ class LineTransport:
         port = self._conn.port
         opener = getattr(port, "open", None)
         if opener is None:
-            raise DeviceGone(self.device, f"cannot reopen {self.url}: the port object has no open()")
+            raise DeviceGone(self.device, f"cannot reopen {self.url}: this kind of port cannot be reopened")
         opener()
         return port
 

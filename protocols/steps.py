@@ -357,6 +357,10 @@ def ring_check(ctx: PlanContext, prompt_id: str, text: str, index: int) -> Plan[
         raise RunAborted(reason)
 
 
+# how a fire prompt names a shot's purpose: "(valid)" read like a verdict before the shot
+PURPOSE_WORDS = {"scan": "scan", "valid": "for the result"}
+
+
 def shoot(ctx: PlanContext, loc_in: float, purpose: str) -> Plan[None]:
     """One shot at `loc_in` from the tip: checks, intent recorded, fire, evaluate, review."""
     p, st = ctx.procedure, ctx.state
@@ -375,8 +379,9 @@ def shoot(ctx: PlanContext, loc_in: float, purpose: str) -> Plan[None]:
         raise RunAborted(
             f"{exc}: the measured speeds are far from the aim (gate positions in the rig config wrong?)"
         ) from exc
+    what = PURPOSE_WORDS.get(purpose, purpose)
     if ctx.confirm_fire and not (
-        yield Ask(f"fire-{index}", f"Fire shot {index} ({purpose}) at {loc_in:g} in from the tip?")
+        yield Ask(f"fire-{index}", f"Fire shot {index} ({what}) at {loc_in:g} in from the tip?")
     ):
         raise RunAborted(f"the operator declined to fire shot {index}")
     yield Checkpoint()

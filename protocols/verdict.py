@@ -273,7 +273,7 @@ def cross_check(
             p, bat, v_in, q, moi, measured, f"recorded calibration not usable ({reason}): {UNCALIBRATED}", law
         )
     prov = cal.provenance
-    where = f" (outside the calibration's {prov.hoop_min_hz:.0f}-{prov.hoop_max_hz:.0f} Hz: extrapolated)"
+    where = f" (outside the calibrated {prov.range_text()}: extrapolated)"
     note = (
         "measured performance outside the calibrated model's prediction interval: possibly an altered bat"
         " or a rig fault"

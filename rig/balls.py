@@ -10,6 +10,7 @@ built with that target clamped (rig.session.sim_config), a real rig is told by t
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
+from dataclasses import replace
 from typing import Any
 
 from protocols.ball_eval import lot_result
@@ -37,7 +38,7 @@ from rig.core.ball import BALL_TESTS, BallLot
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RigError
 from rig.core.events import RunEvent, Subscriber
-from rig.keys import load_signer, recorded_rig
+from rig.keys import recorded_rig, signing_for
 from rig.session import RigSession
 from rig.store import Store
 
@@ -89,7 +90,8 @@ def run_ball_test(
     if problems:
         raise ConfigError("; ".join(problems), source="dry run")
     identity = config.identity_record(__version__)
-    signer = load_signer((recorded_rig(store, run_id) if run_id else None) or identity["name"])
+    rig = (recorded_rig(store, run_id) if run_id else None) or str(identity["name"])
+    signing = signing_for(store, rig, simulated=config.simulated)  # never a real rig's key for a simulation
     if run_id is None:
         _checked(store)  # nothing is recorded into a damaged store (a resumed run: in drive)
         target = procedure.target
@@ -121,17 +123,20 @@ def run_ball_test(
         )
         return executor, lambda: executor.run(ball_test)
 
-    return drive(
+    named = ev.RigNamed(name=rig, simulated=config.simulated, signing=signing.note)
+    outcome = drive(
         store,
         run_id,
         config,
         list(subscribers),
-        signer,
+        signing.signer,
         start,
         resuming=resuming,
         what="ball test",
         session=session,
+        named=named,
     )
+    return replace(outcome, signing=signing.note)
 
 
 def recomputed_problems(store: Store) -> list[str]:

@@ -12,7 +12,7 @@ import contextlib
 import logging
 import traceback
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -29,7 +29,7 @@ from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RecordRefused, RigError, StoreError
 from rig.core.events import RunEvent, Subscriber
-from rig.keys import Signer, load_signer, recorded_rig, sign_run
+from rig.keys import Signer, recorded_rig, recorded_simulated, sign_run, signing_for
 from rig.modal.link import with_measured_hoop
 from rig.session import RigSession
 from rig.store import RunLocked, Store, StoreDamaged, StoreGone
@@ -46,6 +46,7 @@ class Outcome:
     verdict: dict[str, Any] | None
     reason: str = ""
     budget_exceeded: bool = False  # resume only with a recorded rig check (Signoff), or end the run
+    signing: str = ""  # what the operator should know of the run's signature (rig.keys.Signing)
 
 
 @dataclass(frozen=True)
@@ -130,14 +131,18 @@ class RunNotRecorded(StoreError):
 def end_run(store: Store, run_id: str, signoff: Signoff) -> Outcome:
     """End an unfinished run with no verdict, on the operator's recorded word (store status aborted)."""
     _running(store, run_id, "--end")
-    signer = load_signer(recorded_rig(store, run_id))  # a key file open to others stops us here
+    rig = recorded_rig(store, run_id)
+    # a key file open to others stops us here
+    signing = signing_for(store, rig, simulated=recorded_simulated(store, run_id)) if rig else None
+    signer = signing.signer if signing else None
     with store.run_lock(run_id):  # never while a runner is still working on the run
         shots = len(store.entries(run_id, kinds=[ev.SHOT_REQUESTED]))
         said = signoff.as_dict()  # who and why, stripped
         ended = ev.RunEnded(who=said["who"], why=said["why"], shots_so_far=shots)
         store.append(run_id, ended.kind, ended.data)
         _seal(store, run_id, "aborted", None, signer)
-    return Outcome(run_id, "ended", None, f"ended without a verdict by {signoff.who}: {signoff.why}")
+    reason = f"ended without a verdict by {signoff.who}: {signoff.why}"
+    return Outcome(run_id, "ended", None, reason, signing=signing.note if signing else "")
 
 
 def _reason(exc: BaseException) -> str:
@@ -167,6 +172,7 @@ def certify(
     rig_checked: Signoff | None = None,
     plan: PlanFactory = certification,
     ball: dict[str, Any] | None = None,
+    sign_simulated: bool = False,
 ) -> Outcome:
     """Run (or with `run_id`, resume) a certification; returns its outcome.
 
@@ -176,6 +182,8 @@ def certify(
     procedure's plan (protocols.steps.certification, or a lab's own from the same steps). `ball`:
     the ball terms (protocols.ball_terms.BallTerms fields: the lot, its measured wear, spread and
     sensitivities, the ball law), recorded in RunStarted; None: assumed defaults, budgeted whole.
+    `sign_simulated`: sign a simulated run even with a real rig's key (rig.keys.signing_for); the
+    listeners first hear RigNamed: the rig, whether it is simulated, and what its signature will be.
     """
     listeners = list(subscribers)
     resuming = run_id is not None
@@ -188,7 +196,8 @@ def certify(
     if problems:
         raise ConfigError("; ".join(problems), source="dry run")
     identity = config.identity_record(__version__)
-    signer = load_signer((recorded_rig(store, run_id) if run_id else None) or identity["name"])
+    rig = (recorded_rig(store, run_id) if run_id else None) or str(identity["name"])
+    signing = signing_for(store, rig, simulated=config.simulated, sign_simulated=sign_simulated)
     if run_id is None:
         run_calibration(procedure, config)  # a named calibration that will not load stops us here
         _checked(store)  # nothing is recorded into a damaged store (a resumed run: in drive)
@@ -224,9 +233,20 @@ def certify(
         )
         return runner, lambda: runner.run(rehearse_first=False)  # rehearsed above, before the lock
 
-    return drive(
-        store, run_id, config, listeners, signer, start, resuming=resuming, on_open=on_open, session=session
+    named = ev.RigNamed(name=rig, simulated=config.simulated, signing=signing.note)
+    outcome = drive(
+        store,
+        run_id,
+        config,
+        listeners,
+        signing.signer,
+        start,
+        resuming=resuming,
+        on_open=on_open,
+        session=session,
+        named=named,
     )
+    return replace(outcome, signing=signing.note)
 
 
 Emit = Callable[[RunEvent], None]
@@ -274,6 +294,7 @@ def drive(
     on_open: Callable[[RigSession], None] | None = None,
     what: str = "run",
     session: RigSession | None = None,
+    named: RunEvent | None = None,
 ) -> Outcome:
     """Run one recorded run on the rig under its lock: every persisted event committed before the
     plan goes on, any error recorded as the run's interruption (resumable), the run sealed (and
@@ -283,7 +304,8 @@ def drive(
 
     The store is checked before the run goes on (Store.check_integrity); the verdict reaches the
     listeners only once the run is sealed and read back; a store that fails the run (full, gone)
-    raises RunNotRecorded naming the run."""
+    raises RunNotRecorded naming the run. `named` (RigNamed) goes to the listeners first, once the
+    lock is held: a refused runner says nothing else."""
     verdicts: list[RunEvent] = []  # RunFinished: shown once sealed and read back, never before
 
     def emit(event: RunEvent) -> None:
@@ -297,7 +319,7 @@ def drive(
 
     opened = session  # a new run's devices: closed below however the lock goes (close is idempotent)
     try:
-        outcome = _drive(store, run_id, config, emit, signer, start, resuming, on_open, what, session)
+        outcome = _drive(store, run_id, config, emit, signer, start, resuming, on_open, what, session, named)
     except (RunLocked, RunNotRecorded, StoreDamaged):  # refused before anything was recorded, or said
         raise
     except StoreError as exc:  # the store failed the run after it was created: say which run
@@ -325,10 +347,13 @@ def _drive(
     on_open: Callable[[RigSession], None] | None,
     what: str,
     session: RigSession | None,
+    named: RunEvent | None = None,
 ) -> Outcome:
     # One runner per run: a second one is refused here (RunLocked), before it opens a device (a new
     # run's are open already: no other runner can know the run yet).
     with store.run_lock(run_id):
+        if named is not None:
+            emit(named)  # which rig, how it is signed: said once the lock is held
         _checked(store, run_id)  # never record into a store that verify would call damaged
         if session is None:
             try:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import base64
 import os
 import re
+import shlex
 import stat
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,6 +20,7 @@ from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
 from rig.core.config import RIG_NAME_PATTERN
 from rig.core.errors import ConfigError, RecordRefused
+from rig.core.events import RUN_STARTED
 from rig.store import LogEntry, Store
 from rig.store._records import RUN_CREATED
 from rig.store._signed import (
@@ -113,6 +115,74 @@ def load_signer(rig: str | None, directory: str | Path | None = None) -> Signer 
     if not isinstance(key, Ed25519PrivateKey):
         raise ConfigError(f"{path}: not an Ed25519 key", "rig key")
     return Signer(rig, key, fingerprint(_public_raw(key)))
+
+
+@dataclass(frozen=True)
+class Signing:
+    """The key that will sign a run at its seal (None: none), and what the operator should hear."""
+
+    signer: Signer | None
+    note: str = ""  # '' when there is nothing to say
+
+
+SIM_PREFIX = "sim-"  # a simulated rig's own name: sim-SCENE (rig.core.config)
+
+
+def signing_for(
+    store: Store,
+    rig: str,
+    *,
+    simulated: bool,
+    sign_simulated: bool = False,
+    directory: str | Path | None = None,
+) -> Signing:
+    """Which key signs a run of rig `rig` in `store`, and why (a key open to others: ConfigError).
+
+    A real rig's run is signed with its key. A simulated run measured no bat: it is signed only
+    where its simulated rig's key is registered in this store (a key created once does not sign
+    every store's simulated runs), and never with a real rig's key unless `sign_simulated`.
+    """
+    signer = load_signer(rig, directory)
+    register = f"rig keys register --db {shlex.quote(store.location)} --rig {rig}"
+    if signer is None:
+        return Signing(None, "not signed (no key)" if simulated else "")
+    listed = [k for k in keys_in(store) if k.rig == rig]
+    if simulated and not sign_simulated:
+        if not rig.startswith(SIM_PREFIX):
+            return Signing(
+                None, f"not signed: a simulated run is never signed with rig {rig}'s key unless asked"
+            )
+        if not listed or listed[-1].fingerprint != signer.fingerprint:
+            return Signing(None, f"not signed: rig {rig}'s key is not registered in this store ({register})")
+    return Signing(
+        signer, unlisted_warning(store, signer) or f"signed with rig {rig}'s key {signer.fingerprint}"
+    )
+
+
+def unlisted_warning(store: Store, signer: Signer) -> str:
+    """A warning when `signer`'s key is not the one the store lists for its rig ('' when it is)."""
+    listed = [k for k in keys_in(store) if k.rig == signer.rig]
+    register = f"rig keys register --db {shlex.quote(store.location)} --rig {signer.rig}"
+    if not listed:
+        return (
+            f"warning: signed with rig {signer.rig}'s key {signer.fingerprint}, which is not registered in "
+            f"this store: rig verify counts the run unsigned until {register} lists it"
+        )
+    if listed[-1].fingerprint != signer.fingerprint:
+        return (
+            f"warning: signed with rig {signer.rig}'s key {signer.fingerprint}, but this store lists "
+            f"{listed[-1].fingerprint} for it: rig verify will report the signature"
+        )
+    return ""
+
+
+def recorded_simulated(store: Store, run_id: str) -> bool:
+    """Whether a run was recorded on a simulated rig (a sim:// port in its RunStarted)."""
+    started = store.entries(run_id, kinds=[RUN_STARTED])
+    rig = started[0].payload.get("rig") if started else None
+    ports = rig.get("ports") if isinstance(rig, dict) else None
+    urls = ports.values() if isinstance(ports, dict) else ()
+    return any(isinstance(url, str) and url.startswith("sim://") for url in urls)
 
 
 def keys_in(store: Store) -> list[RegisteredKey]:

@@ -31,7 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action=_Version, nargs=0, help="print the version and exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for part in (model, rig_cmds, records, balls, export, sync, modal, keys):
+    for part in (records, keys, export, sync, balls, rig_cmds, model, modal):  # task order in --help
         part.add_parsers(sub)
     return parser
 

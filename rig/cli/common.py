@@ -34,18 +34,12 @@ def add_overrides(parser: argparse.ArgumentParser, help_text: str) -> None:
     )
 
 
-PIPED_WIDTH = 400  # columns of output that is not a terminal: nothing wraps or is cut
-
-
 def console(stderr: bool = False) -> Any:
-    """A rich console: on a terminal rich's own; piped or redirected, no colour and wide enough
-    that no table column is cut."""
-    from rich.console import Console
+    """A rich console: on a terminal rich's own; piped or redirected, no colour, no wrapping and
+    wide enough that no table column is cut (rig.report.terminal)."""
+    from rig.report.terminal import console as terminal_console
 
-    out = Console(stderr=stderr)
-    if out.is_terminal:
-        return out
-    return Console(stderr=stderr, width=PIPED_WIDTH, no_color=True, highlight=False)
+    return terminal_console(stderr)
 
 
 def new_table(**options: Any) -> Any:

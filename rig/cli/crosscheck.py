@@ -41,6 +41,14 @@ def cmd_crosscheck(args: argparse.Namespace) -> int:
             source=args.data,
         )
     checks = crosscheck_bats(cal, bats, coverage=args.coverage)
+    outside = sum(c.extrapolated for c in checks)
+    if outside:  # on stderr, so that --json readers see it too
+        print(
+            f"warning: {outside} of {len(checks)} bats lie outside the calibrated range"
+            f" ({cal.provenance.range_text()}): predicted by extrapolation, so a flag there may mean"
+            " another population rather than an altered bat",
+            file=sys.stderr,
+        )
     if args.json:
         json.dump([c.as_dict() for c in checks], sys.stdout, indent=2, allow_nan=False)
         sys.stdout.write("\n")
@@ -53,7 +61,7 @@ def _print(checks: list[Any], cal: Any, rule: str) -> None:
     prov = cal.provenance
     table = new_table(
         title=f"Cross-check of {cal.metric} against the calibration of {prov.n_bats} bats"
-        f" ({prov.hoop_min_hz:.0f}-{prov.hoop_max_hz:.0f} Hz, data sha256 {prov.data_sha256[:12]}...)"
+        f" ({prov.range_text()}, data sha256 {prov.data_sha256[:12]}...)"
     )
     for col in ("bat", "hoop Hz", "predicted", "interval", "measured", "z", "flagged"):
         table.add_column(col, justify="left" if col == "bat" else "right")
@@ -78,12 +86,6 @@ def _print(checks: list[Any], cal: Any, rule: str) -> None:
         console.print(
             f"note: {unknown} of {len(checks)} bats give no u_{cal.metric}: their own measurement"
             " uncertainty is taken as 0 (the interval is then narrower than it should be)"
-        )
-    outside = [c.bat_id for c in checks if c.extrapolated]
-    if outside:
-        console.print(
-            f"note: {len(outside)} bats lie outside the calibration's hoop range (first {outside[0]}):"
-            " predicted by extrapolation"
         )
     ball = cal.ball or {}
     sha = str(ball.get("sha256"))[:12]

@@ -41,7 +41,7 @@ def cmd_register(args: argparse.Namespace) -> int:
 
 def cmd_sign(args: argparse.Namespace) -> int:
     """rig keys sign: sign a sealed run that has no signature, once the store verifies."""
-    from rig.keys import load_signer, recorded_rig, sign_sealed
+    from rig.keys import load_signer, recorded_rig, sign_sealed, unlisted_warning
 
     with open_db(args) as store:
         run_id = resolve_run(store, args.run)
@@ -52,7 +52,10 @@ def cmd_sign(args: argparse.Namespace) -> int:
         if signer is None:
             raise ConfigError(f"no key for rig {rig} in the key folder (rig keys create)", "--rig")
         entry = sign_sealed(store, run_id, signer)
+        warning = unlisted_warning(store, signer)
     print(f"run {run_id} signed by rig {rig} (key {signer.fingerprint}) at seq {entry.seq}")
+    if warning:
+        print(warning, file=sys.stderr)
     return 0
 
 

@@ -264,6 +264,7 @@ def _calibrated(args: argparse.Namespace, bat: Any) -> dict[str, Any]:
     out["calibration_variant"] = cal.variant
     out["calibration_parameters"] = dict(cal.parameters)
     out["calibration_provenance"] = cal.provenance.model_dump()
+    out["calibrated_range"] = cal.provenance.range_text()
     out["bat_id"] = "(command line)"
     return out
 
@@ -279,10 +280,7 @@ def _print_calibrated(c: dict[str, Any]) -> None:
         f" u_scatter {c['u_scatter']:.4f}, u_measured {c['u_measured']:.4f})"
     )
     if c["extrapolated"]:
-        console.print(
-            f"note: {c['hoop_hz']:.0f} Hz is outside the calibration's {prov['hoop_min_hz']:.0f}-"
-            f"{prov['hoop_max_hz']:.0f} Hz: extrapolated"
-        )
+        console.print(f"note: outside the calibrated range ({c['calibrated_range']}): extrapolated")
     if c["measured"] is not None:
         verdict = "FLAGGED: outside the interval" if c["flagged"] else "consistent"
         console.print(f"measured {c['measured']:.4f}, z = {c['z']:+.2f}: {verdict}")

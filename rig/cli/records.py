@@ -77,7 +77,9 @@ def _end(args: argparse.Namespace) -> int:
     signoff = _signoff(args, "--end")
     with open_db(args) as store:
         outcome = end_run(store, resolve_run(store, args.end), signoff)
-    print(f"rig: run {outcome.run_id} {outcome.reason}", file=sys.stderr)
+    print(f"run {outcome.run_id} {outcome.reason}")  # a success: stdout, no error prefix
+    if outcome.signing.startswith("warning"):
+        print(outcome.signing, file=sys.stderr)
     return 0
 
 
@@ -169,6 +171,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
                 control=control,
                 rig_checked=rig_checked,
                 ball=ball,
+                sign_simulated=args.sign_simulated,
             )
         except RunNotRecorded as exc:  # the store failed the run: one line, and how to go on if it can
             hint = ""
@@ -274,6 +277,12 @@ def cmd_report(args: argparse.Namespace) -> int:
             )
         args.format = "json"
     args.format = args.format or "md"
+    if args.format == "html" and not args.output and sys.stdout.isatty():
+        raise ConfigError(
+            "an HTML certificate is not for reading on a terminal: write it to a file with "
+            "--output FILE.html and open that in a browser",
+            source="--format html",
+        )
     output_file(args.output, "--output")
     output_dir(args.figures, "--figures")
     anchor = Anchor.parse(args.anchor) if args.anchor else None
@@ -316,8 +325,17 @@ def cmd_tui(args: argparse.Namespace) -> int:
     settings = ConsoleSettings.from_args(
         args.sim, args.config, args.db or default_db(), bat=args.bat or "", procedure=args.procedure or ""
     )
-    RigConsole(settings).run()
-    return 0
+    console = RigConsole(settings)
+    console.run()
+    db = f" --db {shlex.quote(shown_db(args.db))}" if args.db else ""
+    for left in console.left_open:  # as rig certify says it of an interrupted run: exit 3
+        rig = f"--{left.rig.kind} {shlex.quote(left.rig.ref)}" if left.rig else "--config RIG.toml"
+        print(
+            f"rig: run {left.run_id} interrupted: {left.reason}; resume with: rig certify --resume "
+            f"{left.run_id} {rig}{db}, or in rig tui {rig}{db}: h, the run, r",
+            file=sys.stderr,
+        )
+    return 3 if console.left_open else 0
 
 
 def cmd_verify(args: argparse.Namespace) -> int:
@@ -345,7 +363,7 @@ def cmd_verify(args: argparse.Namespace) -> int:
         report = dataclasses.replace(report, ok=False, problems=report.problems + tuple(distrusted))
     signatures = (
         f"{report.runs_signed} runs signed, {report.runs_unsigned} unsigned, {report.runs_bad_signature} bad"
-    )
+    ) + _unlisted(report.unlisted_signatures)
     if args.json:
         json.dump(_verify_json(report), sys.stdout, indent=2)
         sys.stdout.write("\n")
@@ -366,6 +384,18 @@ def cmd_verify(args: argparse.Namespace) -> int:
     return 1
 
 
+def _unlisted(rigs: tuple[str, ...]) -> str:
+    """A word on unsigned runs whose signature names a key the store does not list (uncheckable)."""
+    if not rigs:
+        return ""
+    n, names = len(rigs), ", ".join(sorted(set(rigs)))
+    runs = "1 unsigned run carries" if n == 1 else f"{n} unsigned runs carry"
+    return (
+        f"\n{runs} a signature by a key this store does not list (rig {names}): "
+        "rig keys register --rig NAME lists it, and verify then checks it"
+    )
+
+
 def _verify_json(report: Any) -> dict[str, Any]:
     """The verification as data: verdict, entries checked, head, where the chain broke, problems."""
     return {
@@ -378,11 +408,12 @@ def _verify_json(report: Any) -> dict[str, Any]:
         "runs_signed": report.runs_signed,
         "runs_unsigned": report.runs_unsigned,
         "runs_bad_signature": report.runs_bad_signature,
+        "unlisted_signatures": list(report.unlisted_signatures),
     }
 
 
 def add_parsers(sub: Any) -> None:
-    """`rig certify|runs|report|tui|verify`."""
+    """`rig certify|runs|report|verify|tui`, in this order: the everyday tasks lead `rig --help`."""
     p = sub.add_parser("certify", help="certify a bat (BBCOR, BESR, BBS)", description=cmd_certify.__doc__)
     p.add_argument("--procedure", help="bbcor, besr, bbs, or a procedure TOML file")
     p.add_argument("--bat", metavar="BAT.toml", help="bat file (table [bat])")
@@ -413,6 +444,12 @@ def add_parsers(sub: Any) -> None:
     p.add_argument(
         "--end", metavar="RUN", help="end an unfinished run with no verdict (--who, --why recorded)"
     )
+    p.add_argument(
+        "--sign-simulated",
+        action="store_true",
+        help="sign a simulated run with its rig's key even where that key is not registered, or is a real"
+        " rig's (by default a simulated run is signed only where its sim-SCENE key is registered)",
+    )
     p.add_argument("--who", metavar="NAME", help="who checked the rig or ends the run (recorded)")
     p.add_argument("--why", metavar="TEXT", help="why (recorded)")
     p.add_argument("--dry-run", action="store_true", help="check the procedure against rig and bat only")
@@ -430,7 +467,12 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--format", choices=("json", "md", "html"), help="output format (default md)")
     p.add_argument("--json", action="store_true", help="the run record as JSON (the same as --format json)")
     p.add_argument("--db", metavar="FILE", help=DB_HELP)
-    p.add_argument("--output", "-o", metavar="FILE", help="write to a file instead of stdout")
+    p.add_argument(
+        "--output",
+        "-o",
+        metavar="FILE",
+        help="write to a file instead of stdout (HTML: needed on a terminal)",
+    )
     p.add_argument(
         "--figures",
         metavar="DIR",
@@ -441,13 +483,6 @@ def add_parsers(sub: Any) -> None:
         "--anchor", metavar="SEQ:HASH", help="show the run only as far as this anchor (from a certificate)"
     )
     p.set_defaults(handler=cmd_report)
-
-    p = sub.add_parser("tui", help="the operator's console (terminal UI)", description=cmd_tui.__doc__)
-    add_rig_options(p)
-    p.add_argument("--db", metavar="FILE", help=DB_HELP)
-    p.add_argument("--bat", metavar="BAT.toml", help="preselect this bat file")
-    p.add_argument("--procedure", help="preselect bbcor, besr, bbs or a procedure TOML file")
-    p.set_defaults(handler=cmd_tui)
 
     p = sub.add_parser("verify", help="check the records' hash chain", description=cmd_verify.__doc__)
     p.add_argument("--db", metavar="FILE", help=DB_HELP)
@@ -462,3 +497,10 @@ def add_parsers(sub: Any) -> None:
     )
     p.add_argument("--json", action="store_true", help="print the result as JSON (exit status as without)")
     p.set_defaults(handler=cmd_verify)
+
+    p = sub.add_parser("tui", help="the operator's console (terminal UI)", description=cmd_tui.__doc__)
+    add_rig_options(p)
+    p.add_argument("--db", metavar="FILE", help=DB_HELP)
+    p.add_argument("--bat", metavar="BAT.toml", help="preselect this bat file")
+    p.add_argument("--procedure", help="preselect bbcor, besr, bbs or a procedure TOML file")
+    p.set_defaults(handler=cmd_tui)

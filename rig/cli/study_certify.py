@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from rig.cli.common import ConfigError, open_db
+from rig.cli.common import console as terminal
 from rig.core.events import Verdict
 from rig.core.files import CONFIG_BYTES, read_json_file, read_text
 from rig.population.simulate import SimulatedBat, simulated_population
@@ -142,7 +143,6 @@ def _state(store: Any, bat_id: str) -> tuple[str, str | None]:
 
 def certify_population(args: argparse.Namespace) -> Tally:
     """Certify the population's bats still missing from the store; stops on the first signal."""
-    from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from protocols.procedure import Procedure
@@ -161,7 +161,7 @@ def certify_population(args: argparse.Namespace) -> Tally:
     bats = simulated_population(args.certify, args.seed, args.altered, args.alteration)
     folder = write_bat_files(args, bats)
     tally, control = Tally(), RunControl()
-    console = Console(stderr=True)
+    console = terminal(stderr=True)
     console.print(f"rig: {len(bats)} simulated bats (scene {args.scene}); bat files in {folder}")
     args.create_db = True
     columns = (
@@ -236,9 +236,7 @@ def certify_population(args: argparse.Namespace) -> Tally:
 
 def print_summary(tally: Tally, args: argparse.Namespace) -> None:
     """What was certified, how long it took, and what is left."""
-    from rich.console import Console
-
-    console = Console(stderr=True)
+    console = terminal(stderr=True)
     done = tally.certified
     console.print(
         f"certified {len(done)} bat(s) into {args.db}; {tally.skipped} already there"

@@ -185,6 +185,11 @@ class RigConfig(_Model):
     model: Model = Model()
     identity: Identity = Identity()
 
+    @property
+    def simulated(self) -> bool:
+        """Whether any device of this rig is simulated (a sim:// port): its runs measure no bat."""
+        return any(url.startswith("sim://") for url in self.ports.model_dump().values())
+
     def identity_name(self) -> str:
         """The rig's name: [identity] name, else sim-SCENE for a simulated rig, else the host name."""
         if self.identity.name is not None:

@@ -275,6 +275,16 @@ class DeviceStatus(LiveEvent):
 
 
 @dataclass(frozen=True)
+class RigNamed(LiveEvent):
+    """The rig the run is recorded on, whether it is simulated, and what its signature will be."""
+
+    kind: ClassVar[str] = "RigNamed"
+    name: str
+    simulated: bool
+    signing: str  # e.g. "signed with rig R's key F", "not signed: ...", or a warning
+
+
+@dataclass(frozen=True)
 class RunPaused(LiveEvent):
     kind: ClassVar[str] = "RunPaused"
 
@@ -310,6 +320,7 @@ EVENT_TYPES: tuple[type[RunEvent], ...] = (
     InboundMeasured,
     ReboundMeasured,
     DeviceStatus,
+    RigNamed,
     RunPaused,
     RunContinued,
 )
@@ -348,6 +359,7 @@ GATE_CROSSED = GateCrossed.kind
 INBOUND_MEASURED = InboundMeasured.kind
 REBOUND_MEASURED = ReboundMeasured.kind
 DEVICE_STATUS = DeviceStatus.kind
+RIG_NAMED = RigNamed.kind
 RUN_PAUSED = RunPaused.kind
 RUN_CONTINUED = RunContinued.kind
 

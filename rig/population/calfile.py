@@ -52,6 +52,23 @@ class Provenance(BaseModel):
     hoop_max_hz: float
     created_utc: str
     software: str
+    moi_min_kgm2: float | None = None  # the bats' MOI range (None: a file from before it was kept)
+    moi_max_kgm2: float | None = None
+
+    def covers(self, hoop_hz: float, moi_kgm2: float) -> bool:
+        """Whether a bat lies inside the calibrated hoop-frequency (and, where kept, MOI) range."""
+        if not self.hoop_min_hz <= hoop_hz <= self.hoop_max_hz:
+            return False
+        if self.moi_min_kgm2 is None or self.moi_max_kgm2 is None:
+            return True
+        return self.moi_min_kgm2 <= moi_kgm2 <= self.moi_max_kgm2
+
+    def range_text(self) -> str:
+        """The calibrated range in words: 'hoop 1400-3000 Hz, MOI 0.170-0.215 kg m²'."""
+        text = f"hoop {self.hoop_min_hz:.0f}-{self.hoop_max_hz:.0f} Hz"
+        if self.moi_min_kgm2 is not None and self.moi_max_kgm2 is not None:
+            text += f", MOI {self.moi_min_kgm2:.3f}-{self.moi_max_kgm2:.3f} kg m²"
+        return text
 
 
 class CalibrationFile(BaseModel):
@@ -124,6 +141,7 @@ def calibration_record(
     predicted = predict(cal.bats, fit.values, base=cal.base)
     loo = cal.reports[cal.chosen].loo_errors
     hoops = [b.hoop_hz for b in cal.bats]
+    mois = [b.pivoted.moi_kgm2 for b in cal.bats]
     variants = variant_rows(cal.reports)
     return {
         "kind": KIND,
@@ -161,6 +179,8 @@ def calibration_record(
             "hoop_max_hz": max(hoops),
             "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
             "software": f"rig {rig.__version__}",
+            "moi_min_kgm2": min(mois),
+            "moi_max_kgm2": max(mois),
         },
         "ball": ball,
     }

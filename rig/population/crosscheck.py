@@ -12,7 +12,7 @@ The prediction interval is predicted +- t sqrt(u_model^2 + u_scatter^2 + u_measu
 Student-t quantile at (1 + coverage) / 2 with the calibration's n - p degrees of freedom (the
 scatter is estimated from n - p residuals). z = (measured - predicted) / sqrt(...); a bat is
 flagged when its measured value lies outside the interval. A bat outside the calibration's hoop
-range is still predicted, marked `extrapolated`.
+(or MOI) range is still predicted, marked `extrapolated`.
 """
 
 from __future__ import annotations
@@ -58,7 +58,7 @@ class CrossCheck:
     hoop_hz: float = math.nan
     t_factor: float = math.nan  # the Student-t quantile the interval uses
     dof: int = 0
-    extrapolated: bool = False  # hoop frequency outside the calibration's range
+    extrapolated: bool = False  # hoop frequency or MOI outside the calibration's range
     u_measured_known: bool = True
 
     @property
@@ -193,7 +193,7 @@ def _check(
         hoop_hz=row.hoop_hz,
         t_factor=t,
         dof=dof(cal),
-        extrapolated=not prov.hoop_min_hz <= row.hoop_hz <= prov.hoop_max_hz,
+        extrapolated=not prov.covers(row.hoop_hz, row.pivoted.moi_kgm2),
         u_measured_known=u_measured is not None,
     )
 

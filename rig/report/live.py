@@ -4,25 +4,29 @@ from __future__ import annotations
 
 from typing import Any
 
-from rich.console import Console
+from rich.markup import escape
 
 from rig.core import events as ev
 from rig.core.events import RunEvent
+from rig.report.terminal import console
 
 
 class LiveConsole:
     """Prints one line per step as events arrive, to stderr (stdout stays free for JSON)."""
 
     def __init__(self, quiet: bool = False) -> None:
-        self.console = Console(stderr=True, highlight=False)
+        self.console = console(stderr=True, highlight=False)
         self.quiet = quiet
 
     def __call__(self, event: RunEvent) -> None:
         line = self._line(event.kind, event.data)
-        if line and not self.quiet:
+        if line and (not self.quiet or event.kind == ev.RIG_NAMED):  # the rig and its signature: always
             self.console.print(line)
 
     def _line(self, kind: str, d: dict[str, Any]) -> str | None:
+        if kind == ev.RIG_NAMED:
+            rig = f"rig {d['name']}" + (" (simulated)" if d["simulated"] else "")
+            return escape(rig + (f": {d['signing']}" if d["signing"] else ""))
         if kind == ev.RUN_STARTED:
             p, b = d["procedure"], d["bat"]
             if "target" in b:  # a ball test: the clamp holds a rigid target, the cannon a lot's balls
@@ -75,7 +79,7 @@ class LiveConsole:
 
     def summary(self, outcome: Any) -> None:
         """The verdict and the model cross-check, on stdout."""
-        out = Console(highlight=False)
+        out = console(highlight=False)
         v = outcome.verdict
         if not v:
             return

@@ -110,6 +110,7 @@ class VerifyReport:
     runs_signed: int = 0  # sealed runs whose RunSigned holds (rig.store._signed)
     runs_unsigned: int = 0
     runs_bad_signature: int = 0
+    unlisted_signatures: tuple[str, ...] = ()  # per unsigned run signed by an unregistered key: its rig
 
     def __str__(self) -> str:
         if self.ok:

@@ -83,6 +83,7 @@ class SignatureReport:
     unsigned: int = 0
     bad: int = 0
     problems: tuple[str, ...] = ()
+    unlisted: tuple[str, ...] = ()  # the rig of each run signed by a key the store does not list
 
 
 @dataclass
@@ -155,13 +156,16 @@ class SignatureCheck:
         """Counts over sealed (or signed) runs, and every problem found."""
         good: set[str] = set()
         bad: set[str] = set()
+        unlisted: dict[str, str] = {}  # run id -> rig: signed, but its rig lists no key to check it
         problems = list(self.problems)
         for seq, data in self.signatures:
             run_id = data.get("run_id")
             why = self._check(seq, data)
             if why is None:
                 good.add(str(run_id))
-            elif why:  # "" : not checkable (its rig lists no key)
+            elif why == "":
+                unlisted[str(run_id)] = str(data.get("rig"))
+            else:
                 problems.append(f"seq {seq}: RunSigned for run {run_id}: {why}")
                 if isinstance(run_id, str):
                     bad.add(run_id)
@@ -179,7 +183,8 @@ class SignatureCheck:
                         f"run {run_id} of rig {run.rig} is sealed (seq {run.sealed_at}) but not signed, "
                         f"though the rig had a registered key (seq {key.seq}): a signature was removed?"
                     )
-        return SignatureReport(counts["signed"], counts["unsigned"], counts["bad"], tuple(problems))
+        shown = tuple(rig for run_id, rig in unlisted.items() if run_id not in good | bad)
+        return SignatureReport(counts["signed"], counts["unsigned"], counts["bad"], tuple(problems), shown)
 
     def _check(self, seq: int, data: dict[str, Any]) -> str | None:
         """None if the signature holds; "" if its rig lists no key; else what is wrong."""
@@ -249,6 +254,7 @@ def with_signatures(conn: Any, report: VerifyReport, engine: str = "sqlite") -> 
         runs_signed=signatures.signed,
         runs_unsigned=signatures.unsigned,
         runs_bad_signature=signatures.bad,
+        unlisted_signatures=signatures.unlisted,
     )
 
 

@@ -10,9 +10,9 @@ from textual import work
 from textual.app import App
 from textual.binding import Binding, BindingType
 
-from rig.tui.messages import OpenHistory, StartRun
+from rig.tui.messages import OpenHistory, RunEnded, StartRun
 from rig.tui.modals import ConfirmScreen, HelpScreen, TooSmallScreen
-from rig.tui.rigs import LOADING, ConsoleSettings
+from rig.tui.rigs import LOADING, ConsoleSettings, LeftOpen
 from rig.tui.setup import SetupScreen
 
 if TYPE_CHECKING:  # the run and history screens load when first opened: a faster start
@@ -39,6 +39,21 @@ class RigConsole(App[None]):
     def __init__(self, settings: ConsoleSettings) -> None:
         super().__init__()
         self.settings = settings
+        self.left_open_runs: dict[str, LeftOpen] = {}  # by run id: what `rig tui` says at exit
+
+    @property
+    def left_open(self) -> list[LeftOpen]:
+        """The runs this console leaves unfinished (resumable), in the order they stopped."""
+        return list(self.left_open_runs.values())
+
+    def on_run_ended(self, message: RunEnded) -> None:
+        """A run stopped: remember it while it stays resumable, forget it once it has finished."""
+        self._ran(message.left, message.open)
+
+    def _ran(self, left: LeftOpen, still_open: bool) -> None:
+        self.left_open_runs.pop(left.run_id, None)
+        if still_open and left.run_id:
+            self.left_open_runs[left.run_id] = left
 
     def on_mount(self) -> None:
         self.push_screen(SetupScreen(self.settings))
@@ -119,6 +134,7 @@ class RigConsole(App[None]):
 
         async def stop_then_exit() -> None:
             await screen.finish("the operator quit the console")
+            self._ran(*screen.left_open())  # now: its message would come after the exit
             self.exit()
 
         def confirmed(yes: bool | None) -> None:

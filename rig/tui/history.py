@@ -9,7 +9,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
 from textual.containers import VerticalScroll
 from textual.screen import Screen
-from textual.widgets import DataTable, Footer, Header, Markdown
+from textual.widgets import DataTable, Footer, Header, Static
 
 from rig.certification import history
 from rig.core.errors import RigError
@@ -34,6 +34,20 @@ def _certificate_md(record: dict[str, Any]) -> str | None:
         return None
 
 
+class ReportView(Static):
+    """A run's report: Markdown drawn by rich (Textual's Markdown widget took seconds for a
+    certificate's tables); `source` keeps the Markdown shown."""
+
+    source = ""
+
+    def show(self, markdown: str) -> None:
+        """Show `markdown` (the first call also loads rich's Markdown)."""
+        from rich.markdown import Markdown
+
+        self.source = markdown
+        self.update(Markdown(markdown))
+
+
 class HistoryScreen(Screen[None]):
     """Past runs, newest first; Enter shows a run's report, r resumes an open run."""
 
@@ -45,6 +59,9 @@ class HistoryScreen(Screen[None]):
         Binding("escape,b", "back", "Back"),
         Binding("enter", "show", "Report", show=False),
         Binding("r", "resume", "Resume"),
+        # the list keeps the focus: these scroll the report below it (no Tab needed)
+        Binding("pagedown", "report(1)", "Report", key_display="PgDn", priority=True),
+        Binding("pageup", "report(-1)", "Report up", key_display="PgUp", show=False, priority=True),
     ]
 
     def __init__(self, settings: ConsoleSettings, rig: RigChoice | None = None) -> None:
@@ -56,21 +73,22 @@ class HistoryScreen(Screen[None]):
         yield Header()
         yield DataTable(id="runs", cursor_type="row", zebra_stripes=True)
         with VerticalScroll(id="report"):
-            yield Markdown("Choose a run.", id="report-text")
+            yield ReportView(id="report-text")
         yield Footer()
 
     def on_mount(self) -> None:
         self.sub_title = "history"
         table = self.query_one("#runs", DataTable)
         table.border_title = "Runs (newest first)"
-        self.query_one("#report", VerticalScroll).border_title = "Report"
+        self.query_one("#report", VerticalScroll).border_title = "Report (PgDn / PgUp)"
+        self._report("Choose a run.")
         table.add_columns("run", "procedure", "bat", "started (UTC)", "status", "verdict")
         try:
             with Store.open(self.settings.db) as store:
                 self.runs = list(reversed(store.runs()))
                 status = {r.run_id: shown_status(store, r) for r in self.runs}  # as `rig runs` shows it
         except RigError as exc:
-            self.query_one("#report-text", Markdown).update(f"**Cannot read the records:** {exc}")
+            self._report(f"**Cannot read the records:** {exc}")
             return
         for r in self.runs:
             started = r.started_utc[:16].replace("T", " ")
@@ -78,7 +96,7 @@ class HistoryScreen(Screen[None]):
                 r.run_id[:8], r.procedure, r.bat_id, started, status[r.run_id], r.verdict or "", key=r.run_id
             )
         if not self.runs:
-            self.query_one("#report-text", Markdown).update(f"No runs recorded yet in `{self.settings.db}`.")
+            self._report(f"No runs recorded yet in `{self.settings.db}`.")
         table.focus()
 
     def _selected(self) -> RunSummary | None:
@@ -94,8 +112,17 @@ class HistoryScreen(Screen[None]):
         """Show the highlighted run's report (built in a worker: reading the record takes a moment)."""
         run = self._selected()
         if run is not None:
-            self.query_one("#report-text", Markdown).update(f"Reading run {run.run_id[:8]}...")
+            self._report(f"Reading run {run.run_id[:8]}: the certificate takes a few seconds...")
             self._load(run.run_id)
+
+    def _report(self, markdown: str) -> None:
+        self.query_one("#report-text", ReportView).show(markdown)
+        self.query_one("#report", VerticalScroll).scroll_home(animate=False)
+
+    def action_report(self, pages: int) -> None:
+        """Scroll the report a page down (1) or up (-1) while the list keeps the focus."""
+        scroll = self.query_one("#report", VerticalScroll)
+        scroll.scroll_page_down(animate=False) if pages > 0 else scroll.scroll_page_up(animate=False)
 
     @work(thread=True, exclusive=True, group="report", exit_on_error=False)
     def _load(self, run_id: str) -> None:
@@ -105,7 +132,7 @@ class HistoryScreen(Screen[None]):
             text = _certificate_md(record) or record_summary(record)
         except Exception as exc:  # an unreadable record is reported, not raised
             text = f"**Cannot build the report:** {exc}"
-        self.app.call_from_thread(self.query_one("#report-text", Markdown).update, text)
+        self.app.call_from_thread(self._report, text)
 
     def action_back(self) -> None:
         """Back to where the history was opened from."""
@@ -125,7 +152,8 @@ class HistoryScreen(Screen[None]):
                 past = history(store, run.run_id)
                 recorded = recorded_inputs(store, run.run_id)  # a run that never started: its RunCreated's
             procedure, bat = recorded.procedure, recorded.bat
-            job = RunJob(procedure, bat, self.rig.config(bat), self.rig.label, run_id=run.run_id)
+            config = self.rig.config(bat)
+            job = RunJob(procedure, bat, config, self.rig.label, run_id=run.run_id, rig=self.rig)
         except (RigError, ValueError) as exc:
             self.notify(str(exc), title="Cannot resume", severity="error")
             return

@@ -72,7 +72,8 @@ def predict(job: RunJob, moi_kgm2: float, location_in: float) -> tuple[float | N
         return None, f"model failed: {exc}"
     if cc["predicted"] is None:
         return None, "no hoop frequency: no model"
+    # the note shares one panel line (about 38 columns at 80x24) with "model 0.4958 "
     if not cc.get("calibrated"):
-        return float(cc["predicted"]), f"uncalibrated model at {location_in:g} in"
+        return float(cc["predicted"]), f"uncalibrated, at {location_in:g} in"
     lo, hi = cc["interval"]
-    return float(cc["predicted"]), f"calibrated, {lo:.3f}-{hi:.3f} at {location_in:g} in"
+    return float(cc["predicted"]), f"calibrated {lo:.3f}-{hi:.3f}"

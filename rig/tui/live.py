@@ -81,6 +81,7 @@ class LiveRun:
     hits_needed: int = 0
     cannon: CannonStatus | None = None
     cannon_error: str = ""
+    cannon_note: str = ""  # why the status is unknown now (the run ended: the rig vented, nothing read)
     gate_config: GateConfig | None = None
     pressure_kpa: float | None = None  # at the last shot
     environment: str = ""
@@ -155,6 +156,11 @@ def _started(r: LiveRun, d: dict[str, Any]) -> None:
     p = Procedure.model_validate(d["procedure"])
     r.set_procedure(p)
     r.note(f"{p.name} on bat {d['bat']['id']}")
+
+
+def _rig_named(r: LiveRun, d: dict[str, Any]) -> None:
+    rig = f"rig {d['name']}" + (" (simulated)" if d["simulated"] else "")
+    r.note(rig + (f": {d['signing']}" if d["signing"] else ""))
 
 
 def _resumed(r: LiveRun, d: dict[str, Any]) -> None:
@@ -282,6 +288,7 @@ def _continued(r: LiveRun, d: dict[str, Any]) -> None:
 
 
 _HANDLERS = {
+    ev.RIG_NAMED: _rig_named,
     ev.RUN_STARTED: _started,
     ev.RUN_RESUMED: _resumed,
     ev.ENVIRONMENT_CHECKED: _environment,

@@ -13,7 +13,7 @@ from textual.message import Message
 
 if TYPE_CHECKING:
     from rig.core.events import RunEvent
-    from rig.tui.rigs import RigChoice, RunJob
+    from rig.tui.rigs import LeftOpen, RigChoice, RunJob
 
 
 class OpenHistory(Message):
@@ -22,6 +22,14 @@ class OpenHistory(Message):
     def __init__(self, rig: RigChoice | None = None) -> None:
         super().__init__()
         self.rig = rig
+
+
+class RunEnded(Message):
+    """A run screen's run stopped: finished (`open` False), or left resumable with `reason`."""
+
+    def __init__(self, left: LeftOpen, open_: bool) -> None:
+        super().__init__()
+        self.left, self.open = left, open_
 
 
 class StartRun(Message):

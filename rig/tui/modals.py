@@ -17,14 +17,15 @@ HELP = """\
   Tab / Shift+Tab  move between fields         Esc  leave a field
   s (Enter on Start)  start the run   r  read the devices again   h  history
 [b]Run[/b]
-  f  fire the waiting shot (the key is the confirmation); off while an
-     interlock is open, the cannon's status is unknown or the run is paused
+  f  fire the waiting shot (the key is the confirmation); off (f says why)
+     while an interlock is open, the cannon's status is unknown or paused
   Enter  the answer that needs no thought: the ring passes, accept the
      valid shot (and its ring check after); never fires
   y / n  answer one prompt; n on a ring check asks first (it fails the bat)
-  p  pause / go on   a  abort (resumable)   r  resume   b  back once ended
-[b]History[/b]
-  Up / Down  choose a run (report below)   r  resume it   Esc  back
+  p  pause (PAUSED leads the prompt line) / go on   a  abort (resumable)
+  r  resume   b  back once ended
+[b]History[/b]  Up / Down  choose a run   r  resume it   Esc  back
+  PgDn / PgUp  scroll the run's report (a certificate takes a moment)
 [b]Anywhere[/b]
   ?  this help (Esc closes it)    q  quit (asks first during a run)
 Needs 80x24; from 120x40 the run shows plots, the budget and the traffic."""

@@ -25,6 +25,7 @@ SHOT_STATUS = {
     "invalid": ("INVALID", "bold yellow"),
     "lost": ("LOST", "bold red"),
 }
+PURPOSE = {"valid": "hit"}  # a shot for the result: "valid" before its status read like a verdict
 STATE_STYLE = {
     CannonState.SAFE: "green",
     CannonState.ARMED: "bold yellow",
@@ -82,7 +83,10 @@ def cannon_panel(r: LiveRun) -> Text:
     """Cannon state and pressure, the interlocks, the lab air."""
     text = Text()
     st = r.cannon
-    if st is None:
+    if st is None and r.cannon_note:  # a stale pressure is no safety display: say it is unknown
+        text.append("UNKNOWN", style="bold yellow")
+        text.append(f" {r.cannon_note}\n")
+    elif st is None:
         text.append(r.cannon_error or "status not read yet", style="red" if r.cannon_error else "dim")
         text.append("\n\n")
     else:
@@ -130,8 +134,9 @@ def shot_panel(r: LiveRun) -> Text:
         return Text("no shot yet", style="dim")
     label, style = SHOT_STATUS[s.status]
     where = f" at {s.location_in:g} in" if s.location_in is not None else ""
-    text = Text.assemble((f"shot {s.index}", "bold"), f" {s.purpose}{where}  ", (label, style), "\n")
-    text.append(f"in  {_speed(s.inbound)}   out {_speed(s.rebound)}")
+    purpose = PURPOSE.get(s.purpose, s.purpose)
+    text = Text.assemble((f"shot {s.index}", "bold"), f" {purpose}{where}  ", (label, style), "\n")
+    text.append(f"at the gates in {_speed(s.inbound)}  out {_speed(s.rebound)} m/s")
     if s.metric is not None:
         text.append(f"\n{r.metric_name} {s.metric:.4f} ± {s.u or 0.0:.4f}")
     if s.status in ("invalid", "lost"):  # the codes here; the reasons in full on the message line
@@ -141,7 +146,7 @@ def shot_panel(r: LiveRun) -> Text:
 
 
 def _speed(v: float | None) -> str:
-    return f"{v:6.2f} m/s" if v is not None else "     - m/s"
+    return f"{v:.2f}" if v is not None else "-"
 
 
 def progress_panel(r: LiveRun) -> Text:

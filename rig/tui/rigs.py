@@ -91,6 +91,16 @@ class RunJob:
     config: RigConfig
     rig_label: str
     run_id: str | None = None
+    rig: RigChoice | None = None  # the choice it runs on (a resume command names it)
+
+
+@dataclass(frozen=True)
+class LeftOpen:
+    """A run the console leaves unfinished (interrupted, stopped by a fault or by quitting)."""
+
+    run_id: str
+    reason: str
+    rig: RigChoice | None
 
 
 @dataclass(frozen=True)

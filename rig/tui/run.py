@@ -28,8 +28,9 @@ from rig.core.events import RunEvent
 from rig.tui import render, situation
 from rig.tui.jobs import JobResult, predict, run_job
 from rig.tui.live import LiveRun
+from rig.tui.messages import RunEnded
 from rig.tui.operator import CannonRead, ConsoleOperator, GatesRead, Notice, PromptPending
-from rig.tui.rigs import ConsoleSettings, RunJob
+from rig.tui.rigs import ConsoleSettings, LeftOpen, RunJob
 from rig.tui.run_keys import RunKeys
 from rig.tui.situation import Situation
 
@@ -56,10 +57,12 @@ class RunScreen(RunKeys, Screen[None]):
     """
     BINDINGS: ClassVar[list[BindingType]] = [
         Binding("f", "fire", "Fire"),
+        Binding("f", "fire_off", "Fire", show=False),  # when the shot may not be fired: says why
         Binding("enter", "quick", "OK"),
         Binding("y", "answer(True)", "Yes"),
         Binding("n", "answer(False)", "No"),
         Binding("p", "pause", "Pause"),
+        Binding("p", "go_on", "Go on"),  # offered instead of Pause while paused
         Binding("a", "abort", "Abort"),
         Binding("r", "resume", "Resume"),
         Binding("b", "back", "Back"),
@@ -115,7 +118,7 @@ class RunScreen(RunKeys, Screen[None]):
         self.running, self.failure, self.outcome = True, "", None
         self.control = RunControl()
         self.operator = ConsoleOperator(self._notice, poll_s=self.settings.poll_s)
-        self.live.interrupted = ""
+        self.live.interrupted, self.live.cannon_note = "", ""
         self._predict_soon()
         self._worker = self._certify(self.job)
         self.refresh_view()
@@ -170,6 +173,9 @@ class RunScreen(RunKeys, Screen[None]):
     def _ended(self, result: JobResult) -> None:
         outcome = result.outcome
         self.running, self.outcome, self.failure = False, outcome, result.failure
+        # the session closed: it vented the cannon, and nothing reads its status any more
+        self.live.cannon, self.live.cannon_error = None, ""
+        self.live.cannon_note = "since the run ended\n(vented on closing; not read)"
         self.job = replace(self.job, run_id=result.run_id)
         if outcome is None:
             self.live.note(f"stopped by a fault: {result.failure}")
@@ -182,7 +188,15 @@ class RunScreen(RunKeys, Screen[None]):
             self.notify(outcome.reason, title="Run interrupted (resumable)", severity="warning")
         if result.run_id:
             self.live.note(f"run {result.run_id[:8]}; records in {self.settings.db.name}")
+            self.post_message(RunEnded(*self.left_open()))
         self.refresh_view()
+
+    def left_open(self) -> tuple[LeftOpen, bool]:
+        """The run as the console may leave it, and whether it is still open (resumable)."""
+        outcome, run_id = self.outcome, self.job.run_id or ""
+        reason = self.failure if outcome is None else outcome.reason
+        still_open = outcome is None or outcome.status not in ("finished", "ended")
+        return LeftOpen(run_id, reason, self.job.rig), still_open
 
     # -- the model's prediction -----------------------------------------------------------------
     def _predict_soon(self) -> None:

@@ -51,6 +51,11 @@ class RunKeys:
             return
         self.operator.answer(prompt.prompt_id, True)
 
+    def action_fire_off(self) -> None:
+        """f while the shot may not be fired (the footer does not offer Fire then): say why."""
+        blocked = "paused (p goes on)" if self.control.paused else self.fire_block()
+        self.notify(f"not fired: {blocked}", severity="warning")
+
     def action_quick(self) -> None:
         """Enter: the answer that needs no thought (a ring check passes, a valid shot is accepted);
         not on a ring check whose fail was just withdrawn: that one needs y or n."""
@@ -95,6 +100,10 @@ class RunKeys:
             self.operator.drop_answers_ahead()  # the bat may be handled: ring checks are asked again
             self.notify("the run holds before the next shot", title="Pause")
         self.refresh_view()
+
+    def action_go_on(self) -> None:
+        """End the pause (p while paused)."""
+        self.action_pause()
 
     def action_abort(self) -> None:
         """Stop before the next shot (asks first); the run stays resumable."""

@@ -260,7 +260,7 @@ class SetupScreen(Screen[None]):
         problems = dry_run(procedure, bat, config)
         if problems:
             raise ConfigError("; ".join(problems), source="dry run")
-        return RunJob(procedure, bat, config, choice.label)
+        return RunJob(procedure, bat, config, choice.label, rig=choice)
 
     def action_start(self) -> None:
         """Check the set-up (a dry run) and open the run screen."""

@@ -41,7 +41,8 @@ def fire_block(s: Situation) -> str:
     return ""
 
 
-RUN_KEYS = ("fire", "quick", "answer", "pause", "abort", "resume", "back")
+RUN_KEYS = ("fire", "fire_off", "quick", "answer", "pause", "go_on", "abort", "resume", "back")
+PAUSED = ("PAUSED", "bold reverse")
 
 
 def quick_answer(prompt_id: str, ring_check: bool) -> tuple[str, ...] | None:
@@ -70,13 +71,19 @@ QUICK_HINT = {
 
 def allowed(s: Situation, action: str) -> bool | None:
     """Whether a run-screen key works now: True, None (shown but off) or False (hidden)."""
-    if action == "fire":
-        return True if not fire_block(s) else (None if s.running else False)
+    if action == "fire":  # paused: not offered at all (p goes on first); otherwise shown but off
+        return True if not fire_block(s) else (None if s.running and not s.paused else False)
+    if action == "fire_off":  # the hidden f that says why the shot is not fired
+        return s.running and bool(fire_block(s))
     if action == "answer":
         return s.prompt is not None and not s.prompt.is_fire
     if action == "quick":
         return s.prompt is not None and quick_answer(s.prompt.prompt_id, s.ring_check) is not None
-    if action in ("pause", "abort"):
+    if action == "pause":
+        return s.running and not s.paused
+    if action == "go_on":
+        return s.running and s.paused
+    if action == "abort":
         return s.running
     if action == "resume":  # after an interruption or a fault
         return not s.running and s.ended != "finished"
@@ -89,20 +96,39 @@ def prompt_text(s: Situation) -> Text:
     """The line that says what the console wants from the operator now."""
     if s.running and s.aborting:
         return Text("Aborting: the run stops before the next shot", style="bold")
-    if s.prompt is not None and s.prompt.is_fire:
+    if s.running and s.paused:  # said first, whatever waits: nothing is fired until p
+        text = Text.assemble(PAUSED, (" p goes on", "bold"))
+        if s.prompt is not None:
+            text.append("  ")
+            text.append_text(_asked(s))
+        else:
+            text.append(": the run holds before the next shot")
+        return text
+    return _asked(s) if s.prompt is not None else _idle(s)
+
+
+def _asked(s: Situation) -> Text:
+    """The waiting prompt and the keys that answer it (a fire while paused: that it waits)."""
+    assert s.prompt is not None
+    if s.prompt.is_fire and s.paused:
+        return Text.assemble((s.prompt.text, "bold"), " waits")
+    if s.prompt.is_fire:
         blocked = fire_block(s)
         if blocked:
             return Text(f"FIRE DISABLED: {blocked}", style="bold red")
         return Text.assemble((s.prompt.text, "bold"), "  f: arm and fire")
-    if s.prompt is not None:
-        pid = s.prompt.prompt_id
-        kind = pid if pid == "ball" else pid.rpartition("-")[0]
-        hint = QUICK_HINT.get(kind, "y: yes  n: no")
-        if kind == "review" and not s.ring_check:
-            hint = "Enter/y: accept  n: reject"
-        return Text.assemble((s.prompt.text, "bold"), "  ", (hint, "reverse"))
+    pid = s.prompt.prompt_id
+    kind = pid if pid == "ball" else pid.rpartition("-")[0]
+    hint = QUICK_HINT.get(kind, "y: yes  n: no")
+    if kind == "review" and not s.ring_check:
+        hint = "Enter/y: accept  n: reject"
+    return Text.assemble((s.prompt.text, "bold"), "  ", (hint, "reverse"))
+
+
+def _idle(s: Situation) -> Text:
+    """Nothing asked: running, or how the run ended and what the keys do then."""
     if s.running:
-        return Text("Paused: p goes on" if s.paused else "Running...", style="bold")
+        return Text("Running...", style="bold")
     if s.failure:
         return Text("Stopped by a fault: fix the rig, then r resumes the run, b goes back", style="bold")
     if s.ended and s.ended != "finished":

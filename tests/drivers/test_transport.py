@@ -190,7 +190,7 @@ def test_write_failure_is_device_gone_and_sticks_until_reconnect() -> None:
         with pytest.raises(DeviceGone, match="write failed"):
             t.request("ARM")
         assert port.opens == 0  # a command with effects is never retried by itself
-        with pytest.raises(DeviceGone, match="call reconnect"):
+        with pytest.raises(DeviceGone, match="check its cable and power"):
             t.request("ARM")
         with pytest.raises(DeviceGone):
             t.wait_event("G", 1.0)

@@ -136,9 +136,7 @@ def test_undamped_contact_end_does_not_depend_on_b(solver: Solver, a: float, b: 
 # --- 3. linear undamped two-mass system (clamped flexible barrel) --------------------------------
 
 
-def two_mass_modal(
-    m1: float, k1: float, m2: float, k2: float, v0: float
-) -> tuple[float, np.ndarray, int]:
+def two_mass_modal(m1: float, k1: float, m2: float, k2: float, v0: float) -> tuple[float, np.ndarray, int]:
     """Every contact of the linear two-mass system, piece by piece in closed form:
     (time of the last separation, [x1, v1, x2, v2] there, number of contacts).
 

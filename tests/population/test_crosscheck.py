@@ -249,6 +249,25 @@ def test_cli_marks_a_bat_outside_the_hoop_range(
     assert rc == 0 and json.loads(out)[0]["extrapolated"] is True
 
 
+def test_cli_warns_in_one_line_how_many_bats_lie_outside_the_calibrated_hoop_and_moi_range(
+    cal_path: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Bats of another population were all flagged without a word that the calibration never saw
+    their like: one warning line names how many lie outside its hoop-frequency or MOI range."""
+    inside = bats(3, seed=23, prefix="IN")
+    heavy = [b.model_copy(update={"moi_kgm2": 0.32, "bat_id": f"MOI{i}"}) for i, b in enumerate(bats(2, 24))]
+    stiff = [bats(1, seed=25, prefix="HZ")[0].model_copy(update={"hoop_hz": 3800.0})]
+    data = write_population_csv(inside + heavy + stiff, tmp_path / "other.csv")
+    for extra in ((), ("--json",)):
+        rc, out, err = _cli(capsys, "--data", str(data), "--calibration", str(cal_path), *extra)
+        assert rc == 0
+        (line,) = [x for x in err.splitlines() if "outside" in x]
+        assert line.startswith("warning: 3 of 6 bats lie outside the calibrated range"), line
+        assert "Hz" in line and "MOI" in line and "kg m" in line
+    flags = {c["bat_id"]: c["extrapolated"] for c in json.loads(out)}
+    assert [k for k, v in flags.items() if v] == ["MOI0", "MOI1", "HZ000"]
+
+
 def test_model_bat_with_a_calibration(cal_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     q = (33.0 - 6.5 - 6.0) * INCH
     truth = true_bbcor(2400.0, 0.19, 33.0, 6.5)

@@ -8,12 +8,15 @@ from collections.abc import Callable
 from pathlib import Path
 from urllib.parse import parse_qs, urlsplit
 
+import pytest
 from textual.widgets import DataTable, Input, Static
 
+from rig.cli import main
 from rig.store import Store
 from rig.tui import ConsoleSettings, RigChoice, RigConsole
 from rig.tui.history import HistoryScreen
 from rig.tui.modals import ConfirmScreen, HelpScreen
+from rig.tui.rigs import LeftOpen
 from rig.tui.run import RunScreen
 from rig.tui.setup import SetupScreen
 from simulators.urlhandler import get_world
@@ -78,7 +81,7 @@ def test_open_interlock_disables_fire(make_settings: Callable[..., ConsoleSettin
             get_world(rig).set_interlock("door", True)
             await until(pilot, lambda: not screen.fire_block(), "the door to close")
             await pilot.press("p")  # paused: no firing either
-            assert screen.fire_block() == "paused" and "FIRE DISABLED: paused" in screen_text(app, "#prompt")
+            assert screen.fire_block() == "paused" and "PAUSED p goes on" in screen_text(app, "#prompt")
             await pilot.press("f", "enter", "y")  # neither the fire key nor the answer keys fire it
             assert pending.pending is not None and pending.pending.prompt_id == "fire-1"
             await pilot.press("p")
@@ -212,7 +215,7 @@ def test_quit_during_a_run_asks_and_leaves_it_resumable(
 ) -> None:
     settings = make_settings()
 
-    async def body() -> None:
+    async def body() -> RigConsole:
         app = RigConsole(settings)
         async with app.run_test(size=SIZE) as pilot:
             screen = await start_run(pilot)
@@ -225,12 +228,17 @@ def test_quit_during_a_run_asks_and_leaves_it_resumable(
             await until(pilot, lambda: isinstance(app.screen, ConfirmScreen), "the quit question")
             await pilot.press("y")
             await until(pilot, lambda: not app.is_running, "the app to quit")
+        return app
 
-    asyncio.run(body())
+    quit_app = asyncio.run(body())
     with Store.open(settings.db, create=False) as store:
         (run,) = store.runs()
         assert run.status == "running"  # not finished: resumable
         assert store.entries(run.run_id, kinds=["RunInterrupted"])
+    # the console knows the run it leaves interrupted, so that `rig tui` can say so (and exit 3)
+    assert quit_app.left_open == [
+        LeftOpen(run.run_id, "the operator quit the console", RigChoice("sim", "ideal"))
+    ]
 
     async def resume_from_history() -> None:
         app = RigConsole(settings)
@@ -276,3 +284,37 @@ def test_rig_choices_from_the_command_line(tmp_path: Path) -> None:
     assert [r.ref for r in sim.rigs] == ["lab", "ideal", "faulty"]
     real = ConsoleSettings.from_args(None, "rig.toml", tmp_path / "r.db")
     assert real.rigs == (RigChoice("config", "rig.toml"),)
+
+
+def test_rig_tui_quit_mid_run_says_how_to_resume_and_exits_3(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """As `rig certify` does for an interrupted run: exit 3 and the resume command, one line a run."""
+    db = tmp_path / "r.db"
+
+    def quit_mid_run(app: RigConsole) -> None:
+        app.left_open_runs["abc123"] = LeftOpen(
+            "abc123", "the operator quit the console", RigChoice("sim", "lab")
+        )
+
+    monkeypatch.setattr(RigConsole, "run", quit_mid_run)
+    assert main(["tui", "--sim", "lab", "--db", str(db)]) == 3
+    (line,) = capsys.readouterr().err.splitlines()
+    assert line.startswith("rig: run abc123 interrupted: the operator quit the console; resume with: ")
+    assert f"rig certify --resume abc123 --sim lab --db {db}" in line and "rig tui" in line
+    monkeypatch.setattr(RigConsole, "run", lambda app: None)  # nothing left open: exit 0, no word
+    assert main(["tui", "--sim", "lab", "--db", str(db)]) == 0 and capsys.readouterr().err == ""
+
+
+def test_the_title_line_docs_tui_quotes_is_what_sim_lab_shows(tmp_path: Path) -> None:
+    """docs/tui.md quoted `SIMULATED: ideal`, which `rig tui --sim lab` (the README's) never shows."""
+    from protocols.procedure import Procedure
+    from rig.core.bat import BatSpec
+    from rig.tui.rigs import RunJob
+
+    settings = ConsoleSettings.from_args("lab", None, tmp_path / "r.db", bat=str(SAMPLE_BAT))
+    bat, choice = BatSpec.load(SAMPLE_BAT), settings.rigs[0]
+    job = RunJob(Procedure.load("bbcor"), bat, choice.config(bat), choice.label, rig=choice)
+    title = RunScreen(settings, job)._title()
+    docs = " ".join((Path(__file__).resolve().parents[2] / "docs" / "tui.md").read_text().split())
+    assert f"`{title}` for `rig tui --sim lab` with the sample bat" in docs

@@ -14,8 +14,9 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from textual.containers import VerticalScroll
 from textual.pilot import Pilot
-from textual.widgets import Input, Markdown, Static
+from textual.widgets import DataTable, Input, Static
 
 from protocols.procedure import Procedure
 from rig.certification import certify
@@ -23,7 +24,7 @@ from rig.core.bat import BatSpec
 from rig.session import sim_config
 from rig.store import Store
 from rig.tui import ConsoleSettings, RigConsole
-from rig.tui.history import HistoryScreen
+from rig.tui.history import HistoryScreen, ReportView
 from rig.tui.operator import ConsoleOperator
 from rig.tui.run import RunScreen
 from rig.tui.setup import SetupScreen
@@ -144,13 +145,47 @@ def test_history_shows_the_certificate_without_drawing_figures(
             await until(pilot, lambda: isinstance(app.screen, SetupScreen) and app.screen.report, "set-up")
             await pilot.press("h")
             await until(pilot, lambda: isinstance(app.screen, HistoryScreen), "the history")
-            report = app.screen.query_one("#report-text", Markdown)
+            report = app.screen.query_one("#report-text", ReportView)
             await until(pilot, lambda: report.source.startswith("# Bat performance certificate"), "it")
             return report.source
 
     source = asyncio.run(body())
     assert drawn == [] and list(tmp_path.rglob("*.png")) == []
     assert run_id in source and "Quick BBCOR (UI tests)" in source and "![" not in source
+
+
+def test_the_history_report_scrolls_with_pgdn_from_the_run_list_and_help_says_so(
+    make_settings: Callable[..., ConsoleSettings],
+) -> None:
+    """The report needed Tab then PgDn, and neither the footer nor help said so."""
+    settings = make_settings()
+    bat = BatSpec.load(SAMPLE_BAT)
+    with Store.open(settings.db) as store:
+        certify(store, Procedure.load(QUICK), bat, sim_config("ideal", bat=bat))
+
+    async def body() -> None:
+        app = RigConsole(settings)
+        async with app.run_test(size=SIZE) as pilot:
+            await until(pilot, lambda: isinstance(app.screen, SetupScreen) and app.screen.report, "set-up")
+            await pilot.press("h")
+            await until(pilot, lambda: isinstance(app.screen, HistoryScreen), "the history")
+            history = app.screen
+            report = history.query_one("#report-text", ReportView)
+            await until(pilot, lambda: report.source.startswith("# Bat performance certificate"), "it")
+            await pilot.pause()
+            table = history.query_one("#runs", DataTable)
+            assert table.has_focus and "pagedown" in app.active_bindings  # offered in the footer
+            scroll = history.query_one("#report", VerticalScroll)
+            await pilot.press("pagedown")
+            await until(pilot, lambda: scroll.scroll_y > 0, "the report to scroll")
+            assert table.has_focus and table.cursor_row == 0
+            await pilot.press("pageup")
+            await until(pilot, lambda: scroll.scroll_y == 0, "the report to scroll back")
+            await pilot.press("question_mark")
+            help_text = str(app.screen.query_one("#help", Static).render())
+            assert "PgDn" in help_text and "report" in help_text.split("PgDn")[1][:40]
+
+    asyncio.run(body())
 
 
 def test_the_set_up_screen_reads_the_devices_once(

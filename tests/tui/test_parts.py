@@ -82,7 +82,12 @@ def test_fire_is_off_unless_a_fire_prompt_waits_with_every_interlock_closed() ->
     assert fire_block(replace(ready, prompt=ring)) != ""
     assert "Enter/y: passes  n: fails" in prompt_text(replace(ready, prompt=ring)).plain
     assert "FIRE DISABLED" in prompt_text(replace(ready, cannon=status(door=False))).plain
-    assert allowed(ready, "fire") is True and allowed(replace(ready, paused=True), "fire") is None
+    assert allowed(ready, "fire") is True and allowed(replace(ready, paused=True), "fire") is False
+    assert allowed(replace(ready, cannon=status(door=False)), "fire") is None  # shown, but off
+    assert allowed(replace(ready, paused=True), "fire_off") is True and not allowed(ready, "fire_off")
+    assert allowed(replace(ready, paused=True), "go_on") and not allowed(replace(ready, paused=True), "pause")
+    paused = prompt_text(replace(ready, prompt=ring, paused=True)).plain
+    assert paused.startswith("PAUSED p goes on") and "Ring check?" in paused  # the pause, then the prompt
     assert allowed(replace(ready, running=False), "fire") is False  # hidden once the run has ended
     assert allowed(replace(ready, running=False, ended="interrupted"), "resume") is True
     assert allowed(replace(ready, running=False, ended="finished"), "resume") is False

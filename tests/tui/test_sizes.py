@@ -18,7 +18,7 @@ from textual.widgets import Static
 from rig.report.record import run_record
 from rig.store import Store
 from rig.tui import ConsoleSettings, RigConsole
-from rig.tui.modals import TooSmallScreen
+from rig.tui.modals import ConfirmScreen, TooSmallScreen
 from rig.tui.run import RunScreen
 from rig.tui.setup import SetupScreen
 from tests.tui.conftest import QUICK, answer_prompts, start_run, until
@@ -200,3 +200,84 @@ def test_q_quits_under_the_size_notice(make_settings: Callable[..., ConsoleSetti
             return app.is_running
 
     assert asyncio.run(body()) is False
+
+
+def test_a_pause_shows_while_a_prompt_waits_and_fire_is_not_offered(
+    make_settings: Callable[..., ConsoleSettings],
+) -> None:
+    """'Paused' appeared only once the waiting prompt was answered, the footer still offered `f Fire`
+    and f did nothing, silently. Now the prompt line says PAUSED at once, the footer offers `p Go on`
+    instead of Fire and Pause, and f says why it does not fire."""
+    settings = make_settings(procedure=str(QUICK))
+
+    async def body() -> None:
+        app = RigConsole(settings)
+        async with app.run_test(size=(80, 24)) as pilot:
+            screen = await start_run(pilot)
+            op = screen.operator
+            await until(pilot, lambda: op.pending is not None and not screen.fire_block(), "fire-1")
+            await pilot.press("f")
+            await until(
+                pilot, lambda: op.pending is not None and op.pending.prompt_id == "review-1", "review"
+            )
+            await pilot.press("p")
+            await pilot.pause()
+            shown = screen_text(app)
+            assert "PAUSED" in shown
+            assert op.pending is not None and flat(op.pending.text) in shown  # still shown, answerable
+            assert "p Go on" in shown and "f Fire" not in shown and "p Pause" not in shown
+            await pilot.press("enter")  # accepted: the run now holds before shot 2
+            await until(pilot, lambda: op.pending is None, "the hold")
+            await pilot.pause()
+            shown = screen_text(app)
+            assert "PAUSED p goes on: the run holds before the next shot" in shown and "f Fire" not in shown
+            app.clear_notifications()
+            await pilot.press("f")
+            await pilot.pause()
+            assert [n.message for n in app._notifications] == ["not fired: paused (p goes on)"]
+            await pilot.press("p")
+            await until(pilot, lambda: op.pending is not None and not screen.fire_block(), "fire-2")
+            await pilot.pause()
+            shown = screen_text(app)
+            assert "PAUSED" not in shown and "f Fire" in shown and "p Pause" in shown
+            await pilot.press("a")
+            await until(pilot, lambda: isinstance(app.screen, ConfirmScreen), "the abort question")
+            await pilot.press("y")
+            await until(pilot, lambda: not screen.running, "the run to stop")
+
+    asyncio.run(body())
+
+
+def test_at_80x24_the_model_the_cannon_after_the_run_and_the_speeds_say_what_they_are(
+    make_settings: Callable[..., ConsoleSettings],
+) -> None:
+    """'uncalibrated model at ...' was cut for the whole run; the cannon panel kept the last pressure
+    read after the run had vented; the live inbound speed (at the gates) and the invalid reason's
+    (at the impact point) differed with no word of which is where; 'Fire shot 10 (valid)' read like
+    a verdict before the shot."""
+    settings = make_settings(procedure=str(QUICK))
+
+    async def body() -> tuple[str, str, str, str]:
+        app = RigConsole(settings)
+        async with app.run_test(size=(80, 24)) as pilot:
+            screen = await start_run(pilot)
+            await until(pilot, lambda: screen.live.prediction is not None, "the model's prediction")
+            await pilot.pause()
+            during = f"model {screen.live.prediction:.4f} {screen.live.prediction_note}", screen_text(app)
+            await answer_prompts(pilot, screen)
+            await pilot.pause()
+            after = f"model {screen.live.prediction:.4f} {screen.live.prediction_note}", screen_text(app)
+            return (*during, *after)
+
+    note, during, note_after, after = asyncio.run(body())
+    assert "uncalibrated" in note and flat(note) in during, note  # whole, on one line of its panel
+    assert "uncalibrated" in note_after and flat(note_after) in after, note_after
+    cannon = after.split("Cannon")[1].split("Live shot")[0]
+    assert "kPa" not in cannon and "UNKNOWN since the run ended" in after and "vented on closing" in after
+    assert re.search(r"at the gates in \d+\.\d\d out \d+\.\d\d m/s", after), after
+    with Store.open(settings.db, create=False) as store:
+        (run,) = store.runs()
+        asked = [e.payload["text"] for e in store.entries(run.run_id, kinds=["OperatorPrompted"])]
+    fires = [t for t in asked if t.startswith("Fire shot")]
+    assert fires and not [t for t in fires if "(valid)" in t]
+    assert [t for t in fires if "(for the result)" in t] and [t for t in fires if "(scan)" in t]

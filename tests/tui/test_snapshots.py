@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 from rich.text import Text
 from textual.pilot import Pilot
-from textual.widgets import Input, Markdown
+from textual.widgets import Input
 
 from protocols.procedure import Procedure
 from rig.certification import certify
@@ -25,7 +25,7 @@ from rig.core.bat import BatSpec
 from rig.session import sim_config
 from rig.store import Store
 from rig.tui import ConsoleSettings, RigConsole
-from rig.tui.history import HistoryScreen
+from rig.tui.history import HistoryScreen, ReportView
 from rig.tui.modals import TooSmallScreen
 from rig.tui.setup import SetupScreen
 from simulators.urlhandler import reset_worlds
@@ -124,7 +124,7 @@ def test_history_screen(snap_compare: Snap, tmp_path: Path) -> None:
         await devices_read(pilot)
         await pilot.press("h")
         await until(pilot, lambda: isinstance(pilot.app.screen, HistoryScreen), "the history")
-        report = pilot.app.screen.query_one("#report-text", Markdown)
+        report = pilot.app.screen.query_one("#report-text", ReportView)
         await until(pilot, lambda: report.source.startswith("# Run "), "the report")
         still(pilot)
 

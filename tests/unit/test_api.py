@@ -189,7 +189,7 @@ def test_an_aborted_run_resumes_through_the_facade_firing_no_shot_twice(tmp_path
     per_shot = check_fires(entries)  # each FIRE on the wire at its shot's recorded stage position
     assert all(n == 1 for n in per_shot.values()) and set(per_shot) == set(requested)
     resumed_events = [kind_and_data(e) for e in seen]
-    assert resumed_events[0][0] == "RunResumed"
+    assert [kind for kind, _ in resumed_events[:2]] == ["RigNamed", "RunResumed"]  # the rig, then the run
 
 
 def test_a_device_fault_returns_an_interrupted_result_and_keeps_the_record(tmp_path: Path) -> None:

@@ -245,3 +245,89 @@ def test_keys_sign_refuses_a_running_run_a_run_of_no_rig_and_an_altered_store(tm
     refused(cli("keys", "sign", "--db", str(db), "--run", old, "--rig", "cannon-2"), "does not verify")
     with Store.open(db) as store:
         assert store.entries(None, kinds=["RunSigned"]) == []
+
+
+def _signed_runs(db: Path) -> list[str]:
+    with Store.open(db) as store:
+        return [e.payload["run_id"] for e in store.entries(None, kinds=["RunSigned"])]
+
+
+def test_a_simulated_run_names_its_rig_and_is_signed_only_in_a_store_that_registered_its_key(
+    tmp_path: Path,
+) -> None:
+    """A sim-ideal key created once signed every later simulated run of the user in any store, and
+    nothing said which rig a simulated run is recorded on (the README's keys sequence missed it)."""
+    assert cli("keys", "create", "--rig", "sim-ideal")[0] == 0
+    code, _, err = _certify(tmp_path)
+    assert code in (0, 1), err
+    assert "rig sim-ideal (simulated)" in err
+    assert "not signed" in err and "rig keys register --db" in err and "--rig sim-ideal" in err
+    assert _signed_runs(tmp_path / "r.db") == []
+    assert cli("keys", "register", "--db", str(tmp_path / "r.db"), "--rig", "sim-ideal")[0] == 0
+    code, _, err = _certify(tmp_path)
+    assert code in (0, 1) and "not signed" not in err and "signed with rig sim-ideal's key" in err
+    assert len(_signed_runs(tmp_path / "r.db")) == 1
+
+
+def _sim_named(name: str) -> RigConfig:
+    config = sim_config("ideal")
+    return config.model_copy(update={"identity": config.identity.model_copy(update={"name": name})})
+
+
+def _run_library(tmp_path: Path, config: RigConfig, **kw: object) -> tuple[str, list[str]]:
+    """A quick certification through rig.certification.certify; (run id, the RigNamed lines)."""
+    from protocols.procedure import Procedure
+    from rig.certification import certify
+    from rig.core.bat import BatSpec
+
+    (tmp_path / "bat.toml").write_text(GOOD_BAT)
+    (tmp_path / "proc.toml").write_text(QUICK_PROCEDURE)
+    said: list[str] = []
+
+    def hear(event: object) -> None:
+        if getattr(event, "kind", "") == "RigNamed":
+            said.append(str(getattr(event, "data", "")))
+
+    with Store.open(tmp_path / "r.db") as store:
+        bat, proc = BatSpec.load(tmp_path / "bat.toml"), Procedure.load(tmp_path / "proc.toml")
+        outcome = certify(store, proc, bat, config, subscribers=[hear], **kw)
+    return outcome.run_id, said
+
+
+def test_a_simulated_run_is_never_signed_with_a_real_rigs_key_unless_asked(tmp_path: Path) -> None:
+    cli("keys", "create", "--rig", "cannon-2")
+    assert cli("keys", "register", "--db", str(tmp_path / "r.db"), "--rig", "cannon-2")[0] == 0
+    _, said = _run_library(tmp_path, _sim_named("cannon-2"))
+    assert _signed_runs(tmp_path / "r.db") == []
+    assert len(said) == 1 and "cannon-2" in said[0] and "not signed" in said[0]
+    asked, said = _run_library(tmp_path, _sim_named("cannon-2"), sign_simulated=True)
+    assert _signed_runs(tmp_path / "r.db") == [asked] and "not signed" not in said[0]
+
+
+def test_signing_with_a_key_the_store_does_not_list_is_said_at_the_start_and_by_verify(
+    tmp_path: Path,
+) -> None:
+    """Such a signature cannot be checked: verify counted the run unsigned without a word."""
+    cli("keys", "create", "--rig", "cannon-2")
+    run_id, said = _run_library(tmp_path, _sim_named("cannon-2"), sign_simulated=True)
+    assert _signed_runs(tmp_path / "r.db") == [run_id]
+    assert "warning" in said[0] and "not registered" in said[0] and "rig keys register" in said[0]
+    code, out, _ = cli("verify", "--db", str(tmp_path / "r.db"))
+    assert code == 0 and "0 runs signed, 1 unsigned, 0 bad" in out
+    assert "1 unsigned run carries a signature by a key this store does not list (rig cannon-2)" in out
+    assert cli("keys", "register", "--db", str(tmp_path / "r.db"), "--rig", "cannon-2")[0] == 0
+    assert "1 runs signed, 0 unsigned, 0 bad" in cli("verify", "--db", str(tmp_path / "r.db"))[1]
+
+
+def test_keys_sign_with_a_key_the_store_does_not_list_warns(tmp_path: Path) -> None:
+    db = tmp_path / "r.db"
+    with Store.open(db) as store:
+        store.register_bat("B1", {"id": "B1"})
+        run_id = store.create_run(
+            "bbcor", "B1", {"rig": {"name": "cannon-3", "serial": None, "software": "x"}}
+        )
+        store.set_run_status(run_id, "finished", "PASS")
+    cli("keys", "create", "--rig", "cannon-3")
+    code, out, err = cli("keys", "sign", "--db", str(db), "--run", run_id)
+    assert code == 0 and f"run {run_id} signed" in out
+    assert "warning" in err and "not registered" in err and "rig keys register --db" in err
