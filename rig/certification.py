@@ -305,7 +305,7 @@ def drive(
     The store is checked before the run goes on (Store.check_integrity); the verdict reaches the
     listeners only once the run is sealed and read back; a store that fails the run (full, gone)
     raises RunNotRecorded naming the run. `named` (RigNamed) goes to the listeners first, once the
-    lock is held: a refused runner says nothing else."""
+    lock is held and the store checked: a refused runner says nothing else."""
     verdicts: list[RunEvent] = []  # RunFinished: shown once sealed and read back, never before
 
     def emit(event: RunEvent) -> None:
@@ -352,9 +352,9 @@ def _drive(
     # One runner per run: a second one is refused here (RunLocked), before it opens a device (a new
     # run's are open already: no other runner can know the run yet).
     with store.run_lock(run_id):
-        if named is not None:
-            emit(named)  # which rig, how it is signed: said once the lock is held
         _checked(store, run_id)  # never record into a store that verify would call damaged
+        if named is not None:
+            emit(named)  # which rig, how it is signed: said once the lock is held and the store checked
         if session is None:
             try:
                 session = RigSession.open(config)
