@@ -11,7 +11,6 @@ conditioning window, balls numbered within the lot).
 
 from __future__ import annotations
 
-import hashlib
 from typing import Any
 
 from protocols.ball_terms import BallTerms, terms_from_lot
@@ -97,16 +96,14 @@ def record_lot_law(store: Any, lot_id: str, path: str) -> tuple[Any, str]:
 
     Refused (ConfigError) if the file is not a ball law, or was fitted on another lot or on none.
     """
-    from pathlib import Path
-
     from rig.physics.ball_law import BallLaw
 
-    law, sha = BallLaw.read(path)
+    law, raw = BallLaw.read_file(path)  # read once: what is checked is what is recorded
     if law.lot != lot_id:
         fitted = f"lot {law.lot}" if law.lot else "no lot"
         raise ConfigError(f"the ball law was fitted on {fitted}, not lot {lot_id}", source=str(path))
-    entry = store.record_ball_law(lot_id, Path(path).read_bytes().decode("utf-8"))
-    return entry, sha
+    entry = store.record_ball_law(lot_id, raw.decode("utf-8"))  # parse_bytes checked it is UTF-8
+    return entry, str(entry.payload["sha256"])
 
 
 def lot_law(store: Any, lot_id: str) -> tuple[Any, str] | None:
@@ -118,7 +115,7 @@ def lot_law(store: Any, lot_id: str) -> tuple[Any, str] | None:
         return None
     last = recorded[-1]
     source = f"lot {lot_id}'s recorded ball law (entry {last.seq})"
-    if hashlib.sha256(last.text.encode("utf-8")).hexdigest() != last.sha256:
+    if not last.intact:
         raise ConfigError("its text does not match its recorded sha256", source=source)
     return BallLaw.parse_text(last.text, source), last.sha256
 

@@ -199,6 +199,7 @@ def ball_terms_problems(store: Store) -> list[str]:
     """
     problems: list[str] = []
     lots = store.ball_lots()
+    finished: dict[str, list[tuple[int, Any]]] = {}  # lot -> (RunFinished seq, result), read once
     for run in store.runs():
         if run.procedure in BALL_TESTS:
             continue
@@ -206,14 +207,24 @@ def ball_terms_problems(store: Store) -> list[str]:
         recorded = (started[0].payload.get("ball") if started else None) or {}
         if not recorded.get("lot") or "results" not in recorded or recorded["lot"] not in lots:
             continue
-        problem = _terms_problem(store, lots[recorded["lot"]], recorded, started[0].seq)
+        lot = lots[recorded["lot"]]
+        if lot.id not in finished:
+            finished[lot.id] = [
+                (store.entries(r.run_id, kinds=[ev.RUN_FINISHED])[0].seq, r)
+                for r in store.ball_lot(lot.id)[1]
+                if r.procedure == "ball-cor" and r.wear_per_hit is not None
+            ]
+        problem = _terms_problem(store, lot, finished[lot.id], recorded, started[0].seq)
         if problem:
             problems.append(f"run {run.run_id}: {problem}")
     return problems
 
 
-def _terms_problem(store: Store, lot: Any, recorded: dict[str, Any], started_seq: int) -> str | None:
-    """What is wrong with one run's recorded terms of `lot` (None: they are what its results give)."""
+def _terms_problem(
+    store: Store, lot: Any, tests: list[tuple[int, Any]], recorded: dict[str, Any], started_seq: int
+) -> str | None:
+    """What is wrong with one run's recorded terms of `lot` (None: they are what its results give);
+    `tests`: the lot's ball-cor results with the seq of the RunFinished that holds each."""
     from pydantic import ValidationError
 
     from protocols.ball_terms import BallTerms, terms_from_lot
@@ -222,11 +233,7 @@ def _terms_problem(store: Store, lot: Any, recorded: dict[str, Any], started_seq
         terms = BallTerms.model_validate(recorded)
     except ValidationError as exc:
         return f"its recorded ball terms are unreadable ({exc.errors()[0]['msg']})"
-    before = []
-    for r in store.ball_lot(lot.id)[1]:
-        finished = store.entries(r.run_id, kinds=[ev.RUN_FINISHED])
-        if r.procedure == "ball-cor" and r.wear_per_hit is not None and finished[0].seq < started_seq:
-            before.append(r)
+    before = [r for seq, r in tests if seq < started_seq]
     expected = [r.run_id for r in before]
     if list(terms.results) != expected:
         named, due = (", ".join(i[:12] for i in ids) or "none" for ids in (terms.results, expected))

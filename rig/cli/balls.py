@@ -16,6 +16,7 @@ from rig.cli.common import (
     new_table,
     open_db,
     output_file,
+    refuse_overwriting_store,
     resolve_run,
     shown_db,
     sim_session,
@@ -217,16 +218,10 @@ def cmd_show(args: argparse.Namespace) -> int:
 def cmd_law(args: argparse.Namespace) -> int:
     """rig balls law: write the lot's recorded ball law (the file rig model fit-ball --db --lot wrote)."""
     from rig.report.export import atomic_write
-    from rig.store import is_url
-    from rig.store._lots import law_sha256
 
     target = output_file(args.output, "--output")
     assert target is not None  # a required flag
-    where = args.db or default_db()
-    if not is_url(str(where)) and any(
-        target.resolve() == Path(f"{where}{suffix}").resolve() for suffix in ("", "-wal", "-shm", "-journal")
-    ):
-        raise ConfigError("--output would overwrite the record store (--db)", source=str(target))
+    refuse_overwriting_store(target, args.db or default_db())
     with open_db(args) as store:
         store.ball_lot(args.lot)  # an unknown lot: one line naming the known ones
         recorded = store.ball_laws(args.lot)
@@ -241,7 +236,7 @@ def cmd_law(args: argparse.Namespace) -> int:
         entries = ", ".join(str(w.seq) for w in recorded)
         raise ConfigError(f"lot {args.lot} has no ball law at entry {args.entry} (its laws: {entries})")
     last = chosen[-1]
-    if law_sha256(last.text) != last.sha256:
+    if not last.intact:
         raise ConfigError(f"lot {args.lot}'s ball law at entry {last.seq} does not match its recorded sha256")
     # as recorded, byte for byte (the recorded sha256), through a temporary file beside the target
     data = last.text.encode("utf-8")

@@ -149,6 +149,18 @@ def sim_session(store: Any) -> str:
     return f"store-run-{len(store.runs())}"
 
 
+def refuse_overwriting_store(target: Path, db: object) -> None:
+    """ConfigError if writing `target` would overwrite the store file `db` (or its WAL, shared-memory
+    or journal file); a database URL has no file to overwrite."""
+    from rig.store import is_url
+
+    if is_url(str(db)):
+        return
+    files = [Path(f"{db}{suffix}").resolve() for suffix in ("", "-wal", "-shm", "-journal")]
+    if target.resolve() in files:
+        raise ConfigError("--output would overwrite the record store (--db)", source=str(target))
+
+
 def output_file(value: str | None, flag: str) -> Path | None:
     """The file a flag (--output, --plot, OUT) names, checked before any work: ConfigError if it
     names a folder, or if its folder does not exist (a missing folder is not made)."""

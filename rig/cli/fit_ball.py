@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from rig.cli.common import add_overrides, new_table, output_file
+from rig.cli.common import add_overrides, new_table, output_file, refuse_overwriting_store
 from rig.cli.common import console as out
 from rig.core.errors import ConfigError
 
@@ -72,10 +72,11 @@ def cmd_fit_ball(args: argparse.Namespace) -> int:
     output = output_file(args.output, "--output")
     assert output is not None  # a required flag
     output_file(args.plot, "--plot")
-    for flag, given in (("--data", args.data), ("--db", args.db)):
-        if given and output.exists() and Path(given).exists() and output.resolve() == Path(given).resolve():
-            what = "the data file" if flag == "--data" else "the record store"
-            raise ConfigError(f"--output would overwrite {what} ({flag})", source=str(output))
+    csv = Path(args.data) if args.data else None
+    if csv is not None and output.exists() and csv.exists() and output.resolve() == csv.resolve():
+        raise ConfigError("--output would overwrite the data file (--data)", source=str(output))
+    if args.db:
+        refuse_overwriting_store(output, args.db)
     base, sources = _base(args.overrides)
     data, runs = gather(args.data, args.db, args.lot)
     result = fit_ball(data.points, base)

@@ -126,9 +126,14 @@ class BallLaw(BaseModel):
     @classmethod
     def read(cls, path: str | Path) -> tuple[BallLaw, str]:
         """The ball law and the sha256 of the file's bytes (what a calibration records)."""
-        path = Path(path)
-        raw = read_bounded(path, MAX_BYTES, "a ball file")
-        return cls.parse_bytes(raw, str(path)), hashlib.sha256(raw).hexdigest()
+        law, raw = cls.read_file(path)
+        return law, hashlib.sha256(raw).hexdigest()
+
+    @classmethod
+    def read_file(cls, path: str | Path) -> tuple[BallLaw, bytes]:
+        """The ball law and the file's bytes, read once (bounded); ConfigError as `parse_bytes`."""
+        raw = read_bounded(Path(path), MAX_BYTES, "a ball file")
+        return cls.parse_bytes(raw, str(path)), raw
 
     @classmethod
     def parse_text(cls, text: str, source: str = "recorded ball law") -> BallLaw:

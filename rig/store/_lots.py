@@ -43,6 +43,11 @@ class RecordedLaw:
     t_utc: str
     seq: int
 
+    @property
+    def intact(self) -> bool:
+        """Whether the text is still the one its recorded sha256 names."""
+        return law_sha256(self.text) == self.sha256
+
 
 def laws(conn: Any, lot_id: str) -> list[RecordedLaw]:
     """The ball laws recorded for `lot_id`, oldest first (the last is the lot's ball law)."""

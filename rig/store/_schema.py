@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import sqlite3
+from collections.abc import Iterator
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -99,24 +101,31 @@ def connect(path: Path, *, create: bool, busy_timeout_s: float, readonly: bool =
         conn = sqlite3.connect(path, timeout=busy_timeout_s, isolation_level=None, check_same_thread=False)
     except sqlite3.Error as exc:
         raise StoreFileError(f"{path}: cannot open: {exc}") from None
-    try:
+    with _closed_on_error(conn, path):
         fresh = _identify(conn, path)
         _configure(conn, path, busy_timeout_s)
         _migrate(conn, path, fresh)
+    return conn
+
+
+@contextlib.contextmanager
+def _closed_on_error(conn: sqlite3.Connection, path: Path) -> Iterator[None]:
+    """Close `conn` if the block fails; an SQLite error becomes one line naming the store."""
+    try:
+        yield
     except sqlite3.Error as exc:
         conn.close()
         raise StoreFileError(f"{path}: not a usable store: {exc}") from None
     except BaseException:
         conn.close()
         raise
-    return conn
 
 
 def _read_only(path: Path, busy_timeout_s: float) -> sqlite3.Connection | None:
     """A connection that only reads; None if the store must be upgraded first and can be (a writable
     file of an older schema, or an empty one: opened for writing, as before)."""
     conn = _readonly.connect(path, busy_timeout_s)
-    try:
+    with _closed_on_error(conn, path):
         fresh = _identify(conn, path)
         version = 0 if fresh else _current_version(conn, path, fresh)
         if version != SCHEMA_VERSION and _readonly.cannot_write(path) is None:
@@ -124,12 +133,6 @@ def _read_only(path: Path, busy_timeout_s: float) -> sqlite3.Connection | None:
             return None
         _readonly.check_current(path, version, SCHEMA_VERSION)
         conn.execute(f"PRAGMA busy_timeout={int(busy_timeout_s * 1000)}")
-    except sqlite3.Error as exc:
-        conn.close()
-        raise StoreFileError(f"{path}: not a usable store: {exc}") from None
-    except BaseException:
-        conn.close()
-        raise
     return conn
 
 

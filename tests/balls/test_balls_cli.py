@@ -176,14 +176,9 @@ def test_a_ball_test_run_again_meets_its_own_simulated_noise(db: Path, tmp_path:
     """Two ball-cor tests of one lot at the same hour of the simulated lab: each run is its own
     session of the lab (the store's count of runs), so they do not repeat each other's numbers,
     which would make a fit over both count every hit twice."""
-    text = (Path(__file__).resolve().parents[2] / "protocols" / "ball-cor.toml").read_text(encoding="utf-8")
-    small = tmp_path / "small.toml"
-    small.write_text(
-        text.replace(
-            next(s for s in text.splitlines() if s.startswith("balls_per_speed =")), "balls_per_speed = 2"
-        ),
-        encoding="utf-8",
-    )
+    from tests.ball.test_fit_ball_store import smaller
+
+    small = smaller("ball-cor", tmp_path, balls_per_speed=2)
     results = []
     for _ in range(2):
         argv = [
