@@ -27,19 +27,19 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks.bench_ball_truth
 
 from benchmarks.bench_ball_truth import SCENE, lot_terms
-from protocols.ball_terms import BallTerms, hit_balls
-from protocols.procedure import Procedure
-from protocols.state import RunState, fold
 from rig.certification import certify, history
 from rig.core.bat import BatSpec
 from rig.core.units import INCH
 from rig.measure.metrics import compute_metrics
 from rig.physics import CollisionParams
 from rig.population.simulate import simulated_population
+from rig.protocols.ball_terms import BallTerms, hit_balls
+from rig.protocols.procedure import Procedure
+from rig.protocols.state import RunState, fold
 from rig.session import scene_with_bat, sim_config
+from rig.simulators.scene import Scene
+from rig.simulators.truth import BBCOR_SPEED_M_S, collision_of
 from rig.store import Store
-from simulators.scene import Scene
-from simulators.truth import BBCOR_SPEED_M_S, collision_of
 
 Parts = tuple[float, float, float]  # a bat's mean chain error, correction error, speed effect
 

@@ -3,8 +3,8 @@
 N bats of a simulated population (default 40) are certified through the real drivers on the `lab`
 scene, each on its own simulated rig, with the ball terms of a qualified lot: the lot's wear per
 hit, ball-to-ball spread and sensitivity to the air measured by `ball-cor` tests on the same
-simulated lab at four hours of its daily swing of air (protocols.ball_air). Each certified mean is
-compared with the simulated truth as the standard means it (simulators.truth: the scanned location
+simulated lab at four hours of its daily swing of air (rig.protocols.ball_air). Each certified mean is
+compared with the simulated truth as the standard means it (rig.simulators.truth: the scanned location
 of maximum, 60.8 m/s, a new ball of the lot's nominal condition, the bat's true MOI), computed from
 the scene without the measurement chain. Prints the mean error, its standard error, how many
 bats have |error| <= U and the SD of error / u (1 if the stated u is right, below 1 if cautious);
@@ -23,19 +23,19 @@ import time
 from pathlib import Path
 from typing import Any
 
-from protocols.ball_procedure import BallProcedure
-from protocols.ball_terms import terms_from_lot
-from protocols.procedure import Procedure
-from protocols.state import fold
 from rig.balls import run_ball_test
 from rig.certification import certify, history
 from rig.core.ball import BallLot, Conditioning
 from rig.core.bat import BatSpec
 from rig.population.simulate import simulated_population
+from rig.protocols.ball_procedure import BallProcedure
+from rig.protocols.ball_terms import terms_from_lot
+from rig.protocols.procedure import Procedure
+from rig.protocols.state import fold
 from rig.session import air_starting_at, scene_with_bat, sim_config
+from rig.simulators.scene import Scene
+from rig.simulators.truth import true_metric
 from rig.store import Store
-from simulators.scene import Scene
-from simulators.truth import true_metric
 
 SCENE = "lab"
 
@@ -46,7 +46,7 @@ HOURS = 4  # ball-cor tests of the lot at this many points of the lab's daily sw
 def lot_terms(lot_id: str = "SIM-LOT", hours: int = HOURS) -> dict[str, Any]:
     """The lot's ball terms, measured by ball-cor tests on the same simulated lab (its own store):
     one test at each of `hours` evenly spaced points of the lab's swing of air, so the lot's
-    sensitivity to the air is measured too (protocols.ball_air)."""
+    sensitivity to the air is measured too (rig.protocols.ball_air)."""
     procedure = BallProcedure.load("ball-cor")
     lot = BallLot(
         id=lot_id,

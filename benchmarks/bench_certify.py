@@ -13,15 +13,15 @@ import tempfile
 import time
 from pathlib import Path
 
-from protocols import evaluate
-from protocols.dryrun import rehearse
-from protocols.procedure import Procedure
-from protocols.shot import derive_speeds
-from protocols.state import fold
 from rig.certification import certify, history
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.measure.realtime import ShotTracker
+from rig.protocols import evaluate
+from rig.protocols.dryrun import rehearse
+from rig.protocols.procedure import Procedure
+from rig.protocols.shot import derive_speeds
+from rig.protocols.state import fold
 from rig.session import sim_config
 from rig.store import Store
 
@@ -46,8 +46,8 @@ def latency(db: Path, run_id: str, repeats: int) -> tuple[float, float]:
     procedure = Procedure.model_validate(next(e for e in events if e.kind == "RunStarted").data["procedure"])
     bat = BatSpec.model_validate(next(e for e in events if e.kind == "RunStarted").data["bat"])
     config = RigConfig.model_validate(next(e for e in events if e.kind == "RunStarted").data["rig"])
-    from protocols.shot import ShotRecord
     from rig.core.devices import GateConfig, GateCrossing
+    from rig.protocols.shot import ShotRecord
 
     fired = [e.data for e in events if e.kind == "ShotFired" and len(e.data.get("crossings", [])) == 6]
     records = []

@@ -40,9 +40,9 @@ from rig.population.calibrate import CalibrationRefused, calibrate
 from rig.population.crosscheck import crosscheck_bats
 from rig.population.simulate import SimulatedBat, simulated_population
 from rig.population.store_source import bats_from_store
+from rig.simulators.population import best_scan_location, measured_population, true_metric
+from rig.simulators.scene import Scene
 from rig.store import Store
-from simulators.population import best_scan_location, measured_population, true_metric
-from simulators.scene import Scene
 
 ALTERATIONS = (0.01, 0.02, 0.025, 0.03)
 GOAL = {"detect_0.025": 0.75, "false_flag": 0.10, "rmse": 0.007}

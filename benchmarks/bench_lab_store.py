@@ -32,9 +32,9 @@ def _one_rig(where: str, name: str, out: Any) -> None:
     import faulthandler
 
     faulthandler.dump_traceback_later(90, exit=True)  # a rig stuck for 90 s shows where, then ends
-    from protocols.procedure import Procedure
     from rig.certification import certify
     from rig.core.bat import BatSpec
+    from rig.protocols.procedure import Procedure
     from rig.session import sim_config
     from rig.store import Store
 

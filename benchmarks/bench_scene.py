@@ -17,13 +17,13 @@ import sys
 import time
 from collections.abc import Callable
 
-from drivers.cannon.codec import SPECS as CANNON
-from drivers.codec import HostCodec
-from drivers.gates.codec import SPECS as GATES
+from rig.drivers.cannon.codec import SPECS as CANNON
+from rig.drivers.codec import HostCodec
+from rig.drivers.gates.codec import SPECS as GATES
 from rig.physics import fast
-from simulators.effects import KINDS
-from simulators.scene import Scene
-from simulators.world import SimWorld
+from rig.simulators.effects import KINDS
+from rig.simulators.scene import Scene
+from rig.simulators.world import SimWorld
 
 PRESSURE_KPA = 395.0
 

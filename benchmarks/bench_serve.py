@@ -27,11 +27,11 @@ import serial
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))  # tests.load, the shared load harness
 
-from drivers.cannon.codec import SPECS as CANNON  # noqa: E402
-from drivers.clamp.codec import SPECS as CLAMP  # noqa: E402
-from drivers.codec import HostCodec  # noqa: E402
-from drivers.gates.codec import SPECS as GATES  # noqa: E402
-from drivers.wire import Event, Reply  # noqa: E402
+from rig.drivers.cannon.codec import SPECS as CANNON  # noqa: E402
+from rig.drivers.clamp.codec import SPECS as CLAMP  # noqa: E402
+from rig.drivers.codec import HostCodec  # noqa: E402
+from rig.drivers.gates.codec import SPECS as GATES  # noqa: E402
+from rig.drivers.wire import Event, Reply  # noqa: E402
 from tests.load import cpu_load  # noqa: E402
 
 SERVERS = {
@@ -39,7 +39,7 @@ SERVERS = {
     "serve --no-warm": [
         sys.executable,
         "-m",
-        "simulators.serve",
+        "rig.simulators.serve",
         "--scene",
         "lab",
         "--kind",

@@ -22,9 +22,9 @@ from rig.cli import main
 from rig.core.units import INCH
 from rig.physics import PivotedBat, predict_bat
 from rig.population.simulate import simulated_population
+from rig.simulators.effects.trampoline import TrampolineConfig, bat_offset_bbcor
+from rig.simulators.scene import Scene
 from rig.store import Store
-from simulators.effects.trampoline import TrampolineConfig, bat_offset_bbcor
-from simulators.scene import Scene
 
 SPEED = 60.8
 

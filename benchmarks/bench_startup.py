@@ -84,9 +84,9 @@ def _failed() -> float:
 
 def prepare_store(folder: Path) -> tuple[Path, str]:
     """A store holding one simulated BBCOR certification of the sample bat; its run id."""
-    from protocols.procedure import Procedure
     from rig.certification import certify
     from rig.core.bat import BatSpec
+    from rig.protocols.procedure import Procedure
     from rig.session import sim_config
     from rig.store import Store
 

@@ -6,10 +6,10 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import ClassVar, Self, TypeVar
 
-from drivers.codec import CommandSpec
-from drivers.transport import LineTransport, SerialLike, TrafficRecord
-from drivers.wire import Event, Reply
 from rig.core.errors import GarbledReply
+from rig.drivers.codec import CommandSpec
+from rig.drivers.transport import LineTransport, SerialLike, TrafficRecord
+from rig.drivers.wire import Event, Reply
 
 M = TypeVar("M")
 R = TypeVar("R")

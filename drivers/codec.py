@@ -11,7 +11,7 @@ import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 
-from drivers.wire import (
+from rig.drivers.wire import (
     MAX_SEQ,
     Command,
     ErrorReply,

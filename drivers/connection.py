@@ -13,8 +13,8 @@ import time
 from collections.abc import Callable
 from typing import Protocol
 
-from drivers.traffic import TrafficLog
-from drivers.wire import Item, LineDecoder
+from rig.drivers.traffic import TrafficLog
+from rig.drivers.wire import Item, LineDecoder
 
 log = logging.getLogger(__name__)
 

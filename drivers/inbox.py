@@ -15,7 +15,7 @@ from collections import deque
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
-from drivers.wire import Event
+from rig.drivers.wire import Event
 
 EVENT_BACKLOG = 1024  # per event name
 

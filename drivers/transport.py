@@ -18,11 +18,6 @@ from dataclasses import dataclass, field
 
 import serial
 
-from drivers.codec import CommandSpec, HostCodec
-from drivers.connection import Connection, SerialLike
-from drivers.inbox import EventFilter, EventInbox, ReceivedEvent
-from drivers.traffic import TrafficLog, TrafficRecord
-from drivers.wire import ErrorReply, Event, Garbled, Item, Reply
 from rig.core.errors import (
     DeviceGone,
     DeviceRefused,
@@ -31,6 +26,11 @@ from rig.core.errors import (
     ParameterError,
     RigError,
 )
+from rig.drivers.codec import CommandSpec, HostCodec
+from rig.drivers.connection import Connection, SerialLike
+from rig.drivers.inbox import EventFilter, EventInbox, ReceivedEvent
+from rig.drivers.traffic import TrafficLog, TrafficRecord
+from rig.drivers.wire import ErrorReply, Event, Garbled, Item, Reply
 
 log = logging.getLogger(__name__)
 

@@ -18,11 +18,6 @@ from typing import Any
 
 import numpy as np
 
-from protocols.ball_procedure import BallProcedure
-from protocols.outcome import concluded, learned_aim, no_data
-from protocols.run_inputs import air_density, drag_inputs, uncertainty_model
-from protocols.shot import ShotRecord
-from protocols.state import RunState, ShotEntry
 from rig.core.ball import BallLot, CcorPoint, LotResult, SpeedPoint
 from rig.core.config import RigConfig
 from rig.core.events import Verdict
@@ -30,6 +25,11 @@ from rig.measure.model import ShotInputs, inbound_at_impact
 from rig.measure.speeds import ShotDataError, shot_speeds, split_passes
 from rig.measure.uncertainty import budget
 from rig.measure.validity import ValidityLimits, check_shot
+from rig.protocols.ball_procedure import BallProcedure
+from rig.protocols.outcome import concluded, learned_aim, no_data
+from rig.protocols.run_inputs import air_density, drag_inputs, uncertainty_model
+from rig.protocols.shot import ShotRecord
+from rig.protocols.state import RunState, ShotEntry
 
 NO_MOI = 1.0  # a rigid fixed target has no MOI; the budget's e_A does not depend on it
 

@@ -15,9 +15,9 @@ from typing import Annotated, Literal
 
 from pydantic import Field, StrictBool, model_validator
 
-from protocols.procedure import Ball, Decision, EnvironmentLimits, Hits, _Model, load_table
 from rig.core.ball import BallLot
 from rig.core.devices import STAGE_RANGE_MM
+from rig.protocols.procedure import Ball, Decision, EnvironmentLimits, Hits, _Model, load_table
 
 BUILTIN_DIR = Path(__file__).parent
 BALL_BUILTIN = ("ccor", "ball-cor")

@@ -1,6 +1,6 @@
-"""A ball test's plan (protocols.plan): the lot's balls fired at a rigid target, slot by slot.
+"""A ball test's plan (rig.protocols.plan): the lot's balls fired at a rigid target, slot by slot.
 
-The procedure fixes the schedule (protocols.ball_procedure.Slot: speed, ball, the ball's planned
+The procedure fixes the schedule (rig.protocols.ball_procedure.Slot: speed, ball, the ball's planned
 hit); the plan fires the first slot without a valid hit, so the same plan starts a test and resumes
 it: every remaining shot goes at its slot's speed with its slot's ball. An invalid or lost shot is
 re-shot with the same ball at the same speed (it counts as a hit of that ball if the gates saw it).
@@ -16,10 +16,14 @@ import platform
 from dataclasses import dataclass
 from typing import Any
 
-from protocols import ball_eval, steps
-from protocols.ball_procedure import BallProcedure, Slot
-from protocols.control import RunAborted
-from protocols.plan import (
+from rig import __version__
+from rig.core import events as ev
+from rig.core.ball import BallLot
+from rig.core.errors import ConfigError
+from rig.protocols import ball_eval, steps
+from rig.protocols.ball_procedure import BallProcedure, Slot
+from rig.protocols.control import RunAborted
+from rig.protocols.plan import (
     Ask,
     Checkpoint,
     ClearFault,
@@ -35,10 +39,6 @@ from protocols.plan import (
     ReadEnvironment,
     Record,
 )
-from rig import __version__
-from rig.core import events as ev
-from rig.core.ball import BallLot
-from rig.core.errors import ConfigError
 
 TARGET_FACE = 0.0  # a ball test's shots all go to the target's face: "location" 0
 PURPOSE = "ball"
@@ -72,7 +72,7 @@ class BallContext(PlanContext):
         """The test's slots in firing order."""
         return self.ball_procedure.schedule(BallLot.model_validate(self.lot_spec()))
 
-    # -- what the executor's backends ask of the context (protocols.executor, protocols.dryrun) --
+    # -- what the executor's backends ask of the context (rig.protocols.executor, rig.protocols.dryrun) --
     def evaluate_shot(self, fired: Fired) -> dict[str, Any]:
         """The shot's measurement."""
         return ball_eval.shot(fired.record, self.ball_procedure, self.state, fired.failure, self.config)

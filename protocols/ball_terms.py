@@ -22,9 +22,9 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
-from protocols.ball_air import fit_air, pooled_wear
 from rig.measure.metrics import compute_metrics
 from rig.physics import CollisionParams, PivotedBat, predict_bat, rigid_cor
+from rig.protocols.ball_air import fit_air, pooled_wear
 
 PLATE_SPEED_M_S = 26.8  # ASTM F1887: 60 mph onto a rigid flat surface
 G_U_REL = 0.15  # [U] relative u of the model's ratio g (rigid barrel against a hollow one: 6 % seen)
@@ -171,7 +171,7 @@ def terms_from_lot(lot: Any, results: list[Any], law: dict[str, float] | None = 
     """The ball terms of a registered lot (rig.core.ball.BallLot) from its ball-cor results.
 
     Wear and spread are measured by any one ball-cor test (pooled over the lot's tests); the air's
-    sensitivities only by tests at different conditions (protocols.ball_air), else they stay the
+    sensitivities only by tests at different conditions (rig.protocols.ball_air), else they stay the
     assumed defaults, budgeted whole.
     """
     cor = [r for r in results if r.procedure == "ball-cor" and r.wear_per_hit is not None]

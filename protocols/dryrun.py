@@ -13,19 +13,19 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from protocols.control import RunAborted, ScriptedOperator
-from protocols.executor import Executor
-from protocols.plan import Fired, Plan, PlanContext
-from protocols.procedure import Procedure
-from protocols.shot import ShotRecord
-from protocols.state import fold
-from protocols.steps import certification, plan_name
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.devices import STAGE_RANGE_MM, Environment, GateConfig, GateCrossing, PendulumPeriod
 from rig.core.errors import ConfigError, DeviceError, RigError
 from rig.core.events import RunEvent
+from rig.protocols.control import RunAborted, ScriptedOperator
+from rig.protocols.executor import Executor
+from rig.protocols.plan import Fired, Plan, PlanContext
+from rig.protocols.procedure import Procedure
+from rig.protocols.shot import ShotRecord
+from rig.protocols.state import fold
+from rig.protocols.steps import certification, plan_name
 
 NOMINAL_GATES = GateConfig(gates=3, tick_ns=10.0, bits=32)
 NOMINAL_PERIOD_S = 1.4  # a bat's swing on the pivot: a second and a half, give or take

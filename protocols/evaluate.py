@@ -1,7 +1,7 @@
 """From a shot's raw record to its metrics, uncertainty and validity.
 
-The verdict over the valid hits and the model cross-check are protocols.verdict; the lab air and
-the input distributions both use are protocols.run_inputs. This module re-exports them, so that
+The verdict over the valid hits and the model cross-check are rig.protocols.verdict; the lab air and
+the input distributions both use are rig.protocols.run_inputs. This module re-exports them, so that
 `evaluate.shot`, `evaluate.verdict` and `evaluate.run_calibration` name the whole evaluation.
 """
 
@@ -10,12 +10,6 @@ from __future__ import annotations
 from dataclasses import asdict
 from typing import Any
 
-from protocols.outcome import concluded, learned_aim, no_data
-from protocols.procedure import Metric, Procedure
-from protocols.run_inputs import NOMINAL_AIR, air_density, drag_inputs, uncertainty_model
-from protocols.shot import ShotRecord
-from protocols.state import RunState
-from protocols.verdict import UNCALIBRATED, cross_check, drag_summary, run_calibration, verdict
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.devices import Recoil
@@ -24,6 +18,12 @@ from rig.measure.model import ShotInputs, inbound_at_impact
 from rig.measure.speeds import ShotDataError, shot_speeds, split_passes
 from rig.measure.uncertainty import budget
 from rig.measure.validity import Invalidity, ValidityLimits, check_shot
+from rig.protocols.outcome import concluded, learned_aim, no_data
+from rig.protocols.procedure import Metric, Procedure
+from rig.protocols.run_inputs import NOMINAL_AIR, air_density, drag_inputs, uncertainty_model
+from rig.protocols.shot import ShotRecord
+from rig.protocols.state import RunState
+from rig.protocols.verdict import UNCALIBRATED, cross_check, drag_summary, run_calibration, verdict
 
 
 def _metric_u(p: Procedure, bud: dict[str, Any], v_pitch_plus_bat: float) -> float:

@@ -1,9 +1,9 @@
-"""Carries out a plan (protocols.plan): run control, persistence, prompts, and the devices behind them.
+"""Carries out a plan (rig.protocols.plan): run control, persistence, prompts, and the devices behind them.
 
 The executor keeps the run's folded state current (every Record goes to `emit`, is committed,
 then folded), so a plan resumes from a killed run's record exactly. What the devices do is a
 backend's business: `LiveRig` drives the real (or simulated) cannon, gates and clamp;
-protocols.dryrun's `CheckingRig` answers from checking fakes. A shot requested in this session
+rig.protocols.dryrun's `CheckingRig` answers from checking fakes. A shot requested in this session
 whose outcome is not recorded when anything stops the plan is recorded lost, never fired again.
 """
 
@@ -13,9 +13,25 @@ import contextlib
 from collections.abc import Callable
 from typing import Any, Protocol, TypeVar
 
-from protocols import evaluate
-from protocols.control import Operator, PlanError, RunAborted, RunControl, ScriptedOperator
-from protocols.plan import (
+from rig.core import events as ev
+from rig.core.config import RigConfig
+from rig.core.devices import (
+    BallLoader,
+    Cannon,
+    CannonState,
+    Clamp,
+    Environment,
+    GateConfig,
+    GateCrossing,
+    Gates,
+    PendulumPeriod,
+)
+from rig.core.errors import ConfigError, DeviceError, DeviceGone, SafetyRefusal
+from rig.core.events import RunEvent
+from rig.measure.realtime import InboundKnown, ReboundKnown, ShotTracker
+from rig.protocols import evaluate
+from rig.protocols.control import Operator, PlanError, RunAborted, RunControl, ScriptedOperator
+from rig.protocols.plan import (
     Ask,
     Checkpoint,
     ClearFault,
@@ -33,24 +49,8 @@ from protocols.plan import (
     Record,
     TimePendulum,
 )
-from protocols.shot import ShotFailed, fire_shot, prepare
-from protocols.state import RunState, fold
-from rig.core import events as ev
-from rig.core.config import RigConfig
-from rig.core.devices import (
-    BallLoader,
-    Cannon,
-    CannonState,
-    Clamp,
-    Environment,
-    GateConfig,
-    GateCrossing,
-    Gates,
-    PendulumPeriod,
-)
-from rig.core.errors import ConfigError, DeviceError, DeviceGone, SafetyRefusal
-from rig.core.events import RunEvent
-from rig.measure.realtime import InboundKnown, ReboundKnown, ShotTracker
+from rig.protocols.shot import ShotFailed, fire_shot, prepare
+from rig.protocols.state import RunState, fold
 
 T = TypeVar("T")
 Traffic = Callable[[], list[dict[str, Any]]]
@@ -141,14 +141,14 @@ class LiveRig:
             raise RunAborted(f"device failure: {exc}; then {again}") from exc
 
     def evaluate(self, ctx: PlanContext, fired: Fired) -> dict[str, Any]:
-        """The shot's measurement (protocols.evaluate; a context of its own kind measures its own)."""
+        """The shot's measurement (rig.protocols.evaluate; a context of its own kind measures its own)."""
         own = getattr(ctx, "evaluate_shot", None)
         if own is not None:
             return own(fired)
         return evaluate.shot(fired.record, ctx.procedure, ctx.bat, ctx.state, fired.failure, ctx.config)
 
     def decide(self, ctx: PlanContext) -> dict[str, Any]:
-        """The verdict (protocols.evaluate; a context of its own kind decides its own)."""
+        """The verdict (rig.protocols.evaluate; a context of its own kind decides its own)."""
         own = getattr(ctx, "decide_run", None)
         if own is not None:
             return own()

@@ -5,11 +5,11 @@ the operator, move the stage, fire, evaluate the shot) and receives each message
 It decides what to do next from the run's folded state (`ctx.state`), which the executor keeps
 current, so the same plan starts a run or resumes one. The executor owns what a plan must not
 decide for itself: run control (pause, abort), persistence, the devices and their recovery. A dry
-run executes the same plan against checking fakes (protocols.dryrun), so it cannot drift from a
+run executes the same plan against checking fakes (rig.protocols.dryrun), so it cannot drift from a
 real run.
 
 Plans compose with `yield from`: a lab's own procedure is a generator calling the steps in
-protocols.steps in its own order (docs/api.md).
+rig.protocols.steps in its own order (docs/api.md).
 """
 
 from __future__ import annotations
@@ -18,12 +18,12 @@ from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
-from protocols.procedure import Procedure
-from protocols.shot import ShotRecord
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.events import RunEvent
 from rig.core.run_state import RunState
+from rig.protocols.procedure import Procedure
+from rig.protocols.shot import ShotRecord
 
 T = TypeVar("T")
 Plan = Generator["Msg", Any, T]

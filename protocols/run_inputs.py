@@ -1,18 +1,18 @@
 """What every evaluation of a run shares: the lab air, the input distributions, the drag inputs.
 
-Used by a shot's evaluation (protocols.evaluate) and by the verdict over the hits (protocols.verdict).
+Used by a shot's evaluation (rig.protocols.evaluate) and by the verdict over the hits (rig.protocols.verdict).
 """
 
 from __future__ import annotations
 
 from typing import Any
 
-from protocols.procedure import Procedure
-from protocols.state import RunState
 from rig.core.config import RigConfig
 from rig.core.devices import Environment
 from rig.measure.drag import AirDensity, lab_air
 from rig.measure.model import BALL_DIAMETER_M, Spread, UncertaintyModel
+from rig.protocols.procedure import Procedure
+from rig.protocols.state import RunState
 
 NOMINAL_AIR = Environment(temperature_c=20.0, humidity_pct=50.0)  # when no check is recorded
 

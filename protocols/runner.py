@@ -1,10 +1,10 @@
 """Runs a certification procedure on a rig's devices: the standard plan, its executor, its dry run.
 
-The runner is restartable: its progress is a fold of the recorded events (protocols.state), so
+The runner is restartable: its progress is a fold of the recorded events (rig.protocols.state), so
 `run()` on a resumed event list continues at the next unfired shot. A shot whose intent was
 recorded but whose outcome was not (a crash between FIRE and the record) is marked lost, never
-fired again. The procedure's steps are plans (protocols.steps), carried out by protocols.executor;
-the dry run (protocols.dryrun) executes the same plan against checking fakes.
+fired again. The procedure's steps are plans (rig.protocols.steps), carried out by rig.protocols.executor;
+the dry run (rig.protocols.dryrun) executes the same plan against checking fakes.
 """
 
 from __future__ import annotations
@@ -12,18 +12,18 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from protocols.control import BudgetExceeded, Operator, RunAborted, RunControl, ScriptedOperator
-from protocols.dryrun import dry_run, rehearse
-from protocols.executor import Executor, LiveRig
-from protocols.plan import PlanContext, PlanFactory
-from protocols.procedure import Procedure
-from protocols.state import RunState, fold
-from protocols.steps import certification, location_problem, plan_name
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.devices import Cannon, Clamp, Gates
 from rig.core.errors import ConfigError
 from rig.core.events import RunEvent
+from rig.protocols.control import BudgetExceeded, Operator, RunAborted, RunControl, ScriptedOperator
+from rig.protocols.dryrun import dry_run, rehearse
+from rig.protocols.executor import Executor, LiveRig
+from rig.protocols.plan import PlanContext, PlanFactory
+from rig.protocols.procedure import Procedure
+from rig.protocols.state import RunState, fold
+from rig.protocols.steps import certification, location_problem, plan_name
 
 __all__ = [
     "BudgetExceeded",

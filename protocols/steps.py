@@ -1,4 +1,4 @@
-"""A certification's steps as plans (protocols.plan): each one small, each resumable from the state.
+"""A certification's steps as plans (rig.protocols.plan): each one small, each resumable from the state.
 
 `certification` is the standard procedure (BESR, BBCOR, BBS differ only in their Procedure data):
 preflight, start, environment, MOI, location scan, valid hits at the maximum, verdict, with the
@@ -10,10 +10,17 @@ from __future__ import annotations
 import platform
 from typing import Any
 
-from protocols import evaluate
-from protocols.ball_terms import BallTerms
-from protocols.control import BudgetExceeded, RunAborted
-from protocols.plan import (
+from rig import __version__
+from rig.core import events as ev
+from rig.core.bat import PIVOT_FROM_KNOB_IN, BatSpec
+from rig.core.devices import STAGE_RANGE_MM
+from rig.core.errors import ConfigError
+from rig.core.units import INCH
+from rig.measure.moi import entered_budget, pendulum_moi
+from rig.protocols import evaluate
+from rig.protocols.ball_terms import BallTerms
+from rig.protocols.control import BudgetExceeded, RunAborted
+from rig.protocols.plan import (
     Ask,
     Checkpoint,
     ClearFault,
@@ -29,14 +36,7 @@ from protocols.plan import (
     Record,
     TimePendulum,
 )
-from protocols.procedure import Procedure
-from rig import __version__
-from rig.core import events as ev
-from rig.core.bat import PIVOT_FROM_KNOB_IN, BatSpec
-from rig.core.devices import STAGE_RANGE_MM
-from rig.core.errors import ConfigError
-from rig.core.units import INCH
-from rig.measure.moi import entered_budget, pendulum_moi
+from rig.protocols.procedure import Procedure
 
 
 def location_problem(bat: BatSpec, loc_in: float) -> str | None:

@@ -18,10 +18,6 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from protocols.ball_terms import BallAdjustment, BallTerms, adjust, hit_balls, law_params, ratio
-from protocols.procedure import Metric, Procedure
-from protocols.run_inputs import air_density, uncertainty_model
-from protocols.state import RunState
 from rig.core.bat import Barrel, BatSpec
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RigError
@@ -33,6 +29,10 @@ from rig.measure.uncertainty import budget, u_with_scatter
 from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat, predict_bat
 from rig.population.calfile import CalibrationFile, read_calibration
 from rig.population.crosscheck import crosscheck_at
+from rig.protocols.ball_terms import BallAdjustment, BallTerms, adjust, hit_balls, law_params, ratio
+from rig.protocols.procedure import Metric, Procedure
+from rig.protocols.run_inputs import air_density, uncertainty_model
+from rig.protocols.state import RunState
 
 UNCALIBRATED = (
     "uncalibrated: the model's absolute value is not validated (the paper validates only normalized"

@@ -14,14 +14,14 @@ from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
-from protocols.plan import PlanFactory
-from protocols.procedure import Procedure
-from protocols.runner import Operator, RunControl, ScriptedOperator
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import Model, RigConfig
 from rig.core.errors import ConfigError, RigError
 from rig.core.events import Verdict  # the one verdict enum (a str, so == "PASS" holds)
+from rig.protocols.plan import PlanFactory
+from rig.protocols.procedure import Procedure
+from rig.protocols.runner import Operator, RunControl, ScriptedOperator
 from rig.store import Store
 
 Bat = BatSpec  # `rig.Bat.load("bat.toml")`: table [bat] of a TOML file

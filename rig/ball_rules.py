@@ -4,7 +4,7 @@
 anything is armed the lot must be registered (`rig balls register`), qualified (at least one
 ball-cor test, meeting the lot's specification where it states one), conditioned as long as the
 procedure asks, and the ball law (if given) fitted on this lot or on none named. The run then
-records the lot's terms (protocols.ball_terms) in RunStarted, starting on the lot's first ball no
+records the lot's terms (rig.protocols.ball_terms) in RunStarted, starting on the lot's first ball no
 earlier run fired; the procedure enforces the rest at each shot (the lab's air within the
 conditioning window, balls numbered within the lot).
 """
@@ -13,11 +13,11 @@ from __future__ import annotations
 
 from typing import Any
 
-from protocols.ball_terms import BallTerms, terms_from_lot
-from protocols.procedure import Procedure
 from rig.core import events as ev
 from rig.core.ball import BallLot, LotResult
 from rig.core.errors import ConfigError
+from rig.protocols.ball_terms import BallTerms, terms_from_lot
+from rig.protocols.procedure import Procedure
 
 
 def qualify(lot: BallLot, results: list[LotResult], procedure: Procedure) -> list[LotResult]:

@@ -13,13 +13,6 @@ from collections.abc import Callable, Iterable
 from dataclasses import replace
 from typing import Any
 
-from protocols.ball_eval import lot_result
-from protocols.ball_procedure import BallProcedure
-from protocols.ball_steps import BallContext, ball_test
-from protocols.control import Operator, RunControl, ScriptedOperator
-from protocols.dryrun import Rehearsal, rehearse
-from protocols.executor import Executor, LiveRig
-from protocols.state import fold
 from rig import __version__
 from rig.certification import (
     Emit,
@@ -39,6 +32,13 @@ from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RigError
 from rig.core.events import RunEvent, Subscriber
 from rig.keys import recorded_rig, signing_for
+from rig.protocols.ball_eval import lot_result
+from rig.protocols.ball_procedure import BallProcedure
+from rig.protocols.ball_steps import BallContext, ball_test
+from rig.protocols.control import Operator, RunControl, ScriptedOperator
+from rig.protocols.dryrun import Rehearsal, rehearse
+from rig.protocols.executor import Executor, LiveRig
+from rig.protocols.state import fold
 from rig.session import RigSession
 from rig.store import Store
 
@@ -143,7 +143,7 @@ def recomputed_problems(store: Store) -> list[str]:
     """Every finished ball test whose recorded lot result differs from the one its shots give.
 
     The chain shows a run was not changed after it was written; this shows that what it concluded
-    follows from its shots (the same derivation, protocols.ball_eval.lot_result).
+    follows from its shots (the same derivation, rig.protocols.ball_eval.lot_result).
     """
     problems = []
     for run in store.runs():
@@ -227,7 +227,7 @@ def _terms_problem(
     `tests`: the lot's ball-cor results with the seq of the RunFinished that holds each."""
     from pydantic import ValidationError
 
-    from protocols.ball_terms import BallTerms, terms_from_lot
+    from rig.protocols.ball_terms import BallTerms, terms_from_lot
 
     try:
         terms = BallTerms.model_validate(recorded)

@@ -16,13 +16,6 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Protocol
 
-from protocols.dryrun import rehearse
-from protocols.evaluate import run_calibration
-from protocols.plan import PlanFactory
-from protocols.procedure import Procedure
-from protocols.runner import BudgetExceeded, Operator, RunControl, Runner
-from protocols.state import RunState
-from protocols.steps import certification
 from rig import __version__
 from rig.core import events as ev
 from rig.core.bat import BatSpec
@@ -31,6 +24,13 @@ from rig.core.errors import ConfigError, RecordRefused, RigError, StoreError
 from rig.core.events import RunEvent, Subscriber
 from rig.keys import Signer, recorded_rig, recorded_simulated, sign_run, signing_for
 from rig.modal.link import with_measured_hoop
+from rig.protocols.dryrun import rehearse
+from rig.protocols.evaluate import run_calibration
+from rig.protocols.plan import PlanFactory
+from rig.protocols.procedure import Procedure
+from rig.protocols.runner import BudgetExceeded, Operator, RunControl, Runner
+from rig.protocols.state import RunState
+from rig.protocols.steps import certification
 from rig.session import RigSession
 from rig.store import RunLocked, Store, StoreDamaged, StoreGone
 
@@ -179,8 +179,8 @@ def certify(
     `on_open` sees the open session before the runner starts: an operator console uses it to read
     device status on the runner's thread while the runner waits for the operator. `rig_checked`
     records that the rig was checked (who, why): the re-shoot budget starts again. `plan` is the
-    procedure's plan (protocols.steps.certification, or a lab's own from the same steps). `ball`:
-    the ball terms (protocols.ball_terms.BallTerms fields: the lot, its measured wear, spread and
+    procedure's plan (rig.protocols.steps.certification, or a lab's own from the same steps). `ball`:
+    the ball terms (rig.protocols.ball_terms.BallTerms fields: the lot, its measured wear, spread and
     sensitivities, the ball law), recorded in RunStarted; None: assumed defaults, budgeted whole.
     `sign_simulated`: sign a simulated run even with a real rig's key (rig.keys.signing_for); the
     listeners first hear RigNamed: the rig, whether it is simulated, and what its signature will be.

@@ -8,8 +8,9 @@ against checking fakes (a dry run of the same plan). See docs/api.md, "Your own 
 
 from __future__ import annotations
 
-from protocols.control import BudgetExceeded, RunAborted
-from protocols.plan import (
+from rig.core import events
+from rig.protocols.control import BudgetExceeded, RunAborted
+from rig.protocols.plan import (
     Ask,
     Checkpoint,
     Decide,
@@ -27,7 +28,7 @@ from protocols.plan import (
     Record,
     TimePendulum,
 )
-from protocols.steps import (
+from rig.protocols.steps import (
     certification,
     check_budget,
     choose_location,
@@ -44,7 +45,6 @@ from protocols.steps import (
     start,
     valid_hits,
 )
-from rig.core import events
 
 __all__ = [
     "Ask",

@@ -12,10 +12,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from protocols.procedure import Procedure
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.errors import ConfigError
+from rig.protocols.procedure import Procedure
 from rig.store import Store
 
 

@@ -13,16 +13,16 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 from urllib.parse import quote
 
-from drivers.cannon.driver import CannonDriver
-from drivers.clamp.driver import ClampDriver
-from drivers.gates.driver import GatesDriver
-from drivers.transport import TrafficRecord
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.units import INCH
+from rig.drivers.cannon.driver import CannonDriver
+from rig.drivers.clamp.driver import ClampDriver
+from rig.drivers.gates.driver import GatesDriver
+from rig.drivers.transport import TrafficRecord
 
 if TYPE_CHECKING:
-    from simulators.scene import Scene
+    from rig.simulators.scene import Scene
 
 DEVICES = ("cannon", "gates", "clamp")
 
@@ -56,8 +56,8 @@ def sim_config(
     `air_starting_at(900.0)`: the hour a ball test is run at). `session` names this run of the
     simulated lab (Scene.run_key): another session draws other noise, the same one repeats it.
     """
-    from simulators.scene import Scene
-    from simulators.urlhandler import install_world, register
+    from rig.simulators.scene import Scene
+    from rig.simulators.urlhandler import install_world, register
 
     register()
     loaded = Scene.load(scene)
@@ -113,7 +113,7 @@ class RigSession:
     def open(cls, config: RigConfig) -> RigSession:
         """Open every device named in the config; a failure closes what was opened and re-raises."""
         if any(url.startswith("sim://") for url in config.ports.model_dump().values()):
-            from simulators.urlhandler import register
+            from rig.simulators.urlhandler import register
 
             register()
         traffic: list[tuple[str, TrafficRecord]] = []

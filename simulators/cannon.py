@@ -12,7 +12,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, ClassVar
 
-from drivers.cannon.codec import (
+from rig.core.devices import CannonState, CannonStatus, Interlocks
+from rig.drivers.cannon.codec import (
     SPECS,
     interlock_fields,
     next_state,
@@ -20,12 +21,11 @@ from drivers.cannon.codec import (
     refuse_fire,
     refuse_in_state,
 )
-from drivers.codec import CheckedCommand
-from rig.core.devices import CannonState, CannonStatus, Interlocks
-from simulators.device import SimDevice
+from rig.drivers.codec import CheckedCommand
+from rig.simulators.device import SimDevice
 
 if TYPE_CHECKING:
-    from simulators.world import SimWorld
+    from rig.simulators.world import SimWorld
 
 
 class SimCannon(SimDevice):

@@ -5,12 +5,12 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, ClassVar
 
-from drivers.clamp.codec import SPECS
-from drivers.codec import CheckedCommand
-from simulators.device import SimDevice
+from rig.drivers.clamp.codec import SPECS
+from rig.drivers.codec import CheckedCommand
+from rig.simulators.device import SimDevice
 
 if TYPE_CHECKING:
-    from simulators.world import SimWorld
+    from rig.simulators.world import SimWorld
 
 LIFT_S = 1.0  # SWING: lifting the bat to the release angle and letting it settle
 

@@ -11,13 +11,13 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, ClassVar
 
-from drivers.codec import BadCommand, CheckedCommand, CommandSpec, DeviceCodec
-from drivers.wire import Garbled
-from simulators.records import Outgoing
-from simulators.timeline import OutputQueue
+from rig.drivers.codec import BadCommand, CheckedCommand, CommandSpec, DeviceCodec
+from rig.drivers.wire import Garbled
+from rig.simulators.records import Outgoing
+from rig.simulators.timeline import OutputQueue
 
 if TYPE_CHECKING:
-    from simulators.world import SimWorld
+    from rig.simulators.world import SimWorld
 
 
 class Unplugged(ConnectionError):

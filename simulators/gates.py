@@ -5,13 +5,13 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, ClassVar
 
-from drivers.codec import CheckedCommand
-from drivers.gates.codec import SPECS
-from simulators.device import SimDevice
-from simulators.records import Crossing
+from rig.drivers.codec import CheckedCommand
+from rig.drivers.gates.codec import SPECS
+from rig.simulators.device import SimDevice
+from rig.simulators.records import Crossing
 
 if TYPE_CHECKING:
-    from simulators.world import SimWorld
+    from rig.simulators.world import SimWorld
 
 
 class SimGates(SimDevice):

@@ -1,7 +1,7 @@
 """The simulator's default physics: what the world uses for a slot no effect of the scene fills.
 
 Straight-line flight in closed form, a rigid barrel (solved once per distinct impact and cached),
-counter ticks by rounding, nominal lab air. Effects in `simulators.effects` replace these.
+counter ticks by rounding, nominal lab air. Effects in `rig.simulators.effects` replace these.
 """
 
 from __future__ import annotations

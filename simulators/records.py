@@ -43,7 +43,7 @@ class Outgoing:
 class ShotTruth:
     """What really happened in one simulated shot: the ground truth a measurement is checked against.
 
-    Not a measurement: the measured shot is protocols.shot.ShotRecord (the raw record of a firing)
+    Not a measurement: the measured shot is rig.protocols.shot.ShotRecord (the raw record of a firing)
     and, folded from the log, rig.core.run_state.ShotEntry.
     """
 

@@ -21,7 +21,7 @@ from rig.core.files import CONFIG_BYTES, parse_toml, read_text
 from rig.core.units import INCH, OUNCE
 from rig.physics import CollisionParams
 from rig.physics.params import check_physical
-from simulators.effects import EffectSpec
+from rig.simulators.effects import EffectSpec
 
 SCENES_DIR = Path(__file__).with_name("scenes")
 AIM_PRESSURES_KPA = (100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 800.0)

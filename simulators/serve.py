@@ -1,8 +1,8 @@
 """Serve one simulated rig out of process: each device on a pty or a TCP port of 127.0.0.1.
 
-`python -m simulators.serve --scene lab --kind tcp` prints one line per device, `<name> <url>`
+`python -m rig.simulators.serve --scene lab --kind tcp` prints one line per device, `<name> <url>`
 (`cannon socket://127.0.0.1:40123`, or `gates /dev/pts/7` for a pty), and runs until interrupted.
-Before it prints them it fires one dummy shot in a throwaway world of the scene (simulators.warmup),
+Before it prints them it fires one dummy shot in a throwaway world of the scene (rig.simulators.warmup),
 so that the first FIRE is answered as fast as any later one (`--no-warm` skips this).
 One thread, one selector. The server forwards a device's output as soon as it is queued, so the
 virtual clock runs ahead to the last consequence queued (nothing sleeps). An unplug fault closes
@@ -22,10 +22,10 @@ import threading
 import tty
 from typing import TextIO
 
-from simulators.device import SimDevice, Unplugged
-from simulators.scene import Scene
-from simulators.warmup import warm_up
-from simulators.world import SimWorld
+from rig.simulators.device import SimDevice, Unplugged
+from rig.simulators.scene import Scene
+from rig.simulators.warmup import warm_up
+from rig.simulators.world import SimWorld
 
 POLL_S = 0.05  # how often the loop looks at the stop event
 
@@ -199,7 +199,7 @@ def _loop(
 
 def main(argv: list[str] | None = None) -> int:
     """Command line: serve a scene's devices until Ctrl-C."""
-    parser = argparse.ArgumentParser(prog="python -m simulators.serve", description=__doc__)
+    parser = argparse.ArgumentParser(prog="python -m rig.simulators.serve", description=__doc__)
     parser.add_argument("--scene", default="ideal", help="built-in scene name or path to a scene TOML")
     parser.add_argument("--kind", choices=("pty", "tcp"), default="pty")
     parser.add_argument("--host", default="127.0.0.1")

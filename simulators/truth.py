@@ -14,8 +14,8 @@ from dataclasses import dataclass
 
 from rig.core.units import INCH
 from rig.measure.metrics import compute_metrics
-from simulators.physics import Collision, RigidCollision
-from simulators.scene import Scene
+from rig.simulators.physics import Collision, RigidCollision
+from rig.simulators.scene import Scene
 
 BBCOR_SPEED_M_S = 60.8  # the NCAA BBCOR procedure's inbound speed (protocols/bbcor.toml)
 

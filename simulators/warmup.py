@@ -13,18 +13,18 @@ count start fresh.
 
 from __future__ import annotations
 
-from drivers.cannon.codec import MAX_PRESSURE_KPA
-from drivers.cannon.codec import SPECS as CANNON_SPECS
-from drivers.clamp.codec import SPECS as CLAMP_SPECS
-from drivers.clamp.codec import STAGE_MAX_MM, STAGE_MIN_MM
-from drivers.codec import HostCodec
-from drivers.gates.codec import SPECS as GATES_SPECS
-from drivers.wire import Reply
-from simulators.device import SimDevice
-from simulators.effects import FaultConfig
-from simulators.records import ShotTruth
-from simulators.scene import Scene
-from simulators.world import SimWorld
+from rig.drivers.cannon.codec import MAX_PRESSURE_KPA
+from rig.drivers.cannon.codec import SPECS as CANNON_SPECS
+from rig.drivers.clamp.codec import SPECS as CLAMP_SPECS
+from rig.drivers.clamp.codec import STAGE_MAX_MM, STAGE_MIN_MM
+from rig.drivers.codec import HostCodec
+from rig.drivers.gates.codec import SPECS as GATES_SPECS
+from rig.drivers.wire import Reply
+from rig.simulators.device import SimDevice
+from rig.simulators.effects import FaultConfig
+from rig.simulators.records import ShotTruth
+from rig.simulators.scene import Scene
+from rig.simulators.world import SimWorld
 
 WARM_SPEED_M_S = 60.8  # the BBCOR inbound speed: the solve a certification asks for first
 

@@ -2,7 +2,7 @@
 
 Built from a Scene. The effects the scene turns on are inspected once here: their chained hooks
 go into `hooks`, and slot-filling effects replace the default flight, collision, counter, recoil
-sensor and lab sensors of `simulators.physics`. A scene without effects therefore runs the closed
+sensor and lab sensors of `rig.simulators.physics`. A scene without effects therefore runs the closed
 forms only, with the rigid-barrel collision solved once per distinct impact.
 """
 
@@ -17,12 +17,12 @@ from typing import Any
 
 from rig.core.devices import Interlocks
 from rig.physics import CollisionParams
-from simulators.cannon import SimCannon
-from simulators.clamp import SimClamp
-from simulators.device import SimDevice
-from simulators.effects import CHAINED_HOOKS, Effect, overrides
-from simulators.gates import SimGates
-from simulators.physics import (
+from rig.simulators.cannon import SimCannon
+from rig.simulators.clamp import SimClamp
+from rig.simulators.device import SimDevice
+from rig.simulators.effects import CHAINED_HOOKS, Effect, overrides
+from rig.simulators.gates import SimGates
+from rig.simulators.physics import (
     Collision,
     EnvironmentSensor,
     Flight,
@@ -36,9 +36,9 @@ from simulators.physics import (
     drop_m,
     pendulum_period,
 )
-from simulators.records import Crossing, Outgoing, ShotTruth, SimBall
-from simulators.scene import Scene
-from simulators.timeline import Schedule
+from rig.simulators.records import Crossing, Outgoing, ShotTruth, SimBall
+from rig.simulators.scene import Scene
+from rig.simulators.timeline import Schedule
 
 RECOIL_REPORT_S = 0.01  # the encoder reports the peak angular speed this long after contact
 FIRST_BALL = "ball-01"  # the ball in the breech until the host LOADs one
@@ -62,12 +62,12 @@ class SimWorld:
             for i, spec in enumerate(scene.effects)
             if spec.enabled
         )
-        # each hook has its own signature (simulators.effects.base.Effect): callers know which they call
+        # each hook has its own signature (rig.simulators.effects.base.Effect): callers know which they call
         self.hooks: dict[str, tuple[Callable[..., Any], ...]] = {
             hook: tuple(getattr(e, hook) for e in self.effects if overrides(e, hook))
             for hook in CHAINED_HOOKS
         }
-        # the effect in a slot is that slot's component (simulators.physics: Flight, Collision, ...)
+        # the effect in a slot is that slot's component (rig.simulators.physics: Flight, Collision, ...)
         slots: dict[str, Any] = {e.slot: e for e in self.effects if e.slot}
         self.flight: Flight = slots.get("flight") or StraightFlight()
         self.collision: Collision = slots.get("collision") or RigidCollision(scene.bat.moi_kgm2)

@@ -6,9 +6,9 @@ sending it, and the simulator treats it as authoritative.
 
 from __future__ import annotations
 
-from drivers.codec import CommandSpec, flag, number, token
-from drivers.wire import Event, Reply
 from rig.core.devices import CannonState, CannonStatus, Environment, Interlocks
+from rig.drivers.codec import CommandSpec, flag, number, token
+from rig.drivers.wire import Event, Reply
 
 MAX_PRESSURE_KPA = 1000.0
 BALL_ID_MAX = 40  # characters of a ball id (lot id, '-', ball number)

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from drivers.base import LineDriver
-from drivers.cannon import codec
-from drivers.transport import SerialLike, TrafficRecord
-from drivers.wire import Event
 from rig.core.devices import CannonStatus, Environment
 from rig.core.errors import DeviceError, NotSent, ParameterError, SafetyRefusal
+from rig.drivers.base import LineDriver
+from rig.drivers.cannon import codec
+from rig.drivers.transport import SerialLike, TrafficRecord
+from rig.drivers.wire import Event
 
 
 class CannonDriver(LineDriver):

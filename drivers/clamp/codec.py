@@ -7,9 +7,9 @@ the pendulum period used to measure the MOI (ASTM F2398).
 
 from __future__ import annotations
 
-from drivers.codec import CommandSpec, flag, integer, number
-from drivers.wire import Event, Reply
 from rig.core.devices import STAGE_RANGE_MM, ClampStatus, PendulumPeriod, Recoil
+from rig.drivers.codec import CommandSpec, flag, integer, number
+from rig.drivers.wire import Event, Reply
 
 STAGE_MIN_MM, STAGE_MAX_MM = STAGE_RANGE_MM
 

@@ -8,13 +8,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from drivers.base import LineDriver
-from drivers.clamp import codec
-from drivers.codec import flag
-from drivers.transport import SerialLike, TrafficRecord
-from drivers.wire import Event
 from rig.core.devices import ClampStatus, PendulumPeriod, Recoil
 from rig.core.errors import DeviceError, DeviceTimeout
+from rig.drivers.base import LineDriver
+from rig.drivers.clamp import codec
+from rig.drivers.codec import flag
+from rig.drivers.transport import SerialLike, TrafficRecord
+from rig.drivers.wire import Event
 
 
 class ClampDriver(LineDriver):

@@ -6,9 +6,9 @@ T=<tick>``; the tick counter is BITS wide and wraps, so differences are taken mo
 
 from __future__ import annotations
 
-from drivers.codec import CommandSpec
-from drivers.wire import Event, Reply
 from rig.core.devices import GateConfig, GateCrossing
+from rig.drivers.codec import CommandSpec
+from rig.drivers.wire import Event, Reply
 
 N_GATES = 3
 

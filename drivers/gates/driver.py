@@ -8,11 +8,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 
-from drivers.base import LineDriver
-from drivers.gates import codec
-from drivers.transport import ReceivedEvent, SerialLike, TrafficRecord
 from rig.core.devices import GateConfig, GateCrossing
 from rig.core.errors import DeviceError, DeviceTimeout, GarbledReply
+from rig.drivers.base import LineDriver
+from rig.drivers.gates import codec
+from rig.drivers.transport import ReceivedEvent, SerialLike, TrafficRecord
 
 
 class GatesDriver(LineDriver):

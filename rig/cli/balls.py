@@ -43,10 +43,10 @@ def cmd_register(args: argparse.Namespace) -> int:
 
 def cmd_test(args: argparse.Namespace) -> int:
     """rig balls test: run a ball test (ccor, ball-cor) on a registered lot, recording everything."""
-    from protocols.ball_procedure import BallProcedure
-    from protocols.runner import RunControl, ScriptedOperator
     from rig.balls import recorded_test, rehearse_test, run_ball_test
     from rig.core import events as ev
+    from rig.protocols.ball_procedure import BallProcedure
+    from rig.protocols.runner import RunControl, ScriptedOperator
     from rig.report.live import LiveConsole
     from rig.run_signals import stop_on_signals
 

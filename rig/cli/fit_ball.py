@@ -134,7 +134,7 @@ def check_calibration_ball(cal: Any, ball: str, who: str) -> None:
             " recalibrate with --ball or drop --ball",
             source=who,
         )
-    from protocols.verdict import same_law
+    from rig.protocols.verdict import same_law
 
     if not same_law(dict(recorded["constants"]), dict(law.constants)):
         raise ConfigError(

@@ -178,9 +178,9 @@ def cmd_study(args: argparse.Namespace) -> int:
     bats, sources, notes = [], [], []
     data = args.data
     if not data and not args.db:
-        import protocols
+        import rig.protocols
 
-        data = [str(Path(protocols.__file__).parent / "examples" / "population.csv")]
+        data = [str(Path(rig.protocols.__file__).parent / "examples" / "population.csv")]
         print("rig: no --data or --db: using the SYNTHETIC sample population", file=sys.stderr)
     for path in data or []:
         bats += load_population(path)

@@ -43,7 +43,7 @@ def _signoff(args: argparse.Namespace, flag: str) -> Any:
 def _resume_command(store: Any, run_id: str, args: argparse.Namespace) -> str:
     """`rig certify --resume RUN ...` as the operator types it: the rig and store of this command;
     for a run that never started, also what it starts with (a procedure file, balls, calibration)."""
-    from protocols.procedure import BUILTIN
+    from rig.protocols.procedure import BUILTIN
 
     where = ("--config", args.config) if args.config else ("--sim", args.sim) if args.sim else None
     rig = f"{where[0]} {shlex.quote(where[1])}" if where else "--config RIG.toml"
@@ -85,12 +85,12 @@ def _end(args: argparse.Namespace) -> int:
 
 def cmd_certify(args: argparse.Namespace) -> int:
     """rig certify: run a certification procedure on a bat, live, recording everything."""
-    from protocols.dryrun import rehearse
-    from protocols.procedure import Procedure
-    from protocols.runner import RunControl, ScriptedOperator
     from rig.certification import RunNotRecorded, certify
     from rig.core.bat import BatSpec
     from rig.core.errors import StoreError
+    from rig.protocols.dryrun import rehearse
+    from rig.protocols.procedure import Procedure
+    from rig.protocols.runner import RunControl, ScriptedOperator
     from rig.report.live import LiveConsole
     from rig.report.record import run_record
     from rig.run_signals import stop_on_signals
@@ -145,7 +145,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
         rehearsal = rehearse(procedure, bat, config, history=past)  # a resumed run: what is left of it
         problems = rehearsal.problems
         if args.dry_run and not args.resume:
-            from protocols.evaluate import run_calibration
+            from rig.protocols.evaluate import run_calibration
 
             run_calibration(procedure, config)  # a named calibration that will not load is named here
         if problems:  # one line, every problem in it

@@ -22,7 +22,7 @@ def cmd_shot(args: argparse.Namespace) -> int:
 
     A cannon an earlier shot left in FAULT (a misfire) is reset to SAFE first, and the user told.
     """
-    from protocols.shot import ShotFailed, fire_shot, prepare
+    from rig.protocols.shot import ShotFailed, fire_shot, prepare
     from rig.session import RigSession
 
     config = rig_config(args)
@@ -81,8 +81,8 @@ def cmd_sim_serve(args: argparse.Namespace) -> int:
     """
     from pydantic import ValidationError
 
-    from simulators.scene import Scene
-    from simulators.serve import serve
+    from rig.simulators.scene import Scene
+    from rig.simulators.serve import serve
 
     scene = Scene.load(args.scene)
     if args.bat is not None:

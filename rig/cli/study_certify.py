@@ -119,8 +119,8 @@ def write_bat_files(args: argparse.Namespace, bats: list[SimulatedBat]) -> Path:
 def _sim_config(scene_name: str, bat: SimulatedBat) -> tuple[Any, str]:
     """A rig config on a fresh simulated rig whose bat is this one (true MOI, alteration)."""
     from rig.session import scene_with_bat, sim_config
-    from simulators.scene import Scene
-    from simulators.urlhandler import install_world
+    from rig.simulators.scene import Scene
+    from rig.simulators.urlhandler import install_world
 
     rig = f"population-{uuid.uuid4().hex[:8]}"
     true_bat = bat.spec.model_copy(update={"moi_kgm2": bat.moi_kgm2})  # the file leaves it to the rig
@@ -145,13 +145,13 @@ def certify_population(args: argparse.Namespace) -> Tally:
     """Certify the population's bats still missing from the store; stops on the first signal."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from protocols.procedure import Procedure
-    from protocols.runner import RunControl, ScriptedOperator
     from rig.certification import certify
     from rig.core import events as ev
+    from rig.protocols.procedure import Procedure
+    from rig.protocols.runner import RunControl, ScriptedOperator
     from rig.run_signals import stop_on_signals
-    from simulators.scene import Scene
-    from simulators.urlhandler import drop_world
+    from rig.simulators.scene import Scene
+    from rig.simulators.urlhandler import drop_world
 
     check_args(args)
     scene = Scene.load(args.scene)  # a bad scene is refused before anything is written

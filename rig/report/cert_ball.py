@@ -2,7 +2,7 @@
 and the ball's part of the budget.
 
 From the record alone: the ball terms RunStarted recorded (`record["ball"]`, the fields of
-protocols.ball_terms.BallTerms), each shot's ball and its hits before it (`raw`), and the verdict's
+rig.protocols.ball_terms.BallTerms), each shot's ball and its hits before it (`raw`), and the verdict's
 `ball` (its corrections per valid hit, in the order of the hits, and its budget terms). A record
 made before any of these were kept has no Balls section (it reports as it did when it was made),
 and its valid hits show the ball's number.

@@ -7,11 +7,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from protocols.evaluate import cross_check, run_calibration
-from protocols.runner import RunControl
 from rig.certification import Outcome, certify
 from rig.core.errors import RigError
 from rig.core.events import Subscriber
+from rig.protocols.evaluate import cross_check, run_calibration
+from rig.protocols.runner import RunControl
 from rig.store import Store
 from rig.tui.operator import ConsoleOperator
 from rig.tui.rigs import ConsoleSettings, RunJob

@@ -14,11 +14,11 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
-from protocols.procedure import Procedure
 from rig.core import events as ev
 from rig.core.devices import CannonStatus, GateConfig
 from rig.core.events import RunEvent
 from rig.core.run_state import RunState, ShotEntry
+from rig.protocols.procedure import Procedure
 
 
 @dataclass

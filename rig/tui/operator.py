@@ -14,15 +14,15 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from protocols.runner import RunAborted
 from rig.core.devices import CannonStatus, GateConfig
 from rig.core.errors import RigError
+from rig.protocols.runner import RunAborted
 from rig.session import RigSession
 
 
 @dataclass(frozen=True)
 class PromptPending:
-    """The runner asks the operator something; `prompt_id` as in protocols.runner."""
+    """The runner asks the operator something; `prompt_id` as in rig.protocols.runner."""
 
     prompt_id: str
     text: str

@@ -15,10 +15,10 @@ from typing import TYPE_CHECKING, TypeVar
 from rig.core.errors import RigError
 
 if TYPE_CHECKING:  # the session, the drivers and the procedures load when a rig is first used
-    from protocols.procedure import Procedure
     from rig.core.bat import BatSpec
     from rig.core.config import RigConfig
     from rig.core.devices import CannonStatus, ClampStatus, Environment, GateConfig
+    from rig.protocols.procedure import Procedure
 
 SCENES = ("ideal", "lab", "faulty")
 T = TypeVar("T")

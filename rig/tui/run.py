@@ -21,10 +21,10 @@ from textual.screen import Screen
 from textual.widgets import Footer, Header, RichLog, Static
 from textual.worker import Worker
 
-from protocols.runner import RunControl
 from rig.certification import Outcome
 from rig.core import events as ev
 from rig.core.events import RunEvent
+from rig.protocols.runner import RunControl
 from rig.tui import render, situation
 from rig.tui.jobs import JobResult, predict, run_job
 from rig.tui.live import LiveRun

@@ -250,8 +250,8 @@ class SetupScreen(Screen[None]):
     def build_job(self) -> RunJob:
         """The run the form describes; raises RigError (with the field) when something is wrong."""
         with LOADING:  # loaded at the first start (or by the warm-up), not before the first paint
-            from protocols.procedure import Procedure
-            from protocols.runner import dry_run
+            from rig.protocols.procedure import Procedure
+            from rig.protocols.runner import dry_run
 
         bat = self.bat_from_form()
         procedure = Procedure.load(str(self.query_one("#procedure", Select).value))

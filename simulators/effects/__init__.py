@@ -10,17 +10,17 @@ from typing import Annotated
 
 from pydantic import Field
 
-from simulators.effects.base import CHAINED_HOOKS, SLOTS, Effect, EffectConfig, FaultConfig, overrides
-from simulators.effects.drag import DragConfig
-from simulators.effects.environment import EnvironmentConfig
-from simulators.effects.faults_cannon import InterlockConfig, MisfireConfig
-from simulators.effects.faults_gates import DoubleTriggerConfig, MissedTriggerConfig
-from simulators.effects.faults_link import DroppedReplyConfig, GarbledConfig, UnplugConfig
-from simulators.effects.recoil import RecoilConfig
-from simulators.effects.scatter import SpeedScatterConfig
-from simulators.effects.timing import GateTimingConfig
-from simulators.effects.trampoline import TrampolineConfig
-from simulators.effects.wear import BallWearConfig
+from rig.simulators.effects.base import CHAINED_HOOKS, SLOTS, Effect, EffectConfig, FaultConfig, overrides
+from rig.simulators.effects.drag import DragConfig
+from rig.simulators.effects.environment import EnvironmentConfig
+from rig.simulators.effects.faults_cannon import InterlockConfig, MisfireConfig
+from rig.simulators.effects.faults_gates import DoubleTriggerConfig, MissedTriggerConfig
+from rig.simulators.effects.faults_link import DroppedReplyConfig, GarbledConfig, UnplugConfig
+from rig.simulators.effects.recoil import RecoilConfig
+from rig.simulators.effects.scatter import SpeedScatterConfig
+from rig.simulators.effects.timing import GateTimingConfig
+from rig.simulators.effects.trampoline import TrampolineConfig
+from rig.simulators.effects.wear import BallWearConfig
 
 EffectSpec = Annotated[
     SpeedScatterConfig

@@ -3,7 +3,7 @@
 Two kinds of hook:
 - chained hooks (methods of `Effect` below): every effect of the scene that overrides one is
   called in scene order, each transforming the value the previous one returned;
-- slots: a component the world otherwise takes from `simulators.physics` (flight, collision,
+- slots: a component the world otherwise takes from `rig.simulators.physics` (flight, collision,
   tick latching, recoil, lab environment). An effect whose configuration names a `slot` is that
   component; a scene may fill each slot once.
 
@@ -19,11 +19,11 @@ from typing import TYPE_CHECKING, Annotated, ClassVar
 from pydantic import BaseModel, ConfigDict, Field, StrictBool
 
 from rig.physics import CollisionParams
-from simulators.records import Crossing, Outgoing, SimBall
+from rig.simulators.records import Crossing, Outgoing, SimBall
 
 if TYPE_CHECKING:
-    from simulators.scene import Scene
-    from simulators.world import SimWorld
+    from rig.simulators.scene import Scene
+    from rig.simulators.world import SimWorld
 
 CHAINED_HOOKS = (
     "launch_speed",

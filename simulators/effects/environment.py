@@ -16,12 +16,12 @@ from typing import TYPE_CHECKING, ClassVar, Literal
 from pydantic import Field
 
 from rig.physics import CollisionParams
-from simulators.effects.base import Effect, EffectConfig
-from simulators.physics import NOMINAL_RH_PCT, NOMINAL_TEMP_C
-from simulators.records import SimBall
+from rig.simulators.effects.base import Effect, EffectConfig
+from rig.simulators.physics import NOMINAL_RH_PCT, NOMINAL_TEMP_C
+from rig.simulators.records import SimBall
 
 if TYPE_CHECKING:
-    from simulators.scene import Scene
+    from rig.simulators.scene import Scene
 
 
 class EnvironmentConfig(EffectConfig):

@@ -7,11 +7,11 @@ from typing import TYPE_CHECKING, Literal
 
 from pydantic import Field
 
-from simulators.effects.base import Effect, FaultConfig, Strikes
+from rig.simulators.effects.base import Effect, FaultConfig, Strikes
 
 if TYPE_CHECKING:
-    from simulators.scene import Scene
-    from simulators.world import SimWorld
+    from rig.simulators.scene import Scene
+    from rig.simulators.world import SimWorld
 
 
 class MisfireConfig(FaultConfig):

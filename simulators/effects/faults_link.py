@@ -11,11 +11,11 @@ from typing import TYPE_CHECKING, Literal
 
 from pydantic import Field
 
-from simulators.effects.base import Effect, FaultConfig, Strikes
-from simulators.records import Outgoing
+from rig.simulators.effects.base import Effect, FaultConfig, Strikes
+from rig.simulators.records import Outgoing
 
 if TYPE_CHECKING:
-    from simulators.scene import Scene
+    from rig.simulators.scene import Scene
 
 Device = Literal["cannon", "gates", "clamp"]
 

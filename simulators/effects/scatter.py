@@ -7,10 +7,10 @@ from typing import TYPE_CHECKING, Literal
 
 from pydantic import Field
 
-from simulators.effects.base import Effect, EffectConfig
+from rig.simulators.effects.base import Effect, EffectConfig
 
 if TYPE_CHECKING:
-    from simulators.scene import Scene
+    from rig.simulators.scene import Scene
 
 # A draw this many sigmas out is clipped, so a wild draw can never reverse the ball.
 _CLIP_SIGMAS = 5.0

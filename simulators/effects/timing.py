@@ -13,10 +13,10 @@ from typing import TYPE_CHECKING, Annotated, ClassVar, Literal
 
 from pydantic import Field
 
-from simulators.effects.base import Effect, EffectConfig
+from rig.simulators.effects.base import Effect, EffectConfig
 
 if TYPE_CHECKING:
-    from simulators.scene import Scene
+    from rig.simulators.scene import Scene
 
 
 class GateTimingConfig(EffectConfig):

@@ -34,11 +34,11 @@ from pydantic import Field
 
 from rig.measure.metrics import recoil_factor
 from rig.physics import CollisionParams
-from simulators.effects.base import Effect, EffectConfig
-from simulators.physics import SolveCache, solve_pivoted
+from rig.simulators.effects.base import Effect, EffectConfig
+from rig.simulators.physics import SolveCache, solve_pivoted
 
 if TYPE_CHECKING:
-    from simulators.scene import Scene
+    from rig.simulators.scene import Scene
 
 
 class TrampolineConfig(EffectConfig):

@@ -15,11 +15,11 @@ from typing import TYPE_CHECKING, Literal
 from pydantic import Field
 
 from rig.physics import CollisionParams
-from simulators.effects.base import Effect, EffectConfig
-from simulators.records import SimBall
+from rig.simulators.effects.base import Effect, EffectConfig
+from rig.simulators.records import SimBall
 
 if TYPE_CHECKING:
-    from simulators.scene import Scene
+    from rig.simulators.scene import Scene
 
 
 class BallWearConfig(EffectConfig):

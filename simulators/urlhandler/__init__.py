@@ -6,7 +6,7 @@ of the simulated rig "default"; ports opened with the same `rig` share one SimWo
 
 from __future__ import annotations
 
-from simulators.urlhandler.registry import drop_world, get_world, install_world, reset_worlds
+from rig.simulators.urlhandler.registry import drop_world, get_world, install_world, reset_worlds
 
 PACKAGE = __name__
 

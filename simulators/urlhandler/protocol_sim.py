@@ -19,10 +19,10 @@ from serial.serialutil import (  # type: ignore[attr-defined]  # to_bytes: pyser
     to_bytes,
 )
 
-from simulators.device import SimDevice, Unplugged
-from simulators.urlhandler import registry
-from simulators.urlhandler.registry import RigConflict
-from simulators.world import SimWorld
+from rig.simulators.device import SimDevice, Unplugged
+from rig.simulators.urlhandler import registry
+from rig.simulators.urlhandler.registry import RigConflict
+from rig.simulators.world import SimWorld
 
 if TYPE_CHECKING:
     from _typeshed import ReadableBuffer

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import threading
 
-from simulators.scene import Scene
-from simulators.world import SimWorld
+from rig.simulators.scene import Scene
+from rig.simulators.world import SimWorld
 
 DEFAULT_RIG = "default"
 DEFAULT_SCENE = "ideal"

@@ -10,16 +10,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from protocols.ball_air import fit_air, pooled_wear
-from protocols.ball_eval import within_ball_fit
-from protocols.ball_procedure import BallProcedure
-from protocols.ball_terms import BallTerms, HitBall, adjust, terms_from_lot
 from rig.balls import run_ball_test
 from rig.core.ball import BallLot, CcorPoint, Conditioning, LotResult
 from rig.physics import rigid_cor
+from rig.protocols.ball_air import fit_air, pooled_wear
+from rig.protocols.ball_eval import within_ball_fit
+from rig.protocols.ball_procedure import BallProcedure
+from rig.protocols.ball_terms import BallTerms, HitBall, adjust, terms_from_lot
 from rig.session import air_starting_at, sim_config
+from rig.simulators.scene import Scene
 from rig.store import Store
-from simulators.scene import Scene
 
 NOMINAL_V = 26.8
 

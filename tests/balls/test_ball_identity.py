@@ -8,18 +8,18 @@ from pathlib import Path
 
 import pytest
 
-from drivers.codec import token
-from drivers.wire import ErrorReply
-from protocols.procedure import Procedure
 from rig.certification import certify, history
 from rig.core.bat import BatSpec
 from rig.core.errors import ConfigError
+from rig.drivers.codec import token
+from rig.drivers.wire import ErrorReply
 from rig.physics import rigid_cor
+from rig.protocols.procedure import Procedure
 from rig.session import scene_with_bat, sim_config
+from rig.simulators.scene import Scene
+from rig.simulators.truth import true_metric
+from rig.simulators.world import SimWorld
 from rig.store import Store
-from simulators.scene import Scene
-from simulators.truth import true_metric
-from simulators.world import SimWorld
 from tests.sim.hosts import Rig
 
 P = 395.0

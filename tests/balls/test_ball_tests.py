@@ -17,15 +17,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from protocols.ball_procedure import BallProcedure
-from protocols.control import RunControl
 from rig.balls import recomputed_problems, run_ball_test
 from rig.core import events as ev
 from rig.core.ball import BallLot
 from rig.physics import CollisionParams
+from rig.protocols.ball_procedure import BallProcedure
+from rig.protocols.control import RunControl
 from rig.session import sim_config
+from rig.simulators.urlhandler import get_world
 from rig.store import Store
-from simulators.urlhandler import get_world
 
 # A rig with what a measurement has to cope with (drag, gate jitter and latency, launch scatter)
 # but a ball that stays as it is: its truth is one function of the inbound speed.
@@ -219,9 +219,9 @@ def test_verify_passes_and_finds_an_altered_result(store: Store, tmp_path: Path)
 
 def test_a_target_scene_is_the_rigid_cor_and_a_bat_scene_is_unchanged(tmp_path: Path) -> None:
     from rig.physics import rigid_cor
-    from simulators.physics import RigidCollision, RigidTarget
-    from simulators.scene import Scene
-    from simulators.world import SimWorld
+    from rig.simulators.physics import RigidCollision, RigidTarget
+    from rig.simulators.scene import Scene
+    from rig.simulators.world import SimWorld
 
     lab = Scene.load("lab")
     assert isinstance(SimWorld(lab).collision, type(SimWorld(lab).collision))
@@ -255,8 +255,8 @@ def test_an_unknown_lot_names_the_known_ones(store: Store) -> None:
 
 def test_math_of_the_wear_slope() -> None:
     """Two balls at different levels, one common slope: the fit finds it exactly."""
-    from protocols.ball_eval import within_ball_fit
     from rig.core.ball import CcorPoint
+    from rig.protocols.ball_eval import within_ball_fit
 
     pts = [
         CcorPoint(

@@ -9,16 +9,16 @@ from typing import Any
 
 import pytest
 
-from protocols.ball_procedure import BallProcedure
-from protocols.ball_terms import BallTerms
-from protocols.procedure import Procedure
-from protocols.state import fold
 from rig.ball_rules import lot_terms
 from rig.balls import run_ball_test
 from rig.certification import certify, history
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.errors import ConfigError
+from rig.protocols.ball_procedure import BallProcedure
+from rig.protocols.ball_terms import BallTerms
+from rig.protocols.procedure import Procedure
+from rig.protocols.state import fold
 from rig.session import sim_config
 from rig.store import Store
 from tests.unit.clirun import GOOD_BAT, QUICK_PROCEDURE, run_cli

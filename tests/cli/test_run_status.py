@@ -12,11 +12,11 @@ from pathlib import Path
 
 import pytest
 
-from protocols.procedure import Procedure
-from protocols.runner import RunControl
 from rig.certification import Signoff, certify, end_run
 from rig.cli import main
 from rig.core.bat import BatSpec
+from rig.protocols.procedure import Procedure
+from rig.protocols.runner import RunControl
 from rig.session import sim_config
 from rig.store import Store, shown_status
 from tests.unit.clirun import GOOD_BAT, QUICK_PROCEDURE

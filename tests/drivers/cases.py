@@ -6,10 +6,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from drivers.base import Identity, LineDriver
-from drivers.cannon.driver import CannonDriver
-from drivers.clamp.driver import ClampDriver
-from drivers.gates.driver import GatesDriver
 from rig.core.devices import (
     CannonState,
     CannonStatus,
@@ -19,6 +15,10 @@ from rig.core.devices import (
     Interlocks,
     PendulumPeriod,
 )
+from rig.drivers.base import Identity, LineDriver
+from rig.drivers.cannon.driver import CannonDriver
+from rig.drivers.clamp.driver import ClampDriver
+from rig.drivers.gates.driver import GatesDriver
 from tests.drivers.fakeport import Exchange, cmd, event, ok
 
 # event deadlines short enough for tests; reply deadlines are set by `scripted` (0.1 s)

@@ -14,9 +14,9 @@ from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from typing import Any, TypeVar
 
-from drivers.base import LineDriver
-from drivers.codec import DeviceCodec
-from drivers.wire import Command, ErrorReply, LineDecoder, Reply, encode
+from rig.drivers.base import LineDriver
+from rig.drivers.codec import DeviceCodec
+from rig.drivers.wire import Command, ErrorReply, LineDecoder, Reply, encode
 
 
 @dataclass(frozen=True)

@@ -6,8 +6,8 @@ import time
 
 import pytest
 
-from drivers.cannon.driver import CannonDriver
 from rig.core.errors import DeviceError, DeviceRefused, DeviceTimeout, GarbledReply, ParameterError
+from rig.drivers.cannon.driver import CannonDriver
 from tests.drivers.cases import FAST, cannon_status
 from tests.drivers.fakeport import cmd, err, event, ok, scripted
 

@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import pytest
 
-from drivers.cannon.driver import CannonDriver
-from drivers.codec import DeviceCodec
-from drivers.wire import Command, ErrorReply, LineDecoder, Reply
 from rig.core.devices import CannonState
 from rig.core.errors import DeviceRefused, SafetyRefusal
-from simulators.scene import Scene
-from simulators.world import SimWorld
+from rig.drivers.cannon.driver import CannonDriver
+from rig.drivers.codec import DeviceCodec
+from rig.drivers.wire import Command, ErrorReply, LineDecoder, Reply
+from rig.simulators.scene import Scene
+from rig.simulators.world import SimWorld
 from tests.drivers.cases import FAST, cannon_status
 from tests.drivers.fakeport import FakePort, cmd, ok, scripted
 from tests.sim.hosts import Rig

@@ -6,9 +6,9 @@ import time
 
 import pytest
 
-from drivers.clamp.driver import ClampDriver
 from rig.core.devices import Recoil
 from rig.core.errors import DeviceError, DeviceRefused, DeviceTimeout, GarbledReply, ParameterError
+from rig.drivers.clamp.driver import ClampDriver
 from tests.drivers.cases import FAST
 from tests.drivers.fakeport import cmd, err, event, ok, scripted
 

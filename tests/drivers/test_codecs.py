@@ -8,11 +8,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from drivers.cannon import codec as cannon
-from drivers.clamp import codec as clamp
-from drivers.codec import BadCommand, CheckedCommand, DeviceCodec, HostCodec
-from drivers.gates import codec as gates
-from drivers.wire import MAX_SEQ, Command, Garbled, Reply, crc16, encode
+from rig.drivers.cannon import codec as cannon
+from rig.drivers.clamp import codec as clamp
+from rig.drivers.codec import BadCommand, CheckedCommand, DeviceCodec, HostCodec
+from rig.drivers.gates import codec as gates
+from rig.drivers.wire import MAX_SEQ, Command, Garbled, Reply, crc16, encode
 from tests.drivers.fakeport import cmd, ok
 
 

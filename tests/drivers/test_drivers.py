@@ -6,12 +6,12 @@ import time
 
 import pytest
 
-from drivers.cannon.driver import CannonDriver
-from drivers.clamp.driver import ClampDriver
-from drivers.gates.driver import GatesDriver
-from drivers.transport import SAFE_TO_REPEAT
 from rig.core.devices import Cannon, Clamp, Gates
 from rig.core.errors import DeviceGone, DeviceRefused, DeviceTimeout, GarbledReply
+from rig.drivers.cannon.driver import CannonDriver
+from rig.drivers.clamp.driver import ClampDriver
+from rig.drivers.gates.driver import GatesDriver
+from rig.drivers.transport import SAFE_TO_REPEAT
 from tests.drivers.cases import CASES, FAST, Case
 from tests.drivers.fakeport import SILENT, WRITE_FAILS, FakePort, corrupt, err, ok, scripted, shift
 

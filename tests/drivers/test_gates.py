@@ -6,9 +6,9 @@ import time
 
 import pytest
 
-from drivers.gates.driver import GatesDriver
 from rig.core.devices import GateCrossing
 from rig.core.errors import DeviceError, DeviceGone, GarbledReply
+from rig.drivers.gates.driver import GatesDriver
 from tests.drivers.fakeport import cmd, event, ok, scripted
 
 

@@ -15,12 +15,12 @@ from pathlib import Path
 import pytest
 import serial
 
-from drivers.codec import CheckedCommand, DeviceCodec
-from drivers.gates.codec import SPECS
-from drivers.gates.driver import GatesDriver
-from drivers.transport import LineTransport, open_port
-from drivers.wire import Event, encode
 from rig.core.errors import DeviceGone, GarbledReply
+from rig.drivers.codec import CheckedCommand, DeviceCodec
+from rig.drivers.gates.codec import SPECS
+from rig.drivers.gates.driver import GatesDriver
+from rig.drivers.transport import LineTransport, open_port
+from rig.drivers.wire import Event, encode
 
 
 @pytest.mark.parametrize(

@@ -12,9 +12,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from drivers.cannon.driver import CannonDriver
 from rig.core.devices import CannonState
 from rig.core.errors import SafetyRefusal
+from rig.drivers.cannon.driver import CannonDriver
 from tests.drivers.cases import FAST, cannon_status
 from tests.drivers.fakeport import cmd, ok, scripted
 

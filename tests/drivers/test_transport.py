@@ -7,10 +7,6 @@ import time
 
 import pytest
 
-from drivers.codec import DeviceCodec
-from drivers.gates.codec import SPECS
-from drivers.transport import LineTransport
-from drivers.wire import Event, Reply
 from rig.core.errors import (
     DeviceGone,
     DeviceRefused,
@@ -18,6 +14,10 @@ from rig.core.errors import (
     GarbledReply,
     ParameterError,
 )
+from rig.drivers.codec import DeviceCodec
+from rig.drivers.gates.codec import SPECS
+from rig.drivers.transport import LineTransport
+from rig.drivers.wire import Event, Reply
 from tests.drivers.fakeport import SILENT, VANISH, WRITE_FAILS, FakePort, cmd, corrupt, err, event, ok
 
 T = 0.1  # reply timeout for these tests

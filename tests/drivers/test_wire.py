@@ -7,7 +7,7 @@ import itertools
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from drivers.wire import (
+from rig.drivers.wire import (
     MAX_LINE,
     Command,
     ErrorReply,

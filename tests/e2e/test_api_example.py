@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from protocols.procedure import Procedure
 from rig.core.bat import BatSpec
+from rig.protocols.procedure import Procedure
 from rig.report.record import run_record
 from rig.store import Store
 

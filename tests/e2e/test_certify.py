@@ -12,10 +12,10 @@ from pathlib import Path
 
 import pytest
 
-from protocols.procedure import Procedure
 from rig.certification import certify
 from rig.cli import main
 from rig.core.bat import BatSpec
+from rig.protocols.procedure import Procedure
 from rig.report.record import run_record
 from rig.session import sim_config
 from rig.store import Store
@@ -148,7 +148,7 @@ def test_bad_procedure_file_is_a_clear_error(
 
 CHILD = textwrap.dedent("""
     import os, signal, sys
-    from protocols.procedure import Procedure
+    from rig.protocols.procedure import Procedure
     from rig.certification import certify
     from rig.core.bat import BatSpec
     from rig.session import sim_config
@@ -286,7 +286,7 @@ def test_inbound_speed_is_known_before_the_ball_reaches_the_bat(tmp_path: Path) 
 
 def test_pause_abort_and_fire_confirmation(tmp_path: Path) -> None:
     """A UI's commands: the operator confirms each fire; abort stops between shots, resumable."""
-    from protocols.runner import RunControl
+    from rig.protocols.runner import RunControl
 
     control = RunControl()
     asked: list[str] = []

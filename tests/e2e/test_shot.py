@@ -12,18 +12,18 @@ from pathlib import Path
 
 import pytest
 
-from protocols.procedure import Procedure
-from protocols.shot import ShotFailed, fire_shot, prepare
 from rig.certification import certify
 from rig.cli import main
 from rig.core.bat import BatSpec
 from rig.core.devices import CannonState
 from rig.core.errors import DeviceError, DeviceGone, DeviceTimeout, RigError, SafetyRefusal
 from rig.physics import DEFAULT_PARAMS, PivotedBat, predict_bat
+from rig.protocols.procedure import Procedure
+from rig.protocols.shot import ShotFailed, fire_shot, prepare
 from rig.session import RigSession, sim_config
+from rig.simulators.scene import Scene
+from rig.simulators.urlhandler import get_world, register, reset_worlds
 from rig.store import Store
-from simulators.scene import Scene
-from simulators.urlhandler import get_world, register, reset_worlds
 from tests.load import stop_group
 
 RIG = [sys.executable, "-m", "rig.cli"]

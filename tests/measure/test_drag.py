@@ -57,8 +57,8 @@ def test_inbound_and_rebound_speeds_at_the_impact_point_match_a_numerical_flight
 
 def test_closed_form_flight_of_the_simulator_gives_back_the_speed() -> None:
     # the simulator's own closed form t(x) = (L/v0) expm1(x/L), v = v0 exp(-x/L)
-    from simulators.effects.drag import DragConfig
-    from simulators.scene import Scene
+    from rig.simulators.effects.drag import DragConfig
+    from rig.simulators.scene import Scene
 
     scene = Scene.load("drag")
     cfg = DragConfig(drag_coefficient=CD, air_density=RHO)

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from protocols.procedure import Procedure
 from rig.certification import certify
 from rig.core.bat import BatSpec
+from rig.protocols.procedure import Procedure
 from rig.session import sim_config
 from rig.store import Store
 
@@ -62,7 +62,7 @@ def test_guarded_decision_uses_the_corrected_mean_and_whole_budget(verdicts: dic
 def test_speeds_at_the_bat_match_the_simulated_truth_and_the_target_is_held_there(tmp_path: Path) -> None:
     """Which speed is at the bat: the recorded impact-point speeds equal the scene's true ones, and the
     speed tolerance (a speed at the bat) judges that speed, not the faster one between the gates."""
-    from simulators.urlhandler.registry import get_world
+    from rig.simulators.urlhandler.registry import get_world
 
     bat = BatSpec.load(SAMPLE_BAT)
     config = sim_config("drag", bat=bat)

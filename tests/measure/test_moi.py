@@ -11,17 +11,17 @@ from typing import Any
 import numpy as np
 import pytest
 
-from protocols.procedure import Procedure
 from rig.certification import certify
 from rig.cli import main
 from rig.core.bat import BatSpec
 from rig.core.config import Pendulum
 from rig.core.errors import ConfigError
 from rig.measure.moi import PendulumReading, PendulumUncertainty, entered_budget, pendulum_budget
+from rig.protocols.procedure import Procedure
 from rig.report.record import run_record
 from rig.session import sim_config
+from rig.simulators.physics import pendulum_period
 from rig.store import Store
-from simulators.physics import pendulum_period
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE_BAT = ROOT / "protocols" / "examples" / "sample-bat.toml"

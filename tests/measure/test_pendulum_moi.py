@@ -1,6 +1,6 @@
 """The pendulum MOI from the swing timings (rig.measure.moi.pendulum_moi), not assembled in the runner.
 
-Checked against the simulator's forward formula (a round trip through simulators.physics) and
+Checked against the simulator's forward formula (a round trip through rig.simulators.physics) and
 against a closed form: a point mass on the pivot at d = g / pi^2 swings with T0 = 2 s exactly,
 and its MOI is m d^2.
 """
@@ -17,7 +17,7 @@ from rig.core.devices import PendulumPeriod
 from rig.core.errors import ParameterError
 from rig.core.units import G_STANDARD
 from rig.measure.moi import pendulum_moi
-from simulators.physics import pendulum_period
+from rig.simulators.physics import pendulum_period
 
 PEND = Pendulum(gravity_m_s2=G_STANDARD)
 

@@ -7,13 +7,13 @@ from typing import Any
 
 import pytest
 
-from protocols import evaluate
-from protocols.procedure import Procedure
-from protocols.state import fold
 from rig.certification import certify, history
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError
+from rig.protocols import evaluate
+from rig.protocols.procedure import Procedure
+from rig.protocols.state import fold
 from rig.session import sim_config
 from rig.store import Store
 

@@ -8,13 +8,13 @@ from pathlib import Path
 
 import pytest
 
-from protocols.procedure import Procedure
 from rig.certification import certify
 from rig.cli import main
 from rig.core.bat import BatSpec
 from rig.population import write_population_csv
 from rig.population.calfile import load_calibration
 from rig.population.store_source import bats_from_store
+from rig.protocols.procedure import Procedure
 from rig.session import sim_config
 from rig.store import Store
 from tests.population.test_calibrate import population

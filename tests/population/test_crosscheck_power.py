@@ -1,6 +1,6 @@
 """The cross-check's power on one simulated population, and the simulated truth it rests on.
 
-The simulated truth (simulators.population.true_metric, the simulated rig's own collision) is
+The simulated truth (rig.simulators.population.true_metric, the simulated rig's own collision) is
 checked against a separate solve of the collision model with the lab scene's true barrel written
 here from rig.physics; the power check runs the calibration and cross-check as a lab would.
 """
@@ -18,9 +18,15 @@ from rig.population.calfile import CalibrationFile, calibration_record
 from rig.population.calibrate import calibrate
 from rig.population.crosscheck import crosscheck_bats
 from rig.population.simulate import simulated_bat, simulated_population
-from simulators.effects.trampoline import TrampolineConfig, bat_offset_bbcor
-from simulators.population import SCAN_IN, best_scan_location, measured_population, scan_maximum, true_metric
-from simulators.scene import Scene
+from rig.simulators.effects.trampoline import TrampolineConfig, bat_offset_bbcor
+from rig.simulators.population import (
+    SCAN_IN,
+    best_scan_location,
+    measured_population,
+    scan_maximum,
+    true_metric,
+)
+from rig.simulators.scene import Scene
 
 LAB = Scene.load("lab")
 TRAMP = next(e for e in LAB.effects if isinstance(e, TrampolineConfig))

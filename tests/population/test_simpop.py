@@ -17,10 +17,10 @@ from rig.core.units import INCH
 from rig.physics import PivotedBat, predict_bat
 from rig.population.simulate import simulated_bat, simulated_population
 from rig.population.store_source import bats_from_store
+from rig.simulators.effects.trampoline import TrampolineConfig
+from rig.simulators.scene import Scene
+from rig.simulators.world import SimWorld
 from rig.store import Store
-from simulators.effects.trampoline import TrampolineConfig
-from simulators.scene import Scene
-from simulators.world import SimWorld
 from tests.e2e.procs import ROOT, burners, wait_count
 
 LAB = Scene.load("lab")

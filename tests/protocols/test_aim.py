@@ -8,7 +8,7 @@ import statistics
 from hypothesis import given
 from hypothesis import strategies as st
 
-from protocols.outcome import AIM_GAIN_MIN, learned_aim
+from rig.protocols.outcome import AIM_GAIN_MIN, learned_aim
 
 TARGET = 60.8
 

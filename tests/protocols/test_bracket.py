@@ -5,9 +5,9 @@ from __future__ import annotations
 import textwrap
 from pathlib import Path
 
-from protocols.procedure import Procedure
 from rig.certification import certify
 from rig.core.bat import BatSpec
+from rig.protocols.procedure import Procedure
 from rig.report.certificate import render
 from rig.report.record import run_record
 from rig.session import sim_config

@@ -17,8 +17,6 @@ import numpy as np
 import pytest
 from scipy.stats import t as student_t
 
-from protocols.evaluate import run_calibration
-from protocols.procedure import Procedure
 from rig.certification import certify, history
 from rig.cli import main
 from rig.core.bat import BatSpec
@@ -28,6 +26,8 @@ from rig.physics import DEFAULT_PARAMS as PAPER
 from rig.physics import PivotedBat, predict_bat
 from rig.population import write_population_csv
 from rig.population.calfile import load_calibration
+from rig.protocols.evaluate import run_calibration
+from rig.protocols.procedure import Procedure
 from rig.report.cert_plots import model_curve
 from rig.report.certificate import render
 from rig.report.record import run_record
@@ -271,7 +271,7 @@ def test_a_bad_calibration_stops_the_run_before_anything_is_recorded(
 
 
 def test_an_unusable_recorded_calibration_leaves_the_verdict_uncalibrated(lab: Path) -> None:
-    from protocols.evaluate import cross_check
+    from rig.protocols.evaluate import cross_check
 
     quick = Procedure.load(lab / "proc.toml")
     recorded = run_calibration(quick, sim_config("ideal", bat=BAT))
@@ -329,7 +329,7 @@ def test_the_console_preview_uses_the_calibration_the_verdict_will(lab: Path) ->
 def test_a_run_with_another_ball_law_than_the_calibrations_is_not_judged_by_it(lab: Path) -> None:
     """The calibration's barrel was fitted with the paper's ball: a run that names another ball law
     gets the uncalibrated prediction made with its own law, and no flag."""
-    from protocols.verdict import cross_check
+    from rig.protocols.verdict import cross_check
 
     procedure = Procedure.model_validate(
         {**Procedure.load("bbcor").model_dump(), "calibration": str(lab / "cal.json")}

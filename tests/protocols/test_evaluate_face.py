@@ -1,8 +1,8 @@
-"""`protocols.evaluate` names the whole evaluation: the shot here, the verdict and cross-check re-exported."""
+"""`rig.protocols.evaluate` names the whole evaluation: the shot here, verdict and cross-check re-exported."""
 
 from __future__ import annotations
 
-from protocols import evaluate, run_inputs, verdict
+from rig.protocols import evaluate, run_inputs, verdict
 
 
 def test_evaluate_re_exports_the_verdict_and_the_run_inputs_unchanged() -> None:

@@ -10,18 +10,18 @@ from typing import Any
 
 import pytest
 
-from protocols import steps
-from protocols.control import PlanError, RunAborted, RunControl, ScriptedOperator
-from protocols.dryrun import dry_run, rehearse
-from protocols.executor import Executor
-from protocols.plan import Checkpoint, Evaluate, Fire, Fired, Move, Plan, PlanContext, Prepare, Record
-from protocols.procedure import Procedure
-from protocols.state import fold
 from rig.certification import certify
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.devices import GateConfig
 from rig.core.errors import ConfigError, DeviceError, GarbledReply
+from rig.protocols import steps
+from rig.protocols.control import PlanError, RunAborted, RunControl, ScriptedOperator
+from rig.protocols.dryrun import dry_run, rehearse
+from rig.protocols.executor import Executor
+from rig.protocols.plan import Checkpoint, Evaluate, Fire, Fired, Move, Plan, PlanContext, Prepare, Record
+from rig.protocols.procedure import Procedure
+from rig.protocols.state import fold
 from rig.session import sim_config
 from rig.store import Store
 

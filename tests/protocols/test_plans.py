@@ -13,9 +13,12 @@ from typing import Any
 
 import pytest
 
-from protocols import steps
-from protocols.control import BudgetExceeded, RunAborted
-from protocols.plan import (
+from rig.core import events as ev
+from rig.core.bat import BatSpec
+from rig.core.devices import Environment, PendulumPeriod
+from rig.protocols import steps
+from rig.protocols.control import BudgetExceeded, RunAborted
+from rig.protocols.plan import (
     Ask,
     Decide,
     Evaluate,
@@ -29,11 +32,8 @@ from protocols.plan import (
     Record,
     TimePendulum,
 )
-from protocols.procedure import Procedure
-from protocols.state import RunState, fold
-from rig.core import events as ev
-from rig.core.bat import BatSpec
-from rig.core.devices import Environment, PendulumPeriod
+from rig.protocols.procedure import Procedure
+from rig.protocols.state import RunState, fold
 from rig.session import sim_config
 
 ROOT = Path(__file__).resolve().parents[2]

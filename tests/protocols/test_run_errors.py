@@ -7,12 +7,12 @@ from pathlib import Path
 
 import pytest
 
-from protocols.procedure import Procedure
-from protocols.runner import RunControl
 from rig.certification import certify
 from rig.cli import main
 from rig.core.bat import BatSpec
 from rig.core.errors import ConfigError
+from rig.protocols.procedure import Procedure
+from rig.protocols.runner import RunControl
 from rig.session import sim_config
 from rig.store import Store
 from tests.protocols.wire import check_fires

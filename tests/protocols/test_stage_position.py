@@ -10,10 +10,10 @@ from pathlib import Path
 
 import pytest
 
-from protocols.procedure import Procedure
 from rig.certification import certify
 from rig.cli import main
 from rig.core.bat import BatSpec
+from rig.protocols.procedure import Procedure
 from rig.session import sim_config
 from rig.store import Store
 from tests.protocols.wire import check_fires, expected_stage_mm, wire_fires

@@ -14,10 +14,10 @@ from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
-from drivers.cannon import codec as cannon_codec
-from drivers.clamp import codec as clamp_codec
-from drivers.codec import CheckedCommand, DeviceCodec
-from drivers.gates import codec as gates_codec
+from rig.drivers.cannon import codec as cannon_codec
+from rig.drivers.clamp import codec as clamp_codec
+from rig.drivers.codec import CheckedCommand, DeviceCodec
+from rig.drivers.gates import codec as gates_codec
 
 SPECS = {"cannon": cannon_codec.SPECS, "clamp": clamp_codec.SPECS, "gates": gates_codec.SPECS}
 

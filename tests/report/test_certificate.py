@@ -13,11 +13,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from protocols.procedure import Procedure
-from protocols.runner import ScriptedOperator
 from rig.certification import certify
 from rig.core.bat import BatSpec
 from rig.core.errors import ConfigError
+from rig.protocols.procedure import Procedure
+from rig.protocols.runner import ScriptedOperator
 from rig.report.cert_doc import html_escape, md_escape
 from rig.report.cert_plots import model_curve
 from rig.report.certificate import NOT_CERTIFIED, render

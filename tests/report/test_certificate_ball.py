@@ -12,10 +12,10 @@ from typing import Any
 
 import pytest
 
-from protocols.ball_terms import BallTerms
-from protocols.procedure import Procedure
 from rig.certification import certify, history
 from rig.core.bat import BatSpec
+from rig.protocols.ball_terms import BallTerms
+from rig.protocols.procedure import Procedure
 from rig.report.cert_doc import html_escape
 from rig.report.certificate import render
 from rig.report.record import run_record

@@ -6,9 +6,9 @@ from collections.abc import Iterator
 
 import pytest
 
-from simulators.scene import Scene
-from simulators.urlhandler import register, reset_worlds
-from simulators.world import SimWorld
+from rig.simulators.scene import Scene
+from rig.simulators.urlhandler import register, reset_worlds
+from rig.simulators.world import SimWorld
 from tests.sim.hosts import Rig
 
 

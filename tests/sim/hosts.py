@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import serial
 
-from drivers.cannon.codec import SPECS as CANNON_SPECS
-from drivers.clamp.codec import SPECS as CLAMP_SPECS
-from drivers.codec import HostCodec
-from drivers.gates.codec import SPECS as GATES_SPECS
-from drivers.wire import ErrorReply, Event, Garbled, Item, Reply
-from simulators.device import SimDevice
-from simulators.world import SimWorld
+from rig.drivers.cannon.codec import SPECS as CANNON_SPECS
+from rig.drivers.clamp.codec import SPECS as CLAMP_SPECS
+from rig.drivers.codec import HostCodec
+from rig.drivers.gates.codec import SPECS as GATES_SPECS
+from rig.drivers.wire import ErrorReply, Event, Garbled, Item, Reply
+from rig.simulators.device import SimDevice
+from rig.simulators.world import SimWorld
 
 SPECS = {"cannon": CANNON_SPECS, "gates": GATES_SPECS, "clamp": CLAMP_SPECS}
 

@@ -5,11 +5,11 @@ from __future__ import annotations
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from drivers.cannon.codec import parse_environment, parse_status, refuse_arm
-from drivers.wire import Command, ErrorReply, Reply, encode
 from rig.core.devices import CannonState
-from simulators.scene import Scene
-from simulators.world import SimWorld
+from rig.drivers.cannon.codec import parse_environment, parse_status, refuse_arm
+from rig.drivers.wire import Command, ErrorReply, Reply, encode
+from rig.simulators.scene import Scene
+from rig.simulators.world import SimWorld
 from tests.sim.hosts import Rig
 
 P = 395.0

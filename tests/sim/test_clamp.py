@@ -6,11 +6,11 @@ import math
 
 import pytest
 
-from drivers.clamp.codec import parse_period, parse_recoil, parse_status
-from drivers.wire import Command, ErrorReply, encode
 from rig.core.units import G_STANDARD
-from simulators.scene import Scene
-from simulators.world import SimWorld
+from rig.drivers.clamp.codec import parse_period, parse_recoil, parse_status
+from rig.drivers.wire import Command, ErrorReply, encode
+from rig.simulators.scene import Scene
+from rig.simulators.world import SimWorld
 from tests.sim.hosts import Rig
 
 

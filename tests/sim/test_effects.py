@@ -7,13 +7,13 @@ import statistics
 
 import pytest
 
-from drivers.cannon.codec import parse_environment
-from drivers.gates.codec import elapsed_ticks, parse_crossing
-from simulators.effects.drag import Drag
-from simulators.effects.environment import LabEnvironment
-from simulators.effects.trampoline import Trampoline
-from simulators.scene import Scene
-from simulators.world import SimWorld
+from rig.drivers.cannon.codec import parse_environment
+from rig.drivers.gates.codec import elapsed_ticks, parse_crossing
+from rig.simulators.effects.drag import Drag
+from rig.simulators.effects.environment import LabEnvironment
+from rig.simulators.effects.trampoline import Trampoline
+from rig.simulators.scene import Scene
+from rig.simulators.world import SimWorld
 from tests.sim.hosts import Rig
 
 P = 395.0

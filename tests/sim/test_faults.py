@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import pytest
 
-from drivers.cannon.codec import parse_status
-from drivers.gates.codec import parse_crossing
-from drivers.wire import ErrorReply, Reply
 from rig.core.devices import CannonState
-from simulators.device import Unplugged
-from simulators.scene import Scene
-from simulators.world import SimWorld
+from rig.drivers.cannon.codec import parse_status
+from rig.drivers.gates.codec import parse_crossing
+from rig.drivers.wire import ErrorReply, Reply
+from rig.simulators.device import Unplugged
+from rig.simulators.scene import Scene
+from rig.simulators.world import SimWorld
 from tests.sim.hosts import Rig
 
 P = 395.0

@@ -8,11 +8,11 @@ import sys
 
 import pytest
 
-from drivers.gates.codec import elapsed_ticks, parse_crossing
+from rig.drivers.gates.codec import elapsed_ticks, parse_crossing
 from rig.physics import CollisionParams, PivotedBat, predict_bat
-from simulators.effects.trampoline import Trampoline, TrampolineConfig
-from simulators.scene import Scene
-from simulators.world import SimWorld
+from rig.simulators.effects.trampoline import Trampoline, TrampolineConfig
+from rig.simulators.scene import Scene
+from rig.simulators.world import SimWorld
 from tests.sim.hosts import Rig
 
 P = 395.0
@@ -88,7 +88,7 @@ def test_the_bat_offset_is_fixed_per_bat_across_worlds_and_processes() -> None:
     a1, a2, b = offset("BAT-A"), offset("BAT-A"), offset("BAT-B")
     assert a1 == a2 and a1 != b and a1 != 0.0
     code = (
-        "from simulators.scene import Scene; from simulators.world import SimWorld;"
+        "from rig.simulators.scene import Scene; from rig.simulators.world import SimWorld;"
         "import tests.sim.test_population_scene as t;"
         "print(repr(SimWorld(t.true_scene('BAT-A')).collision.offset_bbcor))"
     )
@@ -129,7 +129,7 @@ def test_scenes_without_the_new_keys_keep_the_papers_barrel() -> None:
 def test_an_effect_changed_before_the_bat_still_takes_the_bat() -> None:
     """with_effect / with_alteration, then with_bat: the bat's properties still arrive (they were
     silently the scene's default bat before, since a full dump marked every bat field as set)."""
-    from simulators.scene import Scene
+    from rig.simulators.scene import Scene
 
     lab = Scene.load("lab")
     changed = lab.with_effect("trampoline", spread_bbcor=0.008).with_bat(hoop_hz=2500.0, moi_kgm2=0.2)

@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 
 from rig.core.errors import ConfigError
-from simulators.effects import KINDS
-from simulators.scene import Scene
+from rig.simulators.effects import KINDS
+from rig.simulators.scene import Scene
 
 
 def write(tmp_path: Path, text: str) -> Path:
@@ -116,7 +116,7 @@ def test_unknown_scene_lists_the_builtins() -> None:
 
 def _first_draws(scene: Scene) -> list[float]:
     """Each enabled effect's first random draw in a fresh world of `scene`."""
-    from simulators.world import SimWorld
+    from rig.simulators.world import SimWorld
 
     return [e.rng.random() for e in SimWorld(scene).effects]
 

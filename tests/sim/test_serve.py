@@ -13,11 +13,11 @@ from collections.abc import Iterator
 import pytest
 import serial
 
-from drivers.gates.codec import parse_crossing
+from rig.drivers.gates.codec import parse_crossing
 from rig.physics import DEFAULT_PARAMS, PivotedBat, predict_bat
-from simulators.scene import Scene
-from simulators.serve import serve
-from simulators.warmup import warm_up
+from rig.simulators.scene import Scene
+from rig.simulators.serve import serve
+from rig.simulators.warmup import warm_up
 from tests.load import stop_group
 from tests.sim.hosts import Port
 
@@ -208,8 +208,8 @@ def test_warm_up_loads_the_compiled_kernel() -> None:
     was lost to that under load): after the warm-up, single solves run compiled."""
     code = (
         "import sys\n"
-        "from simulators.scene import Scene\n"
-        "from simulators.warmup import warm_up\n"
+        "from rig.simulators.scene import Scene\n"
+        "from rig.simulators.warmup import warm_up\n"
         "from rig.physics import fast\n"
         "warm_up(Scene.load('lab'))\n"
         "print('rig.physics._dop853' in sys.modules, fast._single().__name__)\n"

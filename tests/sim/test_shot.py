@@ -8,12 +8,12 @@ from collections.abc import Callable
 
 import pytest
 
-from drivers.gates.codec import elapsed_ticks, parse_config, parse_crossing
+from rig.drivers.gates.codec import elapsed_ticks, parse_config, parse_crossing
 from rig.physics import DEFAULT_PARAMS, PivotedBat, predict_bat
-from simulators import physics
-from simulators.effects import KINDS, Effect
-from simulators.scene import Scene
-from simulators.world import SimWorld
+from rig.simulators import physics
+from rig.simulators.effects import KINDS, Effect
+from rig.simulators.scene import Scene
+from rig.simulators.world import SimWorld
 from tests.sim.hosts import Rig
 
 P = 395.0

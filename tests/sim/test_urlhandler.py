@@ -9,10 +9,10 @@ from pathlib import Path
 import pytest
 import serial
 
-from drivers.codec import HostCodec
-from drivers.gates.codec import parse_crossing
 from rig.core.errors import ConfigError
-from simulators.urlhandler import get_world, register
+from rig.drivers.codec import HostCodec
+from rig.drivers.gates.codec import parse_crossing
+from rig.simulators.urlhandler import get_world, register
 from tests.sim.hosts import SPECS, Port
 
 pytestmark = pytest.mark.usefixtures("sim_ports")
@@ -21,7 +21,7 @@ pytestmark = pytest.mark.usefixtures("sim_ports")
 def test_register_is_idempotent() -> None:
     register()
     register()
-    assert serial.protocol_handler_packages.count("simulators.urlhandler") == 1
+    assert serial.protocol_handler_packages.count("rig.simulators.urlhandler") == 1
 
 
 def test_a_shot_through_three_ports_of_one_rig() -> None:

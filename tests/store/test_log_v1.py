@@ -12,9 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from protocols.state import fold
 from rig.certification import history
 from rig.cli import main
+from rig.protocols.state import fold
 from rig.store import Store
 
 FIXTURES = Path(__file__).resolve().parents[1] / "fixtures"

@@ -17,10 +17,10 @@ from typing import Any
 import psycopg
 import pytest
 
-from protocols.procedure import Procedure
 from rig.certification import certify
 from rig.cli import main
 from rig.core.bat import BatSpec
+from rig.protocols.procedure import Procedure
 from rig.report.record import run_record
 from rig.session import sim_config
 from rig.store import Store, StoreFileError

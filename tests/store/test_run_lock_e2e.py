@@ -23,7 +23,7 @@ RIG = "import sys; from rig.cli import main; sys.exit(main())"
 # A runner that kills itself (SIGKILL) right after its third shot was recorded as fired.
 KILLED_RUNNER = textwrap.dedent("""
     import os, signal, sys
-    from protocols.procedure import Procedure
+    from rig.protocols.procedure import Procedure
     from rig.certification import certify
     from rig.core.bat import BatSpec
     from rig.session import sim_config

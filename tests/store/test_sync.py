@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from protocols.procedure import Procedure
 from rig.certification import certify
 from rig.cli import main
 from rig.core.bat import BatSpec
+from rig.protocols.procedure import Procedure
 from rig.session import sim_config
 from rig.store import RecordRefused, Store, StoreError
 from rig.store._sync import sync

@@ -14,9 +14,9 @@ from typing import Any
 
 import pytest
 
-from protocols.procedure import Procedure
 from rig.certification import certify
 from rig.core.bat import BatSpec
+from rig.protocols.procedure import Procedure
 from rig.report.record import run_record
 from rig.session import sim_config
 from rig.store import SCHEMA_VERSION, Store

@@ -12,6 +12,7 @@ import pytest
 from textual.widgets import DataTable, Input, Static
 
 from rig.cli import main
+from rig.simulators.urlhandler import get_world
 from rig.store import Store
 from rig.tui import ConsoleSettings, RigChoice, RigConsole
 from rig.tui.history import HistoryScreen
@@ -19,7 +20,6 @@ from rig.tui.modals import ConfirmScreen, HelpScreen
 from rig.tui.rigs import LeftOpen
 from rig.tui.run import RunScreen
 from rig.tui.setup import SetupScreen
-from simulators.urlhandler import get_world
 from tests.tui.conftest import QUICK, SAMPLE_BAT, answer_prompts, start_run, until
 
 SIZE = (80, 24)
@@ -308,8 +308,8 @@ def test_rig_tui_quit_mid_run_says_how_to_resume_and_exits_3(
 
 def test_the_title_line_docs_tui_quotes_is_what_sim_lab_shows(tmp_path: Path) -> None:
     """docs/tui.md quoted `SIMULATED: ideal`, which `rig tui --sim lab` (the README's) never shows."""
-    from protocols.procedure import Procedure
     from rig.core.bat import BatSpec
+    from rig.protocols.procedure import Procedure
     from rig.tui.rigs import RunJob
 
     settings = ConsoleSettings.from_args("lab", None, tmp_path / "r.db", bat=str(SAMPLE_BAT))

@@ -18,9 +18,9 @@ from textual.containers import VerticalScroll
 from textual.pilot import Pilot
 from textual.widgets import DataTable, Input, Static
 
-from protocols.procedure import Procedure
 from rig.certification import certify
 from rig.core.bat import BatSpec
+from rig.protocols.procedure import Procedure
 from rig.session import sim_config
 from rig.store import Store
 from rig.tui import ConsoleSettings, RigConsole

@@ -10,11 +10,11 @@ from types import SimpleNamespace
 
 import pytest
 
-from protocols.procedure import Procedure
-from protocols.runner import RunAborted
 from rig.certification import certify, history
 from rig.core.bat import BatSpec
 from rig.core.devices import CannonState, CannonStatus, GateConfig, Interlocks
+from rig.protocols.procedure import Procedure
+from rig.protocols.runner import RunAborted
 from rig.report.record import run_record
 from rig.session import sim_config
 from rig.store import Store

@@ -19,16 +19,16 @@ from rich.text import Text
 from textual.pilot import Pilot
 from textual.widgets import Input
 
-from protocols.procedure import Procedure
 from rig.certification import certify
 from rig.core.bat import BatSpec
+from rig.protocols.procedure import Procedure
 from rig.session import sim_config
+from rig.simulators.urlhandler import reset_worlds
 from rig.store import Store
 from rig.tui import ConsoleSettings, RigConsole
 from rig.tui.history import HistoryScreen, ReportView
 from rig.tui.modals import TooSmallScreen
 from rig.tui.setup import SetupScreen
-from simulators.urlhandler import reset_worlds
 from tests.tui.conftest import QUICK, ROOT, answer_prompts, start_run, until
 
 SIZE = (80, 24)

@@ -19,7 +19,7 @@ HEAVY = (
     "scipy.integrate",
     "numba",
     "rig.certification",
-    "protocols.runner",
+    "rig.protocols.runner",
     "rig.report",
 )
 

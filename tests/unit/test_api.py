@@ -16,7 +16,7 @@ from typing import Any
 import pytest
 
 import rig
-from protocols.runner import RunControl
+from rig.protocols.runner import RunControl
 from rig.report.record import run_record
 from rig.store import RESERVED_KINDS, Store
 from tests.protocols.wire import check_fires

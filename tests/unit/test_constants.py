@@ -13,7 +13,7 @@ import pytest
 
 from rig.core.bat import PIVOT_FROM_KNOB_IN, PIVOT_FROM_KNOB_M
 from rig.measure.metrics import SwingModel
-from simulators.scene import RigGeometry
+from rig.simulators.scene import RigGeometry
 
 ROOT = Path(__file__).resolve().parents[2]
 PRODUCT = ("rig", "protocols", "simulators", "drivers")
@@ -50,10 +50,10 @@ def test_no_module_restates_the_pivot() -> None:
 def test_the_stage_range_has_one_home() -> None:
     """The clamp stage's 100-900 mm: the wire codec, the plan's location check and the dry run's
     fakes all take it from rig.core.devices (a stage range written as numbers elsewhere fails)."""
-    from drivers.clamp.codec import SPECS, STAGE_MAX_MM, STAGE_MIN_MM
-    from protocols.steps import location_problem
     from rig.core.bat import BatSpec
     from rig.core.devices import STAGE_RANGE_MM
+    from rig.drivers.clamp.codec import SPECS, STAGE_MAX_MM, STAGE_MIN_MM
+    from rig.protocols.steps import location_problem
 
     assert (STAGE_MIN_MM, STAGE_MAX_MM) == STAGE_RANGE_MM == (100.0, 900.0)
     move = SPECS["MOVE"]

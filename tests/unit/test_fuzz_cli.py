@@ -19,9 +19,9 @@ from typing import Any
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from protocols.procedure import Procedure
 from rig.core.config import RigConfig
-from simulators.scene import Scene
+from rig.protocols.procedure import Procedure
+from rig.simulators.scene import Scene
 from tests.unit.clirun import GOOD_BAT, QUICK_PROCEDURE, ROOT, Result, run_cli, toml_document
 
 # 0, negative, denormal-small, huge, huge ints, NaN/inf (as floats and as strings), wrong types

@@ -276,9 +276,9 @@ def _sim_named(name: str) -> RigConfig:
 
 def _run_library(tmp_path: Path, config: RigConfig, **kw: object) -> tuple[str, list[str]]:
     """A quick certification through rig.certification.certify; (run id, the RigNamed lines)."""
-    from protocols.procedure import Procedure
     from rig.certification import certify
     from rig.core.bat import BatSpec
+    from rig.protocols.procedure import Procedure
 
     (tmp_path / "bat.toml").write_text(GOOD_BAT)
     (tmp_path / "proc.toml").write_text(QUICK_PROCEDURE)

@@ -5,10 +5,10 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-import simulators.records
-from simulators.records import ShotTruth
-from simulators.scene import Scene
-from simulators.world import SimWorld
+import rig.simulators.records
+from rig.simulators.records import ShotTruth
+from rig.simulators.scene import Scene
+from rig.simulators.world import SimWorld
 
 ROOT = Path(__file__).resolve().parents[2]
 # Every class whose name is a shot (not a shot's part: ShotInputs, ShotSpeeds, events, errors).
@@ -32,7 +32,7 @@ def _classes_named_shot() -> dict[str, str]:
 
 def test_each_shot_concept_has_one_name_and_no_class_is_a_bare_shot() -> None:
     assert _classes_named_shot() == SHOT_TYPES
-    assert not hasattr(simulators.records, "Shot")
+    assert not hasattr(rig.simulators.records, "Shot")
 
 
 def test_the_simulated_world_keeps_its_truth_as_shot_truth() -> None:
