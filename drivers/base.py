@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import ClassVar, Self, TypeVar
+from typing import Any, ClassVar, Self, TypeVar
 
 from rig.core.errors import GarbledReply
 from rig.drivers.codec import CommandSpec
+from rig.drivers.registry import DriverContext
 from rig.drivers.transport import LineTransport, SerialLike, TrafficRecord
 from rig.drivers.wire import Event, Reply
 
@@ -43,6 +44,23 @@ class LineDriver:
         self.transport = LineTransport(
             self.name, port, self.SPECS, reply_timeout_s=reply_timeout_s, on_traffic=on_traffic, reopen=reopen
         )
+
+    @classmethod
+    def from_context(cls, context: DriverContext) -> Self:
+        """The `rig-line` driver of a rig config: our line protocol at `address` (it takes no options)."""
+        context.only_options({})
+        return cls(
+            context.address,
+            name=context.kind,
+            reply_timeout_s=context.timeouts.reply_s,
+            on_traffic=context.on_traffic,
+            **cls._context_kwargs(context),
+        )
+
+    @classmethod
+    def _context_kwargs(cls, context: DriverContext) -> dict[str, Any]:
+        """A subclass's own constructor arguments taken from the rig config."""
+        return {}
 
     def identify(self) -> Identity:
         """Model, firmware version and serial number."""

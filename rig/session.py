@@ -1,14 +1,15 @@
 """Composition root: a rig config becomes open devices; the CLI and the UI drive a session.
 
 Simulation is chosen by the port URLs alone (`sim://...`): the same drivers run either way.
-This is the one place that knows both the drivers and the simulators exist.
+This is the one place that knows both the drivers and the simulators exist; which driver runs a
+device is the rig config's choice (rig.drivers.registry).
 """
 
 from __future__ import annotations
 
 import contextlib
 import uuid
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 from urllib.parse import quote
@@ -16,10 +17,8 @@ from urllib.parse import quote
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.units import INCH
-from rig.drivers.cannon.driver import CannonDriver
-from rig.drivers.clamp.driver import ClampDriver
-from rig.drivers.gates.driver import GatesDriver
-from rig.drivers.transport import TrafficRecord
+from rig.drivers.registry import DriverContext, open_device
+from rig.drivers.traffic import TrafficRecord
 
 if TYPE_CHECKING:
     from rig.simulators.scene import Scene
@@ -100,44 +99,51 @@ def scene_with_bat(scene: Scene, bat: BatSpec) -> Scene:
 
 @dataclass
 class RigSession:
-    """The open devices of one rig and the raw traffic they have exchanged."""
+    """The open devices of one rig and the raw traffic they have exchanged.
+
+    Each device is made by the driver its rig config names (rig.drivers.registry): the rig's own
+    line protocol, an instrument class, or a lab's own package.
+    """
 
     config: RigConfig
-    cannon: CannonDriver
-    gates: GatesDriver
-    clamp: ClampDriver
+    cannon: Any  # rig.core.devices.Cannon (+ BallLoader when the driver can name balls), closable
+    gates: Any  # rig.core.devices.Gates, closable
+    clamp: Any  # rig.core.devices.Clamp, closable
     traffic: list[tuple[str, TrafficRecord]] = field(default_factory=list)
     closed: bool = field(default=False, init=False)
 
     @classmethod
-    def open(cls, config: RigConfig) -> RigSession:
+    def open(cls, config: RigConfig, source: str = "rig config") -> RigSession:
         """Open every device named in the config; a failure closes what was opened and re-raises."""
-        if any(url.startswith("sim://") for url in config.ports.model_dump().values()):
+        if any(address.startswith("sim://") for address in config.addresses().values()):
             from rig.simulators.urlhandler import register
 
             register()
         traffic: list[tuple[str, TrafficRecord]] = []
-        opened: list[CannonDriver | GatesDriver | ClampDriver] = []
-        reply_s = config.timeouts.reply_s
+        opened: list[Any] = []
 
-        def log(name: str):
+        def log(name: str) -> Callable[[TrafficRecord], None]:
             return lambda rec: traffic.append((name, rec))
 
         try:
-            cannon = CannonDriver(
-                config.ports.cannon,
-                reply_timeout_s=reply_s,
-                ready_timeout_s=config.timeouts.pressure_ready_s,
-                on_traffic=log("cannon"),
-            )
-            opened.append(cannon)
-            gates = GatesDriver(config.ports.gates, reply_timeout_s=reply_s, on_traffic=log("gates"))
-            opened.append(gates)
-            clamp = ClampDriver(config.ports.clamp, reply_timeout_s=reply_s, on_traffic=log("clamp"))
+            for kind in DEVICES:
+                spec = config.device(kind)
+                context = DriverContext(
+                    kind=kind,
+                    name=kind,
+                    address=str(spec.address),
+                    options=spec.options,
+                    timeouts=config.timeouts,
+                    on_traffic=log(kind),
+                    source=source,
+                )
+                opened.append(open_device(kind, context, spec))
         except BaseException:
             for dev in opened:
-                dev.close()
+                with contextlib.suppress(Exception):
+                    dev.close()
             raise
+        cannon, gates, clamp = opened
         return cls(config, cannon, gates, clamp, traffic)
 
     def close(self) -> None:

@@ -8,11 +8,13 @@ would answer) without sending them, and the device refuses again if the driver i
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 from rig.core.devices import CannonStatus, Environment
 from rig.core.errors import DeviceError, NotSent, ParameterError, SafetyRefusal
 from rig.drivers.base import LineDriver
 from rig.drivers.cannon import codec
+from rig.drivers.registry import DriverContext
 from rig.drivers.transport import SerialLike, TrafficRecord
 from rig.drivers.wire import Event
 
@@ -39,6 +41,10 @@ class CannonDriver(LineDriver):
         )
         self.ready_timeout_s = ready_timeout_s  # filling the tank to the setpoint
         self.fire_timeout_s = fire_timeout_s  # FIRE accepted -> `! FIRED`
+
+    @classmethod
+    def _context_kwargs(cls, context: DriverContext) -> dict[str, Any]:
+        return {"ready_timeout_s": context.timeouts.pressure_ready_s}
 
     def status(self) -> CannonStatus:
         """A fresh STATUS: state, pressure, setpoint, interlocks, shot count."""

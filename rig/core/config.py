@@ -19,12 +19,49 @@ class _Model(BaseModel):
     model_config = ConfigDict(frozen=True, extra="forbid", allow_inf_nan=False)
 
 
-class Ports(_Model):
-    """Port URL of each device: a device path, socket://host:port, sim://..., spy://..."""
+DEVICE_KINDS = ("cannon", "gates", "clamp")
+Address = Annotated[str, Field(min_length=1, max_length=1024)]
 
-    cannon: str
-    gates: str
-    clamp: str
+
+class Ports(_Model):
+    """Port URL of each device: a device path, socket://host:port, sim://..., spy://...
+
+    The short form for the rig's own line protocol: a device given here and not in [devices]
+    uses the `rig-line` driver at this URL.
+    """
+
+    cannon: Address | None = None
+    gates: Address | None = None
+    clamp: Address | None = None
+
+
+# A driver's option: a number, a flag, a text or a short list or table of them (a register map).
+OptionValue = str | int | float | bool | list[str | int | float | bool] | dict[str, str | int | float | bool]
+
+
+class DeviceSpec(_Model):
+    """One device's driver and its own options ([devices.cannon] etc.).
+
+    `driver` is a registered name (`rig-line`, `scpi-counter`, `vxm-stage`, `modbus-cannon`), the
+    name of an entry point in the `bat_rig.drivers` group (a lab's own package), or an import path
+    `package.module:factory`. `address` is what the driver connects to (a port URL, a VISA
+    resource, host:port); `options` are the driver's own (it refuses any it does not know).
+    """
+
+    driver: Annotated[str, Field(min_length=1, max_length=256)] = "rig-line"
+    address: Address | None = None
+    options: dict[Annotated[str, Field(max_length=64)], OptionValue] = Field(
+        default_factory=dict, max_length=200
+    )
+    simulated: bool = False  # a simulated twin (rig sim serve --instruments writes it): no bat is measured
+
+
+class Devices(_Model):
+    """Each device's driver; a device left out uses `rig-line` at its [ports] URL."""
+
+    cannon: DeviceSpec | None = None
+    gates: DeviceSpec | None = None
+    clamp: DeviceSpec | None = None
 
 
 # A cannon rig is a few metres long (muzzle to bat about 1.5-3 m): no gate sits farther than 5 m
@@ -158,10 +195,10 @@ def rig_name(text: str) -> str:
     return cleaned or "rig"
 
 
-def _sim_scene(ports: Ports) -> str | None:
+def _sim_scene(addresses: dict[str, str]) -> str | None:
     """The scene of a fully simulated rig (sim:// on every port), else None."""
     scenes = set()
-    for url in ports.model_dump().values():
+    for url in addresses.values():
         if not url.startswith("sim://"):
             return None
         scenes.add(parse_qs(urlsplit(url).query).get("scene", ["ideal"])[0])
@@ -173,7 +210,8 @@ class RigConfig(_Model):
     """Everything the controller must know about one rig."""
 
     name: str = "rig"
-    ports: Ports
+    ports: Ports = Ports()
+    devices: Devices = Devices()
     gates: GateGeometry = GateGeometry()
     aim: AimCalibration = AimCalibration()
     timeouts: Timeouts = Timeouts()
@@ -185,16 +223,41 @@ class RigConfig(_Model):
     model: Model = Model()
     identity: Identity = Identity()
 
+    @model_validator(mode="after")
+    def _every_device_has_an_address(self) -> RigConfig:
+        missing = [kind for kind in DEVICE_KINDS if self.device(kind).address is None]
+        if missing:
+            raise ValueError(
+                "no address for " + ", ".join(missing) + ": give it in [ports] or as [devices.<name>] address"
+            )
+        return self
+
+    def device(self, kind: str) -> DeviceSpec:
+        """The driver, address and options of device `kind` ([devices] first, else [ports] with rig-line)."""
+        spec: DeviceSpec | None = getattr(self.devices, kind)
+        port: str | None = getattr(self.ports, kind)
+        if spec is None:
+            return DeviceSpec(address=port)
+        return spec if spec.address is not None else spec.model_copy(update={"address": port})
+
+    def addresses(self) -> dict[str, str]:
+        """Each device's address, by kind."""
+        return {kind: str(self.device(kind).address) for kind in DEVICE_KINDS}
+
     @property
     def simulated(self) -> bool:
-        """Whether any device of this rig is simulated (a sim:// port): its runs measure no bat."""
-        return any(url.startswith("sim://") for url in self.ports.model_dump().values())
+        """Whether any device of this rig is simulated (a sim:// port or a device marked simulated):
+        its runs measure no bat."""
+        return any(
+            spec.simulated or str(spec.address).startswith("sim://")
+            for spec in map(self.device, DEVICE_KINDS)
+        )
 
     def identity_name(self) -> str:
         """The rig's name: [identity] name, else sim-SCENE for a simulated rig, else the host name."""
         if self.identity.name is not None:
             return self.identity.name
-        scene = _sim_scene(self.ports)
+        scene = _sim_scene(self.addresses())
         return rig_name(f"sim-{scene}" if scene is not None else socket.gethostname())
 
     def identity_record(self, software: str) -> dict[str, str | None]:

@@ -1,0 +1,159 @@
+"""Drivers chosen by configuration: a device's `driver` name becomes an open device.
+
+A name is looked up in this order: the built-in table below (one line per driver), the entry
+points of the `bat_rig.drivers` group (a lab's own package: `name = "package.module:factory"`), an
+import path `package.module:factory`. A factory takes a `DriverContext` and returns an open device
+that satisfies the interface of its kind (rig.core.devices.Cannon, Gates or Clamp) and can be
+closed. A built-in driver is imported only when a rig names it, so a lab without Modbus needs no
+pymodbus loaded.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from importlib.metadata import entry_points
+from typing import Any, Protocol, runtime_checkable
+
+from rig.core.config import DEVICE_KINDS, DeviceSpec, Timeouts
+from rig.core.devices import Cannon, Clamp, Gates
+from rig.core.errors import ConfigError
+from rig.drivers.traffic import TrafficRecord
+
+ENTRY_POINT_GROUP = "bat_rig.drivers"
+
+# name -> kind -> "module:factory". Adding an instrument class is one module and one line here.
+BUILTIN: Mapping[str, Mapping[str, str]] = {
+    "rig-line": {
+        "cannon": "rig.drivers.cannon.driver:CannonDriver.from_context",
+        "gates": "rig.drivers.gates.driver:GatesDriver.from_context",
+        "clamp": "rig.drivers.clamp.driver:ClampDriver.from_context",
+    },
+}
+
+INTERFACES: Mapping[str, type] = {"cannon": Cannon, "gates": Gates, "clamp": Clamp}
+
+
+@runtime_checkable
+class Closable(Protocol):
+    """What the session needs of every device besides its interface: close the connection."""
+
+    def close(self) -> None: ...
+
+
+@dataclass(frozen=True)
+class DriverContext:
+    """What a driver's factory is given: the device, where it is, its options and the rig's timeouts.
+
+    `on_traffic` takes every raw exchange (bytes out 'tx', bytes in 'rx'): the run records them.
+    """
+
+    kind: str
+    name: str
+    address: str
+    options: Mapping[str, Any]
+    timeouts: Timeouts = field(default_factory=Timeouts)
+    on_traffic: Callable[[TrafficRecord], None] | None = None
+    source: str = "rig config"
+
+    def refuse(self, message: str) -> ConfigError:
+        """A configuration error naming the device's [devices] table."""
+        return ConfigError(f"[devices.{self.kind}] {message}", source=self.source)
+
+    def only_options(self, known: Mapping[str, type | tuple[type, ...]]) -> dict[str, Any]:
+        """The options, checked against the names and types the driver knows; one line for a stranger."""
+        unknown = sorted(set(self.options) - set(known))
+        if unknown:
+            names = ", ".join(sorted(known)) or "none"
+            raise self.refuse(f"driver does not know option {unknown[0]!r} (it takes: {names})")
+        for key, value in self.options.items():
+            expected = known[key]
+            if isinstance(value, bool) and bool not in (
+                expected if isinstance(expected, tuple) else (expected,)
+            ):
+                raise self.refuse(f"option {key!r} must be {_type_names(expected)}, not a flag")
+            if not isinstance(value, expected):
+                raise self.refuse(f"option {key!r} must be {_type_names(expected)}, not {value!r}")
+        return dict(self.options)
+
+
+def _type_names(expected: type | tuple[type, ...]) -> str:
+    kinds = expected if isinstance(expected, tuple) else (expected,)
+    return " or ".join(
+        {int: "a whole number", float: "a number", str: "text", bool: "true or false"}.get(k, k.__name__)
+        for k in kinds
+    )
+
+
+def known_drivers(kind: str) -> list[str]:
+    """The names a rig config can give for device `kind`: built in, then installed entry points."""
+    names = [name for name, kinds in BUILTIN.items() if kind in kinds]
+    return names + sorted(ep.name for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name not in BUILTIN)
+
+
+def factory_for(kind: str, spec: DeviceSpec, source: str = "rig config") -> Callable[[DriverContext], Any]:
+    """The factory `spec.driver` names for device `kind`; ConfigError (one line) if there is none."""
+    if kind not in DEVICE_KINDS:
+        raise ConfigError(f"no device kind {kind!r} (kinds: {', '.join(DEVICE_KINDS)})", source=source)
+    name = spec.driver
+    if name in BUILTIN:
+        target = BUILTIN[name].get(kind)
+        if target is None:
+            serves = ", ".join(BUILTIN[name])
+            raise ConfigError(
+                f"[devices.{kind}] driver {name!r} drives the {serves}, not the {kind}", source=source
+            )
+        return _load(target, kind, name, source)
+    found = [ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == name]
+    if found:
+        return _load(found[0].value, kind, name, source)
+    if ":" in name:
+        return _load(name, kind, name, source)
+    raise ConfigError(
+        f"[devices.{kind}] no driver {name!r} (known: {', '.join(known_drivers(kind))}; "
+        "or an import path package.module:factory)",
+        source=source,
+    )
+
+
+def _load(target: str, kind: str, name: str, source: str) -> Callable[[DriverContext], Any]:
+    module_name, _, attr = target.partition(":")
+    try:
+        obj: Any = importlib.import_module(module_name)
+        for part in attr.split(".") if attr else ():
+            obj = getattr(obj, part)
+    except ImportError as exc:
+        raise ConfigError(
+            f"[devices.{kind}] driver {name!r}: cannot import {module_name!r}: {exc}", source=source
+        ) from None
+    except AttributeError:
+        raise ConfigError(
+            f"[devices.{kind}] driver {name!r}: {module_name!r} has no {attr!r}", source=source
+        ) from None
+    if not callable(obj):
+        raise ConfigError(f"[devices.{kind}] driver {name!r}: {target!r} is not a factory", source=source)
+    return obj
+
+
+def open_device(kind: str, context: DriverContext, spec: DeviceSpec) -> Any:
+    """Build and open device `kind` with its configured driver; the result is checked against the
+    kind's interface (a driver that lacks a method is refused, and closed, before any run uses it)."""
+    device = factory_for(kind, spec, context.source)(context)
+    missing = [m for m in [*_methods(INTERFACES[kind]), "close"] if not callable(getattr(device, m, None))]
+    if missing:
+        if isinstance(device, Closable):
+            device.close()
+        raise ConfigError(
+            f"[devices.{kind}] driver {spec.driver!r} gives a {type(device).__name__} that lacks "
+            + ", ".join(missing)
+            + f" (a {kind} needs rig.core.devices.{INTERFACES[kind].__name__})",
+            source=context.source,
+        )
+    return device
+
+
+def _methods(interface: type) -> list[str]:
+    return sorted(
+        name for name in vars(interface) if not name.startswith("_") and callable(getattr(interface, name))
+    )
