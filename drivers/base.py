@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
 from typing import Any, ClassVar, Self, TypeVar
 
+from rig.core.devices import InstrumentIdentity
 from rig.core.errors import GarbledReply
 from rig.drivers.codec import CommandSpec
 from rig.drivers.registry import DriverContext
@@ -16,13 +16,7 @@ M = TypeVar("M")
 R = TypeVar("R")
 
 
-@dataclass(frozen=True)
-class Identity:
-    """What a device says it is (the ID command)."""
-
-    model: str
-    firmware: str
-    serial_number: str
+Identity = InstrumentIdentity  # what a device says it is (the ID command)
 
 
 class LineDriver:

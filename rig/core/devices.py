@@ -52,6 +52,24 @@ class CannonStatus:
 
 
 @dataclass(frozen=True)
+class InstrumentIdentity:
+    """What an instrument says it is (the ID command, `*IDN?`, Modbus device identification, the
+    stage's model and firmware), recorded at the start of every run."""
+
+    model: str
+    firmware: str
+    serial_number: str
+    maker: str = ""
+
+
+@runtime_checkable
+class Identifiable(Protocol):
+    """A device that can say what it is."""
+
+    def identify(self) -> InstrumentIdentity: ...
+
+
+@dataclass(frozen=True)
 class Environment:
     """Lab temperature and relative humidity."""
 
