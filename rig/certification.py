@@ -22,6 +22,7 @@ from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RecordRefused, RigError, StoreError
 from rig.core.events import RunEvent, Subscriber
+from rig.instruments import Identified, identify
 from rig.keys import Signer, recorded_rig, recorded_simulated, sign_run, signing_for
 from rig.modal.link import with_measured_hoop
 from rig.protocols.dryrun import rehearse
@@ -173,6 +174,7 @@ def certify(
     plan: PlanFactory = certification,
     ball: dict[str, Any] | None = None,
     sign_simulated: bool = False,
+    accept_overdue: Signoff | None = None,
 ) -> Outcome:
     """Run (or with `run_id`, resume) a certification; returns its outcome.
 
@@ -184,8 +186,11 @@ def certify(
     sensitivities, the ball law), recorded in RunStarted; None: assumed defaults, budgeted whole.
     `sign_simulated`: sign a simulated run even with a real rig's key (rig.keys.signing_for); the
     listeners first hear RigNamed: the rig, whether it is simulated, and what its signature will be.
+    `accept_overdue` (who, why) lets instruments past their calibration due date be used, recorded
+    with the instruments' identities (rig.instruments); without it such a run is refused.
     """
     listeners = list(subscribers)
+    override = None if accept_overdue is None else accept_overdue.as_dict()
     resuming = run_id is not None
     if run_id is not None:
         _running(store, run_id, "--resume")
@@ -208,9 +213,11 @@ def certify(
         register_item(store, bat.id, bat.model_dump(mode="json"), refusal)
         meta = {"procedure": procedure.name, "rig": identity}
         session = open_before_run(config)  # a port that will not open: refused, no run created
+        identified = instruments_or_close(session, config, override)  # overdue, wrong serial: refused
         run_id = create_run(store, session, procedure.standard.value, bat.id, meta)
     else:
         session = None  # a resumed run opens its devices under its lock (an error: its interruption)
+        identified = None  # identified under the lock, once its devices are open
 
     def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Driven, Callable[[], Any]]:
         runner = Runner(
@@ -245,6 +252,8 @@ def certify(
         on_open=on_open,
         session=session,
         named=named,
+        identified=identified,
+        override=override,
     )
     return replace(outcome, signing=signing.note)
 
@@ -273,6 +282,23 @@ def open_before_run(config: RigConfig) -> RigSession:
         raise ConfigError(f"the devices could not be opened ({_reason(exc)}); no run was started") from None
 
 
+def instruments_or_close(
+    session: RigSession, config: RigConfig, override: dict[str, str] | None
+) -> ev.InstrumentsIdentified:
+    """A new run's instruments, identified before the run is created: an overdue calibration
+    without an override, or a serial number that is not the listed one, is a ConfigError (one
+    line, the devices closed, nothing recorded)."""
+    try:
+        identified = identify(session, config, override)
+    except BaseException:
+        session.close()
+        raise
+    if identified.refusals:
+        session.close()
+        raise ConfigError("; ".join(identified.refusals) + "; no run was started", source="instruments")
+    return identified.event
+
+
 def create_run(store: Store, session: RigSession, kind: str, item_id: str, meta: dict[str, Any]) -> str:
     """store.create_run, closing the session opened for the run if the store refuses."""
     try:
@@ -295,6 +321,8 @@ def drive(
     what: str = "run",
     session: RigSession | None = None,
     named: RunEvent | None = None,
+    identified: RunEvent | None = None,
+    override: dict[str, str] | None = None,
 ) -> Outcome:
     """Run one recorded run on the rig under its lock: every persisted event committed before the
     plan goes on, any error recorded as the run's interruption (resumable), the run sealed (and
@@ -305,7 +333,9 @@ def drive(
     The store is checked before the run goes on (Store.check_integrity); the verdict reaches the
     listeners only once the run is sealed and read back; a store that fails the run (full, gone)
     raises RunNotRecorded naming the run. `named` (RigNamed) goes to the listeners first, once the
-    lock is held and the store checked: a refused runner says nothing else."""
+    lock is held and the store checked: a refused runner says nothing else. `identified`: a new
+    run's instruments (instruments_or_close); None: identified here once the devices open, and an
+    instrument the run may not use (`override` aside) interrupts it, resumable."""
     verdicts: list[RunEvent] = []  # RunFinished: shown once sealed and read back, never before
 
     def emit(event: RunEvent) -> None:
@@ -319,7 +349,21 @@ def drive(
 
     opened = session  # a new run's devices: closed below however the lock goes (close is idempotent)
     try:
-        outcome = _drive(store, run_id, config, emit, signer, start, resuming, on_open, what, session, named)
+        outcome = _drive(
+            store,
+            run_id,
+            config,
+            emit,
+            signer,
+            start,
+            resuming,
+            on_open,
+            what,
+            session,
+            named,
+            identified,
+            override,
+        )
     except (RunLocked, RunNotRecorded, StoreDamaged):  # refused before anything was recorded, or said
         raise
     except StoreError as exc:  # the store failed the run after it was created: say which run
@@ -348,6 +392,8 @@ def _drive(
     what: str,
     session: RigSession | None,
     named: RunEvent | None = None,
+    identified: RunEvent | None = None,
+    override: dict[str, str] | None = None,
 ) -> Outcome:
     # One runner per run: a second one is refused here (RunLocked), before it opens a device (a new
     # run's are open already: no other runner can know the run yet).
@@ -363,11 +409,21 @@ def _drive(
                 emit(ev.RunInterrupted(reason=reason, extra={"budget_exceeded": False}))
                 return Outcome(run_id, "interrupted", None, reason)
         with session:
+            if identified is None:
+                try:
+                    found = identify(session, config, override)
+                except RigError as exc:
+                    found = Identified(ev.InstrumentsIdentified(devices={}, equipment=[]), (_reason(exc),))
+                if found.refusals:
+                    reason = "; ".join(found.refusals)
+                    emit(ev.RunInterrupted(reason=reason, extra={"budget_exceeded": False}))
+                    return Outcome(run_id, "interrupted", None, reason)
+                identified = found.event
             past = history(store, run_id) if resuming else []  # read under the lock
             if on_open is not None:
                 on_open(session)
             session.traffic.clear()  # opening chatter belongs to no shot
-            driven, run = start(session, past, emit)
+            driven, run = start(session, past, _then_after_start(emit, identified))
             driven.control.settled = False  # one control may steer several runs (rig study --certify)
             try:
                 verdict = run()
@@ -401,6 +457,19 @@ def _drive(
                 return Outcome(run_id, "interrupted", None, reason, budget)
             _seal(store, run_id, "finished", str(verdict["verdict"]), signer)  # sealed under the lock
     return Outcome(run_id, "finished", verdict)
+
+
+def _then_after_start(emit: Emit, identified: RunEvent) -> Emit:
+    """`emit` that records `identified` (what each device said it is) right after the session's
+    RunStarted or RunResumed, before anything moves."""
+    pending = [identified]
+
+    def then(event: RunEvent) -> None:
+        emit(event)
+        if pending and event.kind in (ev.RUN_STARTED, ev.RUN_RESUMED):
+            emit(pending.pop())
+
+    return then
 
 
 def register_item(store: Store, item_id: str, spec: dict[str, Any], refusal: ConfigError) -> None:

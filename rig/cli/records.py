@@ -96,12 +96,26 @@ def cmd_certify(args: argparse.Namespace) -> int:
     from rig.run_signals import stop_on_signals
 
     if args.end:
-        if args.resume or args.procedure or args.bat or args.rig_checked or args.ball_lot or args.ball:
+        if (
+            args.resume
+            or args.procedure
+            or args.bat
+            or args.rig_checked
+            or args.ball_lot
+            or args.ball
+            or args.accept_overdue
+        ):
             raise ConfigError("--end takes only the run, --who and --why", source="command line")
         return _end(args)
     if args.rig_checked and not args.resume:
         raise ConfigError("--rig-checked goes with --resume RUN", source="command line")
     rig_checked = _signoff(args, "--rig-checked") if args.rig_checked else None
+    if args.accept_overdue and args.rig_checked:
+        raise ConfigError(
+            "--accept-overdue and --rig-checked each need their own --who/--why: give one",
+            source="command line",
+        )
+    accept_overdue = _signoff(args, "--accept-overdue") if args.accept_overdue else None
     control = RunControl()
     args.create_db = True
     with stop_on_signals(control), _certify_store(args) as store:
@@ -172,6 +186,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
                 rig_checked=rig_checked,
                 ball=ball,
                 sign_simulated=args.sign_simulated,
+                accept_overdue=accept_overdue,
             )
         except RunNotRecorded as exc:  # the store failed the run: one line, and how to go on if it can
             hint = ""
@@ -442,6 +457,11 @@ def add_parsers(sub: Any) -> None:
         help="with --resume: record that the rig was checked (--who, --why); the re-shoot budget restarts",
     )
     p.add_argument(
+        "--accept-overdue",
+        action="store_true",
+        help="use instruments past their calibration due date for this run (--who, --why recorded)",
+    )
+    p.add_argument(
         "--end", metavar="RUN", help="end an unfinished run with no verdict (--who, --why recorded)"
     )
     p.add_argument(
@@ -450,7 +470,11 @@ def add_parsers(sub: Any) -> None:
         help="sign a simulated run with its rig's key even where that key is not registered, or is a real"
         " rig's (by default a simulated run is signed only where its sim-SCENE key is registered)",
     )
-    p.add_argument("--who", metavar="NAME", help="who checked the rig or ends the run (recorded)")
+    p.add_argument(
+        "--who",
+        metavar="NAME",
+        help="who checked the rig, accepts an overdue calibration or ends the run (recorded)",
+    )
     p.add_argument("--why", metavar="TEXT", help="why (recorded)")
     p.add_argument("--dry-run", action="store_true", help="check the procedure against rig and bat only")
     p.add_argument("--json", action="store_true", help="print the run record as JSON")

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 import socket
+from datetime import date
 from pathlib import Path
 from typing import Annotated, Literal
 from urllib.parse import parse_qs, urlsplit
@@ -178,6 +179,28 @@ class Model(_Model):
     named_by: Literal["rig config", "command line", "script"] = "rig config"
 
 
+class Equipment(_Model):
+    """One item of the rig's equipment list: what it is, its serial number and its calibration.
+
+    `device` ties it to a device of the rig (its identity's serial number must then match);
+    other items (a scale, a thermometer, a gauge block) leave it out. A run refuses an item past
+    its `due` date unless an override (who, why) is recorded.
+    """
+
+    name: Annotated[str, Field(min_length=1, max_length=120)]
+    device: Literal["cannon", "gates", "clamp"] | None = None
+    serial: Annotated[str, Field(min_length=1, max_length=64)] | None = None
+    certificate: Annotated[str, Field(min_length=1, max_length=120)] | None = None
+    calibrated: date | None = None
+    due: date | None = None
+
+    @model_validator(mode="after")
+    def _due_after_calibration(self) -> Equipment:
+        if self.calibrated is not None and self.due is not None and self.due < self.calibrated:
+            raise ValueError(f"{self.name}: due {self.due} is before its calibration {self.calibrated}")
+        return self
+
+
 RIG_NAME_PATTERN = r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}"  # also a key file's name: no path separators
 _NOT_NAME = re.compile(r"[^A-Za-z0-9._-]+")
 
@@ -222,6 +245,7 @@ class RigConfig(_Model):
     pendulum: Pendulum = Pendulum()
     model: Model = Model()
     identity: Identity = Identity()
+    equipment: tuple[Equipment, ...] = Field((), max_length=200)
 
     @model_validator(mode="after")
     def _every_device_has_an_address(self) -> RigConfig:

@@ -73,6 +73,17 @@ class RunStarted(RunEvent):
 
 
 @dataclass(frozen=True)
+class InstrumentsIdentified(RunEvent):
+    """What each device said it is when the session opened, with its equipment-list entry and
+    calibration status (rig.instruments); `override`: who accepted an overdue calibration, and why."""
+
+    kind: ClassVar[str] = "InstrumentsIdentified"
+    devices: dict[str, Any]
+    equipment: list[Any]
+    override: dict[str, Any] | None = None
+
+
+@dataclass(frozen=True)
 class RunResumed(RunEvent):
     kind: ClassVar[str] = "RunResumed"
     shots_so_far: int
@@ -296,6 +307,7 @@ class RunContinued(LiveEvent):
 
 EVENT_TYPES: tuple[type[RunEvent], ...] = (
     RunStarted,
+    InstrumentsIdentified,
     RunResumed,
     EnvironmentChecked,
     MoiMeasured,
@@ -336,6 +348,7 @@ _OPTIONAL: dict[type[RunEvent], frozenset[str]] = {
 # The kinds by name (the store and its queries speak kinds)
 RUN_STARTED = RunStarted.kind
 RUN_RESUMED = RunResumed.kind
+INSTRUMENTS_IDENTIFIED = InstrumentsIdentified.kind
 ENVIRONMENT_CHECKED = EnvironmentChecked.kind
 MOI_MEASURED = MoiMeasured.kind
 OPERATOR_PROMPTED = OperatorPrompted.kind

@@ -66,6 +66,7 @@ class RunState:
     moi: dict[str, Any] | None = None
     environment: dict[str, Any] | None = None  # the latest lab environment check
     environment_checks: list[Noted] = field(default_factory=list)
+    instruments: list[Noted] = field(default_factory=list)  # each session's identification
     operator: list[Noted] = field(default_factory=list)  # prompts and answers, in order
     stops: list[Noted] = field(default_factory=list)  # interruptions, resumptions, rig checks, the end
     scan_extensions: list[Noted] = field(default_factory=list)
@@ -127,6 +128,8 @@ class RunState:
             # a new session may have a repaired cannon or a corrected rig config: aim from the
             # calibration again rather than from what the last session learned
             self.aim_factor, self.aim_shots = 1.0, 0
+        elif kind == ev.INSTRUMENTS_IDENTIFIED:
+            self.instruments.append(noted)
         elif kind == ev.MOI_MEASURED:
             self.moi = d
         elif kind == ev.ENVIRONMENT_CHECKED:

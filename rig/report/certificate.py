@@ -26,6 +26,7 @@ from rig.core.units import INCH, OUNCE
 from rig.report.cert_ball import ball_blocks
 from rig.report.cert_crosscheck import cross_check_blocks
 from rig.report.cert_doc import Banner, Block, Code, Figure, Heading, Para, Table, kv, to_html, to_markdown
+from rig.report.cert_instruments import instrument_blocks
 from rig.report.cert_plots import certification_hits, metric_label, svg_figures, write_figures
 from rig.report.cert_sections import budget_blocks, operator_blocks, shot_blocks
 
@@ -94,6 +95,8 @@ def build(record: dict[str, Any], fig: dict[str, Figure]) -> list[Block]:
         bat_table(record),
         Heading("Rig and software"),
         rig_table(record),
+        Heading("Instruments"),
+        *instrument_blocks(record),
         Heading("Lab environment"),
         *environment_blocks(record),
         *shot_blocks(record, _decimals(record), fig),
@@ -292,7 +295,8 @@ def rig_table(record: dict[str, Any]) -> Table:
     gates = rig.get("gates") or {}
     pos = " / ".join(f"{x:.3f}" for x in gates.get("positions_m") or []) or "—"
     u_pos = gates.get("position_uncertainty_m")
-    ports = rig.get("ports") or {}
+    ports = {k: v for k, v in (rig.get("ports") or {}).items() if v}
+    ports |= {k: d["address"] for k, d in (rig.get("devices") or {}).items() if d and d.get("address")}
     aim = (rig.get("aim") or {}).get("speed_m_s") or []
     return kv(
         [

@@ -76,6 +76,8 @@ def _fill(record: dict[str, Any], st: RunState, locks: list[LogEntry]) -> None:
             record["plan"] = st.setup["plan"]
     record["environment"] = [{**n.data, "t_utc": n.t_utc} for n in st.environment_checks]
     record["moi"] = st.moi
+    if st.instruments:  # runs recorded before instruments were identified have none
+        record["instruments"] = [{**n.data, "t_utc": n.t_utc} for n in st.instruments]
     record["operator"] = [{"kind": n.kind, **n.data, "t_utc": n.t_utc} for n in st.operator]
     record["location"] = st.location
     stops = [(n.seq or 0, {"kind": n.kind, **n.data, "t_utc": n.t_utc}) for n in st.stops]

@@ -1,0 +1,98 @@
+"""The instruments of a run: what each device says it is, its equipment-list entry, its calibration.
+
+Read when a run's devices open (a new run before it is created, a resumed run again) and recorded
+as InstrumentsIdentified, so the certificate lists the instruments used. An instrument past its
+calibration due date stops the run unless an override (who, why) is recorded with it; a device
+whose serial number differs from its equipment-list entry stops it always (the wrong instrument
+is attached, or the list is wrong).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import UTC, date, datetime
+from typing import Any
+
+from rig.core import events as ev
+from rig.core.config import DEVICE_KINDS, Equipment, RigConfig
+from rig.core.devices import Identifiable, InstrumentIdentity
+from rig.core.errors import ConfigError, DeviceError
+
+
+@dataclass(frozen=True)
+class Identified:
+    """The event to record, and what stops the run (empty: it may go on)."""
+
+    event: ev.InstrumentsIdentified
+    refusals: tuple[str, ...]
+
+
+def today_utc() -> date:
+    """The calibration dates are compared with today's date in UTC."""
+    return datetime.now(UTC).date()
+
+
+def identify(
+    session: Any, config: RigConfig, override: dict[str, str] | None, today: date | None = None
+) -> Identified:
+    """Ask each device of the open `session` what it is and check the equipment list; `override`
+    ({who, why}) accepts calibrations past due, and is recorded with them."""
+    day = today or today_utc()
+    devices: dict[str, Any] = {}
+    refusals: list[str] = []
+    for kind in DEVICE_KINDS:
+        spec = config.device(kind)
+        said = _identity(kind, getattr(session, kind))
+        devices[kind] = {
+            "driver": spec.driver,
+            "address": spec.address,
+            "simulated": spec.simulated or str(spec.address).startswith("sim://"),
+            **({} if said is None else _fields(said)),
+        }
+        for item in (e for e in config.equipment if e.device == kind and e.serial):
+            if said is not None and said.serial_number and said.serial_number != item.serial:
+                refusals.append(
+                    f"the {kind} device reports serial number {said.serial_number}, but the equipment list's "
+                    f"{item.name!r} says {item.serial}: attach the listed instrument or correct the list"
+                )
+    overdue = [e for e in config.equipment if e.due is not None and e.due < day]
+    if overdue and override is None:
+        names = ", ".join(f"{e.name} (due {e.due})" for e in overdue)
+        refusals.append(
+            f"calibration past due: {names}; recalibrate, or accept it for this run with "
+            "--accept-overdue --who NAME --why TEXT (recorded)"
+        )
+    equipment = [
+        {**e.model_dump(mode="json", exclude_none=True), "status": status(e, day)} for e in config.equipment
+    ]
+    accepted = override if overdue else None
+    event = ev.InstrumentsIdentified(devices=devices, equipment=equipment, override=accepted)
+    return Identified(event, tuple(refusals))
+
+
+def status(item: Equipment, day: date) -> str:
+    """'in date', 'past due' or 'no due date' on `day`."""
+    if item.due is None:
+        return "no due date"
+    return "past due" if item.due < day else "in date"
+
+
+def _identity(kind: str, device: object) -> InstrumentIdentity | None:
+    """What the device says it is; None if its driver cannot say. A device that does not answer
+    stops the run before anything moves (ConfigError naming it)."""
+    if not isinstance(device, Identifiable):
+        return None
+    try:
+        said = device.identify()
+    except DeviceError as exc:
+        raise ConfigError(f"the {kind} did not say what it is: {exc}", source="instruments") from None
+    return said if isinstance(said, InstrumentIdentity) else None
+
+
+def _fields(said: InstrumentIdentity) -> dict[str, str]:
+    return {
+        "maker": said.maker,
+        "model": said.model,
+        "serial_number": said.serial_number,
+        "firmware": said.firmware,
+    }

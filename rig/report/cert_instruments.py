@@ -1,0 +1,85 @@
+"""The certificate's Instruments section: what each device said it was, and the equipment list's
+calibrations, from the run's InstrumentsIdentified entries (rig.instruments)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rig.report.cert_doc import Block, Para, Table
+
+
+def instrument_blocks(record: dict[str, Any]) -> list[Block]:
+    """One table of the devices per session that identified them (a resumed run may have another
+    instrument attached), then the equipment list with each item's calibration status."""
+    sessions = record.get("instruments") or []
+    if not sessions:
+        return [
+            Para("No instrument identities were recorded for this run (a run recorded before they were).")
+        ]
+    blocks: list[Block] = []
+    shown: list[dict[str, Any]] = []
+    for number, session in enumerate(sessions, 1):
+        devices = session.get("devices") or {}
+        if devices in shown:
+            continue  # the same instruments as an earlier session of the run
+        shown.append(devices)
+        if len(sessions) > 1:
+            blocks.append(Para(f"Session {number} (from {session.get('t_utc') or '?'}):"))
+        blocks.append(
+            Table(("device", "driver", "instrument", "serial number", "firmware", "address"), _rows(devices))
+        )
+    last = sessions[-1]
+    equipment = last.get("equipment") or []
+    if equipment:
+        blocks.append(
+            Table(
+                ("equipment", "device", "serial", "certificate", "calibrated", "due", "status"),
+                _items(equipment),
+            )
+        )
+    else:
+        blocks.append(Para("The rig config lists no equipment calibrations."))
+    override = last.get("override")
+    if override:
+        blocks.append(
+            Para(
+                f"Calibration past due accepted for this run by {override.get('who', '?')}: "
+                f"{override.get('why', '?')}"
+            )
+        )
+    return blocks
+
+
+def _rows(devices: dict[str, Any]) -> tuple[tuple[str, ...], ...]:
+    rows = []
+    for kind in ("cannon", "gates", "clamp"):
+        d = devices.get(kind) or {}
+        said = " ".join(x for x in (d.get("maker"), d.get("model")) if x) or "did not say"
+        if d.get("simulated"):
+            said += " (simulated)"
+        rows.append(
+            (
+                kind,
+                str(d.get("driver", "?")),
+                said,
+                str(d.get("serial_number") or "—"),
+                str(d.get("firmware") or "—"),
+                str(d.get("address") or "—"),
+            )
+        )
+    return tuple(rows)
+
+
+def _items(equipment: list[dict[str, Any]]) -> tuple[tuple[str, ...], ...]:
+    return tuple(
+        (
+            str(e.get("name", "?")),
+            str(e.get("device") or "—"),
+            str(e.get("serial") or "—"),
+            str(e.get("certificate") or "—"),
+            str(e.get("calibrated") or "—"),
+            str(e.get("due") or "—"),
+            str(e.get("status", "?")).upper() if e.get("status") == "past due" else str(e.get("status", "?")),
+        )
+        for e in equipment
+    )

@@ -1,0 +1,1 @@
+"""Instrument classes, their twins, and what a run records of its instruments."""

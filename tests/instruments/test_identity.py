@@ -1,0 +1,129 @@
+"""What a run records of its instruments (rig.instruments): each device's identity, the equipment
+list's calibrations, a refusal for an overdue one (unless accepted, who and why) or a wrong serial."""
+
+from __future__ import annotations
+
+from datetime import timedelta
+from pathlib import Path
+
+import pytest
+
+from rig.certification import Signoff, certify
+from rig.core import events as ev
+from rig.core.bat import BatSpec
+from rig.core.config import Equipment, RigConfig
+from rig.core.errors import ConfigError
+from rig.instruments import today_utc
+from rig.protocols.procedure import Procedure
+from rig.report.certificate import render
+from rig.report.record import run_record
+from rig.session import sim_config
+from rig.store import Store
+
+ROOT = Path(__file__).resolve().parents[2]
+BAT = BatSpec.load(ROOT / "protocols" / "examples" / "sample-bat.toml")
+
+
+def _procedure() -> Procedure:
+    """BBCOR with fewer shots: what is checked here is what surrounds them."""
+    p = Procedure.load("bbcor")
+    return p.model_copy(update={"hits": p.hits.model_copy(update={"valid_hits": 2})})
+
+
+def _config(*equipment: Equipment) -> RigConfig:
+    return sim_config("ideal", bat=BAT).model_copy(update={"equipment": equipment})
+
+
+def _counter(days_left: int, serial: str = "SIM-G001") -> Equipment:
+    today = today_utc()
+    return Equipment(
+        name="gate counter",
+        device="gates",
+        serial=serial,
+        certificate="CAL-123",
+        calibrated=today - timedelta(days=365 - days_left),
+        due=today + timedelta(days=days_left),
+    )
+
+
+def test_a_run_records_what_each_device_said_it_is_right_after_it_started(tmp_path: Path) -> None:
+    with Store.open(tmp_path / "r.db") as store:
+        out = certify(store, _procedure(), BAT, _config(_counter(30)))
+        kinds = [e.kind for e in store.entries(out.run_id)]
+        (entry,) = [e for e in store.entries(out.run_id) if e.kind == ev.INSTRUMENTS_IDENTIFIED]
+        record = run_record(store, out.run_id)
+    assert out.status == "finished"
+    assert kinds.index(ev.INSTRUMENTS_IDENTIFIED) == kinds.index(ev.RUN_STARTED) + 1
+    assert kinds.index(ev.INSTRUMENTS_IDENTIFIED) < kinds.index(ev.SHOT_FIRED)
+    devices = entry.payload["devices"]
+    assert {k: d["model"] for k, d in devices.items()} == {
+        "cannon": "SIM-CANNON",
+        "gates": "SIM-GATES",
+        "clamp": "SIM-CLAMP",
+    }
+    assert devices["gates"]["serial_number"] == "SIM-G001" and devices["gates"]["driver"] == "rig-line"
+    assert all(d["simulated"] for d in devices.values())
+    assert entry.payload["equipment"][0]["status"] == "in date" and entry.payload.get("override") is None
+    text = render(record, "md")
+    section = text[text.index("## Instruments") : text.index("## Lab environment")]
+    assert "SIM-GATES (simulated)" in section and "SIM-G001" in section and "CAL-123" in section
+    assert "in date" in section
+
+
+def test_an_overdue_calibration_refuses_the_run_before_it_is_created(tmp_path: Path) -> None:
+    with Store.open(tmp_path / "r.db") as store:
+        with pytest.raises(ConfigError) as caught:
+            certify(store, _procedure(), BAT, _config(_counter(-1)))
+        assert store.runs() == []
+    text = str(caught.value)
+    assert "calibration past due: gate counter (due " in text and "--accept-overdue" in text
+    assert "\n" not in text
+
+
+def test_an_accepted_overdue_calibration_is_recorded_with_who_and_why(tmp_path: Path) -> None:
+    accepted = Signoff("Q. Manager", "recalibration booked for Monday; counter checked against a reference")
+    with Store.open(tmp_path / "r.db") as store:
+        out = certify(store, _procedure(), BAT, _config(_counter(-3)), accept_overdue=accepted)
+        (entry,) = [e for e in store.entries(out.run_id) if e.kind == ev.INSTRUMENTS_IDENTIFIED]
+        text = render(run_record(store, out.run_id), "md")
+    assert out.status == "finished"
+    assert entry.payload["override"] == accepted.as_dict()
+    assert entry.payload["equipment"][0]["status"] == "past due"
+    assert "PAST DUE" in text and "accepted for this run by Q. Manager: recalibration booked" in text
+
+
+def test_an_accepted_override_is_not_recorded_when_nothing_is_overdue(tmp_path: Path) -> None:
+    with Store.open(tmp_path / "r.db") as store:
+        out = certify(store, _procedure(), BAT, _config(_counter(10)), accept_overdue=Signoff("A", "B"))
+        (entry,) = [e for e in store.entries(out.run_id) if e.kind == ev.INSTRUMENTS_IDENTIFIED]
+    assert entry.payload.get("override") is None
+
+
+def test_a_device_whose_serial_is_not_the_listed_one_refuses_the_run(tmp_path: Path) -> None:
+    with Store.open(tmp_path / "r.db") as store:
+        with pytest.raises(ConfigError, match=r"the gates device reports serial number SIM-G001, but"):
+            certify(store, _procedure(), BAT, _config(_counter(30, serial="MY-0001")), accept_overdue=None)
+        assert store.runs() == []
+
+
+def test_a_resumed_run_is_identified_again_and_an_overdue_one_interrupts_it(tmp_path: Path) -> None:
+    from rig.protocols.control import RunControl
+
+    control = RunControl()
+    control.abort()  # the run stops at its first checkpoint, resumable
+    with Store.open(tmp_path / "r.db") as store:
+        first = certify(store, _procedure(), BAT, _config(_counter(5)), control=control)
+        assert first.status == "interrupted"
+        again = certify(store, _procedure(), BAT, _config(_counter(-2)), run_id=first.run_id)
+        assert again.status == "interrupted" and "calibration past due" in str(again.reason)
+        done = certify(
+            store,
+            _procedure(),
+            BAT,
+            _config(_counter(-2)),
+            run_id=first.run_id,
+            accept_overdue=Signoff("A", "B"),
+        )
+        kinds = [e.kind for e in store.entries(first.run_id)]
+    assert done.status == "finished"
+    assert kinds.count(ev.INSTRUMENTS_IDENTIFIED) == 2  # the first session and the accepted resume
