@@ -28,6 +28,7 @@ import numpy as np
 from rig.core.errors import ParameterError
 
 DEFAULT_RECOIL_WINDOW = 8  # samples fitted after the step [assumed]: 4 ms at 2 kHz
+Samples = Sequence[float] | np.ndarray
 RESOLVED_STEPS = 4.0  # a step is found reliably only if the angle moves this many noise SDs per sample
 
 
@@ -52,7 +53,7 @@ class RecoilEstimate:
     samples: int
 
 
-def _arrays(t_s: Sequence[float], angle_deg: Sequence[float], least: int) -> tuple[np.ndarray, np.ndarray]:
+def _arrays(t_s: Samples, angle_deg: Samples, least: int) -> tuple[np.ndarray, np.ndarray]:
     t = np.asarray(t_s, dtype=float)
     a = np.asarray(angle_deg, dtype=float)
     if t.shape != a.shape or t.ndim != 1 or len(t) < least:
@@ -79,7 +80,7 @@ def _quantization_deg(resolution_deg: float, time_resolution_s: float, rate_deg_
     return math.hypot(resolution_deg, abs(rate_deg_s) * time_resolution_s) / math.sqrt(12.0)
 
 
-def zero_crossings(t_s: Sequence[float], angle_deg: Sequence[float]) -> list[int]:
+def zero_crossings(t_s: Samples, angle_deg: Samples) -> list[int]:
     """Indices i where the angle changes sign between samples i and i+1 (zeros skipped over at most
     two samples; a trace that rests at zero has no crossings)."""
     _, a = _arrays(t_s, angle_deg, 2)
@@ -95,8 +96,8 @@ def zero_crossings(t_s: Sequence[float], angle_deg: Sequence[float]) -> list[int
 
 
 def swing_period(
-    t_s: Sequence[float],
-    angle_deg: Sequence[float],
+    t_s: Samples,
+    angle_deg: Samples,
     cycles: int,
     resolution_deg: float = 0.0,
     time_resolution_s: float = 0.0,
@@ -148,8 +149,8 @@ def swing_period(
 
 
 def recoil_speed(
-    t_s: Sequence[float],
-    angle_deg: Sequence[float],
+    t_s: Samples,
+    angle_deg: Samples,
     resolution_deg: float = 0.0,
     time_resolution_s: float = 0.0,
     window: int = DEFAULT_RECOIL_WINDOW,
