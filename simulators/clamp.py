@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING, ClassVar
 
 from rig.drivers.clamp.codec import SPECS
@@ -26,19 +27,33 @@ class SimClamp(SimDevice):
         super().__init__(world)
         self.locked = False
         start = world.scene.rig.stage_start_mm
-        # The stage moves from _mm_from (at _t_from) to _mm_to at constant speed.
-        self._mm_from, self._mm_to, self._t_from = start, start, 0.0
+        # The stage moves from _mm_from (at _t_from) to _mm_to (at _t_to) at constant speed.
+        self._mm_from, self._mm_to, self._t_from, self._t_to = start, start, 0.0, 0.0
         self._swing_from = self._swing_until = -1.0
+        # other wire front ends on this clamp (an instrument twin) hear each recoil: (omega, at, shot)
+        self.recoil_listeners: list[Callable[[float, float, int], None]] = []
 
     def position_mm(self, time_s: float | None = None) -> float:
         """Impact point's distance from the pivot at `time_s` (default now), mm."""
         t = self.world.clock if time_s is None else time_s
-        span = self._mm_to - self._mm_from
-        moved = max(0.0, t - self._t_from) * self.world.scene.rig.stage_speed_mm_s
-        return self._mm_to if moved >= abs(span) else self._mm_from + math.copysign(moved, span)
+        if t >= self._t_to:
+            return self._mm_to
+        if t <= self._t_from:
+            return self._mm_from
+        done = (t - self._t_from) / (self._t_to - self._t_from)
+        return self._mm_from + (self._mm_to - self._mm_from) * done
 
     def _arrival(self) -> float:
-        return self._t_from + abs(self._mm_to - self._mm_from) / self.world.scene.rig.stage_speed_mm_s
+        return self._t_to
+
+    def start_move(self, mm: float, duration_s: float | None = None) -> float:
+        """Send the stage towards `mm` now (at the scene's speed, or taking `duration_s`); its arrival."""
+        now = self.world.clock
+        start = self.position_mm()
+        if duration_s is None:
+            duration_s = abs(mm - start) / self.world.scene.rig.stage_speed_mm_s
+        self._mm_from, self._mm_to, self._t_from, self._t_to = start, float(mm), now, now + duration_s
+        return self._t_to
 
     def _busy(self) -> str | None:
         now = self.world.clock
@@ -50,11 +65,36 @@ class SimClamp(SimDevice):
 
     def angle_deg(self) -> float:
         """The encoder's angle now: a decaying-free swing while timing, else at rest."""
-        now = self.world.clock
-        if not self._swing_from <= now < self._swing_until:
+        return self.angle_at(self.world.clock)
+
+    def angle_at(self, time_s: float) -> float:
+        """The pivot's true angle at `time_s` (given the swing started so far), deg."""
+        if not self._swing_from <= time_s < self._swing_until:
             return 0.0
-        phase = 2.0 * math.pi * (now - self._swing_from) / self.world.swing_period()
+        phase = 2.0 * math.pi * (time_s - self._swing_from) / self.world.swing_period()
         return self.world.scene.rig.swing_amplitude_deg * math.cos(phase)
+
+    def grip(self, locked: bool) -> float:
+        """Close or open the grip now; the time its lock sensor agrees (the interlock follows)."""
+        world = self.world
+        world.cancel("lock")
+        world.cancel_interlock("clamp")
+        if not locked:
+            world.cancel("swing")
+            self._swing_until = -1.0
+            if self.locked:
+                world.set_interlock("clamp", False)
+            return world.clock
+        when = world.clock + (0.0 if self.locked else world.scene.rig.lock_time_s)
+        if not self.locked:
+            world.set_interlock("clamp", True, at=when)
+        return when
+
+    def start_swing(self, cycles: int) -> float:
+        """Lift and drop the bat now: it swings `cycles` periods after LIFT_S; when it is caught."""
+        self._swing_from = self.world.clock + LIFT_S
+        self._swing_until = self._swing_from + cycles * self.world.swing_period()
+        return self._swing_until
 
     def handle(self, cmd: CheckedCommand) -> None:
         """Act on one command."""
@@ -64,28 +104,18 @@ class SimClamp(SimDevice):
             self.ok(cmd, {"LOCK": self.locked, "POS": pos, "MOVING": world.clock < moving, "DEG": deg})
         elif verb == "CLAMP":
             self.ok(cmd)
-            world.cancel("lock")
-            world.cancel_interlock("clamp")
-            when = world.clock + (0.0 if self.locked else world.scene.rig.lock_time_s)
-            self.emit("LOCK", {"L": 1}, at=when, tag="lock")
-            if not self.locked:
-                world.set_interlock("clamp", True, at=when)
+            self.emit("LOCK", {"L": 1}, at=self.grip(True), tag="lock")
         elif verb == "RELEASE":
             self.ok(cmd)
-            world.cancel("lock")
-            world.cancel_interlock("clamp")
-            world.cancel("swing")
-            self._swing_until = -1.0
+            self.grip(False)
             self.emit("LOCK", {"L": 0})
-            if self.locked:
-                world.set_interlock("clamp", False)
         elif verb == "MOVE":
             busy = self._busy()
             if busy:
                 return self.refuse(cmd, "BUSY", busy)
-            self._mm_from, self._mm_to, self._t_from = self.position_mm(), float(cmd.values[0]), world.clock  # type: ignore[arg-type]
+            arrival = self.start_move(float(cmd.values[0]))  # type: ignore[arg-type]
             self.ok(cmd)
-            self.emit("POS", {"MM": round(self._mm_to, 2)}, at=self._arrival())
+            self.emit("POS", {"MM": round(self._mm_to, 2)}, at=arrival)
         elif verb == "SWING":
             self._swing(cmd)
         else:
@@ -100,8 +130,7 @@ class SimClamp(SimDevice):
             return self.refuse(cmd, "BUSY", busy)
         cycles = int(cmd.values[0])  # type: ignore[call-overload]
         period = self.world.swing_period()
-        self._swing_from = self.world.clock + LIFT_S
-        self._swing_until = self._swing_from + cycles * period
+        self.start_swing(cycles)
         self.ok(cmd)
         amp = self.world.scene.rig.swing_amplitude_deg
         fields = {"US": round(period * 1e6, 1), "AMP": amp, "N": cycles}
@@ -111,3 +140,5 @@ class SimClamp(SimDevice):
     def report_recoil(self, omega: float, at: float, shot: int) -> None:
         """Queue the encoder's `! RECOIL W=` after an impact."""
         self.emit("RECOIL", {"W": round(omega, 4)}, at=at, shot=shot)
+        for listener in self.recoil_listeners:
+            listener(omega, at, shot)

@@ -1,0 +1,1 @@
+"""Simulated instruments: twins of real instrument classes on the same SimWorld, on local TCP ports."""
