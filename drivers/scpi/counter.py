@@ -85,14 +85,20 @@ class ScpiCounterGates:
         self._check_errors("*TST?")
 
     def arm(self) -> None:
-        """Configure the time-stamp measurement, check the error queue, INIT (before FIRE)."""
+        """Configure the time-stamp measurement and INIT (before FIRE). The error query after INIT
+        is answered only once the counter has taken every line before it: the counter is waiting for
+        edges when arm() returns, and an error in the configuration is refused (ABORt) here."""
         self._armed = self._fetched = False
         self._garbled = 0
         self.link.write("*CLS")
         for line in codec.configure_commands(self.setup):
             self.link.write(line)
-        self._check_errors("configuration")
         self.link.write("INIT")
+        try:
+            self._check_errors("configuration and INIT")
+        except DeviceError:
+            self.link.write("ABOR")
+            raise
         self._armed = True
 
     def disarm(self) -> None:

@@ -62,6 +62,13 @@ class VisaLink:
             raise DeviceGone(
                 self.device, f"cannot open VISA resource {self.resource_name!r}: {exc}"
             ) from None
+        sock = self._socket()
+        if sock is not None:
+            # SCPI is many small lines, most unanswered: without this, Nagle's algorithm holds each
+            # line until the previous one is acknowledged (40 ms per command). pyvisa-py 0.8 does not
+            # set VI_ATTR_TCPIP_NODELAY itself ("Unknown attribute"), so it is set on its socket.
+            with contextlib.suppress(OSError):
+                sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self._stale = False
 
     @staticmethod
@@ -148,11 +155,8 @@ class VisaLink:
     def _peer_closed(self) -> bool:
         """True if a raw TCPIP socket resource was closed by the instrument (pyvisa-py reads an
         end of stream as silence, so a dropped connection first looks like a timeout)."""
-        try:
-            sock = self._manager.visalib.sessions[self._resource.session].interface
-        except Exception:
-            return False
-        if not isinstance(sock, socket.socket):
+        sock = self._socket()
+        if sock is None:
             return False
         try:
             return sock.recv(1, socket.MSG_PEEK | socket.MSG_DONTWAIT) == b""
@@ -160,3 +164,11 @@ class VisaLink:
             return False
         except OSError:
             return True
+
+    def _socket(self) -> socket.socket | None:
+        """The raw socket under a pyvisa-py TCPIP SOCKET resource, if that is what is open."""
+        try:
+            sock = self._manager.visalib.sessions[self._resource.session].interface
+        except Exception:
+            return None
+        return sock if isinstance(sock, socket.socket) else None

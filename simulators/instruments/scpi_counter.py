@@ -228,6 +228,7 @@ class ScpiCounterTwin:
                 conn, _ = server.accept()
             except OSError:
                 return  # closed
+            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             self._hang_up()  # one client at a time: a new connection replaces the old (a replug)
             with self._conn_lock:
                 self._conn = conn
