@@ -390,3 +390,10 @@ def test_a_dropped_counter_connection_loses_that_shot_and_the_next_arm_reconnect
     (failed,) = [r for r in rejected["reasons"] if r["code"] == "SHOT_FAILED"]
     assert failed["message"].startswith("device lost mid-shot")
     assert "FETC?: TCPIP0::127.0.0.1::" in failed["message"] and "closed the connection" in failed["message"]
+
+
+def test_scpi_counter_is_refused_as_another_kind() -> None:
+    from rig.drivers.registry import factory_for
+
+    with pytest.raises(ConfigError, match="driver 'scpi-counter' drives the gates, not the cannon"):
+        factory_for("cannon", DeviceSpec(driver="scpi-counter", address="TCPIP0::127.0.0.1::1::SOCKET"))
