@@ -30,6 +30,7 @@ BUILTIN: Mapping[str, Mapping[str, str]] = {
         "gates": "rig.drivers.gates.driver:GatesDriver.from_context",
         "clamp": "rig.drivers.clamp.driver:ClampDriver.from_context",
     },
+    "scpi-counter": {"gates": "rig.drivers.scpi.counter:ScpiCounterGates.from_context"},
     "vxm-stage": {"clamp": "rig.drivers.vxm.clamp:VxmClamp.from_context"},
 }
 

@@ -87,6 +87,8 @@ class SimWorld:
         self.gates = SimGates(self)
         self.clamp = SimClamp(self)
         self.devices: dict[str, SimDevice] = {"cannon": self.cannon, "gates": self.gates, "clamp": self.clamp}
+        # other front ends on this world (instrument twins): each is told every shot's beam breaks
+        self.crossing_listeners: list[Callable[[list[Crossing], tuple[tuple[int, int], ...], int], None]] = []
 
     # -- virtual time -----------------------------------------------------------------------
     def at(self, time_s: float, apply: Callable[[], None], tag: str | None = None) -> None:
@@ -268,6 +270,8 @@ class SimWorld:
             crossings = hook(crossings, shot)
         ticks = tuple((x.gate, self.counter(self.ticker.latch(x.gate, x.time_s))) for x in crossings)
         self.gates.stream(crossings, ticks, shot)
+        for listener in self.crossing_listeners:
+            listener(crossings, ticks, shot)
         record = ShotTruth(
             number=len(self.shots) + 1,
             fire_time_s=t0,

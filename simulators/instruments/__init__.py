@@ -1,1 +1,2 @@
-"""Simulated instruments: twins of real instrument classes on the same SimWorld, on local TCP ports."""
+"""Simulated instruments: twins of real instrument classes, other wire front ends on the same SimWorld
+as the line devices, on local TCP ports."""

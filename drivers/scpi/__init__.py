@@ -1,0 +1,1 @@
+"""SCPI instruments over VISA: a sans-I/O codec per instrument class, one VISA line transport."""
