@@ -75,6 +75,10 @@ def _clear_fault(cannon: Any) -> None:
 def cmd_sim_serve(args: argparse.Namespace) -> int:
     """rig sim serve: expose the simulated devices on ptys or TCP ports until interrupted.
 
+    With --instruments each device is served by the twin of a real instrument class at its own
+    wire level (a SCPI counter, a Modbus PLC, a VXM stage with its swing sensor), and --write-config
+    writes the rig config that names their drivers.
+
     The physics is loaded and one dummy shot fired before the ports are printed, so that the first
     FIRE is answered as fast as any other. With --bat, the simulated bat takes the bat file's
     properties as its true ones (those the scene's [bat] table sets win), as `--sim` does for a run.
@@ -98,7 +102,20 @@ def cmd_sim_serve(args: argparse.Namespace) -> int:
         except ConfigError as exc:  # the scene's own refusal: say which file it was about
             reason = exc.reason.removeprefix("Value error, ")
             raise ConfigError(f"this bat does not fit scene {args.scene!r}: {reason}", args.bat) from None
-    serve(scene, kind=args.kind, base_port=args.base_port)
+    if args.instruments:
+        from rig.cli.common import output_file
+        from rig.simulators.instruments.serve import serve_instruments
+
+        if args.kind is not None:
+            raise ConfigError(
+                "--instruments serves TCP ports of 127.0.0.1: drop --kind", source="command line"
+            )
+        target = output_file(args.write_config, "--write-config")
+        serve_instruments(scene, base_port=args.base_port, write_config=target)
+        return 0
+    if args.write_config is not None:
+        raise ConfigError("--write-config goes with --instruments", source="command line")
+    serve(scene, kind=args.kind or "pty", base_port=args.base_port)
     return 0
 
 
@@ -131,7 +148,17 @@ def add_parsers(sub: Any) -> None:
         "serve", help="expose simulated devices out of process", description=cmd_sim_serve.__doc__
     )
     p.add_argument("--scene", default="ideal", help="ideal, lab, faulty or a scene TOML file")
-    p.add_argument("--kind", choices=("pty", "tcp"), default="pty", help="pty (default) or tcp on 127.0.0.1")
+    p.add_argument("--kind", choices=("pty", "tcp"), help="pty (default) or tcp on 127.0.0.1")
+    p.add_argument(
+        "--instruments",
+        action="store_true",
+        help="serve the devices through real-instrument twins (SCPI counter, Modbus PLC, VXM stage) on TCP",
+    )
+    p.add_argument(
+        "--write-config",
+        metavar="RIG.toml",
+        help="with --instruments: write the rig config that names the three drivers (rig certify --config)",
+    )
     p.add_argument(
         "--base-port", type=_base_port, default=0, help="first of three TCP ports (default: any free ports)"
     )
