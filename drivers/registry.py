@@ -30,6 +30,7 @@ BUILTIN: Mapping[str, Mapping[str, str]] = {
         "gates": "rig.drivers.gates.driver:GatesDriver.from_context",
         "clamp": "rig.drivers.clamp.driver:ClampDriver.from_context",
     },
+    "modbus-cannon": {"cannon": "rig.drivers.modbus.cannon:ModbusCannon.from_context"},
 }
 
 INTERFACES: Mapping[str, type] = {"cannon": Cannon, "gates": Gates, "clamp": Clamp}
