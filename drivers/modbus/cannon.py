@@ -52,8 +52,15 @@ class ModbusCannon:
 
     @classmethod
     def from_context(cls, context: DriverContext) -> Self:
-        """The `modbus-cannon` driver of a rig config: options unit, registers, poll_s."""
-        options = context.only_options({"unit": int, "registers": dict, "poll_s": (int, float)})
+        """The `modbus-cannon` driver of a rig config: options unit, registers, poll_s, timeout_s (a
+        reply's time limit for this PLC, instead of the rig's timeouts.reply_s)."""
+        known: dict[str, type | tuple[type, ...]] = {
+            "unit": int,
+            "registers": dict,
+            "poll_s": (int, float),
+            "timeout_s": (int, float),
+        }
+        options = context.only_options(known)
         try:
             unit = plc.check_unit(options.get("unit", 1))
             regs = plc.RegisterMap.from_options(options.get("registers", {}))
@@ -62,13 +69,16 @@ class ModbusCannon:
         poll_s = float(options.get("poll_s", DEFAULT_POLL_S))
         if not 0.0 < poll_s <= 10.0:
             raise context.refuse(f"modbus-cannon: poll_s {poll_s:g} must be above 0 and at most 10 s")
+        timeout_s = float(options.get("timeout_s", context.timeouts.reply_s))
+        if not 0.05 <= timeout_s <= 60.0:
+            raise context.refuse(f"modbus-cannon: timeout_s {timeout_s:g} must be 0.05-60 s")
         try:
             return cls(
                 context.address,
                 unit=unit,
                 registers=regs,
                 name=context.name,
-                reply_timeout_s=context.timeouts.reply_s,
+                reply_timeout_s=timeout_s,
                 ready_timeout_s=context.timeouts.pressure_ready_s,
                 poll_s=poll_s,
                 on_traffic=context.on_traffic,

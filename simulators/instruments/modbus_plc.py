@@ -32,6 +32,7 @@ from rig.simulators.world import SimWorld
 IDENTITY = {"VendorName": "bat-rig simulator", "ProductCode": "SIM-PLC", "MajorMinorRevision": "sim-1"}
 MODEL_NAME, SERIAL = "SIM-CANNON-PLC", "SIM-P001"
 START_TIMEOUT_S = 30.0  # the server thread must be listening within this (wall) time
+REPLY_TIMEOUT_S = 30.0  # the driver's time limit for a reply from the twin (device_table)
 
 
 class ModbusPlcTwin:
@@ -91,7 +92,8 @@ class ModbusPlcTwin:
         return {
             "driver": self.DRIVER,
             "address": self.address,
-            "options": {"unit": self.unit, "registers": table, "poll_s": 0.01},
+            # a reply waits for the simulated physics (a shot's collision), seconds on a busy machine
+            "options": {"unit": self.unit, "registers": table, "poll_s": 0.01, "timeout_s": REPLY_TIMEOUT_S},
             "simulated": True,
         }
 
@@ -154,9 +156,11 @@ class ModbusPlcTwin:
         set_values: list[int] | list[bool] | None,
     ) -> ExcCodes | None:
         """Every request: faults first, then a write to the cannon's logic or a read of it."""
-        if self._strikes(self.exception_at, function_code, address, count):
+        # a write's reply echoes the register: pymodbus reads it back through here after the write
+        echo = set_values is None and function_code in (6, 16)
+        if not echo and self._strikes(self.exception_at, function_code, address, count):
             return ExcCodes(self.exception_code)
-        dropping = self._strikes(self.drop_at, function_code, address, count)
+        dropping = not echo and self._strikes(self.drop_at, function_code, address, count)
         with self.world.lock:
             if set_values is not None:
                 result = self._write(address, [int(v) for v in set_values])
