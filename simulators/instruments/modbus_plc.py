@@ -140,10 +140,15 @@ class ModbusPlcTwin:
         ready.set()
         await self._stop.wait()
         await server.shutdown()
+        for _ in range(3):  # a connection accepted while the listener closed is dropped too; the
+            self._drop()  # loop runs on a little, so that the dropped sockets really close
+            await asyncio.sleep(0.02)
 
     def _drop(self) -> None:
         if self._server is not None:
             for conn in list(self._server.active_connections.values()):
+                if conn.transport is not None:
+                    conn.transport.abort()  # at once, as a pulled cable: nothing more goes out
                 conn.close()
 
     async def _action(

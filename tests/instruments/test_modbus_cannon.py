@@ -376,6 +376,7 @@ def test_a_vanished_plc_is_device_gone_in_one_line(world: SimWorld) -> None:
     twin = ModbusPlcTwin(world)
     twin.start()
     cannon = driver(twin.address)
+    assert cannon.status().shots == 0  # connected, and the PLC has answered on this connection
     twin.close()
     with pytest.raises(DeviceGone) as info:
         cannon.status()
