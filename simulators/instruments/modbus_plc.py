@@ -147,7 +147,7 @@ class ModbusPlcTwin:
     def _drop(self) -> None:
         if self._server is not None:
             for conn in list(self._server.active_connections.values()):
-                if conn.transport is not None:
+                if isinstance(conn.transport, asyncio.WriteTransport):
                     conn.transport.abort()  # at once, as a pulled cable: nothing more goes out
                 conn.close()
 
