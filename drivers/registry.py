@@ -32,6 +32,7 @@ BUILTIN: Mapping[str, Mapping[str, str]] = {
     },
     "scpi-counter": {"gates": "rig.drivers.scpi.counter:ScpiCounterGates.from_context"},
     "vxm-stage": {"clamp": "rig.drivers.vxm.clamp:VxmClamp.from_context"},
+    "modbus-cannon": {"cannon": "rig.drivers.modbus.cannon:ModbusCannon.from_context"},
 }
 
 INTERFACES: Mapping[str, type] = {"cannon": Cannon, "gates": Gates, "clamp": Clamp}
