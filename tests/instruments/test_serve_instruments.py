@@ -20,7 +20,18 @@ from rig.store import Store
 ROOT = Path(__file__).resolve().parents[2]
 BAT = ROOT / "protocols" / "examples" / "sample-bat.toml"
 HARDWARE_CHECKS = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "tests/hardware"]
-SERVE = [sys.executable, "-m", "rig.cli", "sim", "serve", "--scene", "lab", "--instruments"]
+SERVE = [
+    sys.executable,
+    "-m",
+    "rig.cli",
+    "sim",
+    "serve",
+    "--scene",
+    "lab",
+    "--bat",
+    str(BAT),
+    "--instruments",
+]
 
 
 def _rig(*args: str, timeout: float = 900) -> subprocess.CompletedProcess[str]:
@@ -71,7 +82,7 @@ def test_a_bat_certifies_end_to_end_through_the_three_instrument_twins(
         server.wait(timeout=60)
     line = _certified(tmp_path / "line.db", "--sim", "lab")
     a, b = twins["verdict"], line["verdict"]
-    assert a["verdict"] == b["verdict"]
+    assert a["verdict"] == b["verdict"], (a, b)
     assert abs(a["mean"] - b["mean"]) <= max(a["U"], b["U"]), (a["mean"], b["mean"], a["U"])
 
     verified = _rig("verify", "--db", str(tmp_path / "twins.db"))
