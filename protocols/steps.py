@@ -207,6 +207,7 @@ def measure_moi(ctx: PlanContext) -> Plan[None]:
                     **found.as_dict(),
                     "period_s": sum(reading.periods_s) / len(reading.periods_s),
                     "periods_s": list(reading.periods_s),
+                    **({"periods_host_u_s": list(reading.host_u_s)} if reading.host_u_s else {}),
                     "amplitude_deg": reading.amplitude_deg,
                     "cycles": reading.cycles,
                 }

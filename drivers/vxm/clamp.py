@@ -217,7 +217,7 @@ class VxmClamp:
         except ParameterError as exc:
             raise DeviceError(self.name, f"swing sensor trace gives no period: {exc}") from None
         self.last_period = est
-        return PendulumPeriod(est.period_s, est.amplitude_deg, cycles)
+        return PendulumPeriod(est.period_s, est.amplitude_deg, cycles, u_s=est.u_s)
 
     def next_recoil(self, timeout_s: float) -> Recoil | None:
         """The peak recoil speed of the next triggered capture, or None if none completes in time."""

@@ -125,6 +125,7 @@ class PendulumPeriod:
     period_s: float
     amplitude_deg: float
     cycles: int
+    u_s: float | None = None  # its standard uncertainty, when the host computed it from sampled angles
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,9 @@ class PendulumReading:
     mass_kg: float
     lever_m: float  # pivot to balance point
     gravity_m_s2: float
+    # the host's own u of each period when it computed it from sampled angles (a swing sensor): empty
+    # when a timer reported the periods
+    host_u_s: tuple[float, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -177,6 +180,10 @@ def pendulum_budget(reading: PendulumReading, unc: PendulumUncertainty) -> MoiBu
         ),
         MoiInput("g", "local gravity", r.gravity_m_s2, "m/s²", unc.gravity_m_s2, moi / r.gravity_m_s2),
     ]
+    if r.host_u_s:  # independent fits, one per timing: u of their mean
+        u_host = math.sqrt(sum(u * u for u in r.host_u_s)) / len(r.host_u_s)
+        what = f"period: host fit of the sampled swing ({len(r.host_u_s)} timings)"
+        rows.insert(2, MoiInput("T_host", what, t, "s", u_host, 2 * moi / t))
     return _finish(moi, "pendulum", rows)
 
 
@@ -198,6 +205,7 @@ def pendulum_moi(
         mass_kg=mass_kg,
         lever_m=lever,
         gravity_m_s2=pendulum.gravity_m_s2,
+        host_u_s=tuple(t.u_s for t in timings if t.u_s is not None),
     )
     return reading, pendulum_budget(reading, pendulum_uncertainty(pendulum))
 

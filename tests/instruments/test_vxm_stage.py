@@ -255,6 +255,12 @@ def test_a_certification_with_the_clamp_on_the_twin(tmp_path: Path) -> None:
     direct = moi_from_period(bat_t.mass_kg, 9.80665, lever, t_true, math.radians(rig_t.swing_amplitude_deg))
     assert direct == pytest.approx(true_moi, rel=1e-9)  # the closed form the pendulum inverts
     assert moi.get("period_s", moi.get("extra", {}).get("period_s")) == pytest.approx(t_true, rel=2e-5)
+    # the host fit's own u of each period is recorded and budgeted (T_host), and the truth lies
+    # within it: |T - T_true| <= 3 u_host
+    host_u = moi["periods_host_u_s"]
+    (row,) = [c for c in moi["contributions"] if c["input"] == "T_host"]
+    assert len(host_u) == len(moi["periods_s"]) and row["u"] > 0.0
+    assert abs(moi["period_s"] - t_true) <= 3 * row["u"]
 
 
 def test_a_silent_stage_interrupts_the_run_and_nothing_fires_twice(tmp_path: Path) -> None:

@@ -64,3 +64,23 @@ def test_a_balance_point_at_or_behind_the_pivot_is_refused() -> None:
         pendulum_moi([PendulumPeriod(1.5, 5.0, 10)], 0.85, PIVOT_FROM_KNOB_M, PEND)
     with pytest.raises(ParameterError, match="timing"):
         pendulum_moi([], 0.85, 0.5, PEND)
+
+
+def test_a_host_computed_periods_uncertainty_enters_the_budget_as_its_own_row() -> None:
+    """A swing sensor's periods come with the host fit's u: the budget adds T_host, u of the mean of
+    independent fits (sqrt(sum u_i^2) / r) times dI/dT = 2 I / T, and the combined u grows by it in
+    quadrature; a timer's periods (no u) add no such row."""
+    g, m = 9.81, 0.9
+    d = g / math.pi**2  # T0 = 2 s at zero amplitude
+    pend = Pendulum(gravity_m_s2=g)
+    timed = [PendulumPeriod(2.0, 0.0, 10), PendulumPeriod(2.0, 0.0, 10)]
+    fitted = [PendulumPeriod(2.0, 0.0, 10, u_s=3e-4), PendulumPeriod(2.0, 0.0, 10, u_s=4e-4)]
+    _, plain = pendulum_moi(timed, m, PIVOT_FROM_KNOB_M + d, pend)
+    reading, host = pendulum_moi(fitted, m, PIVOT_FROM_KNOB_M + d, pend)
+    assert reading.host_u_s == (3e-4, 4e-4)
+    assert "T_host" not in {i.name for i in plain.inputs}
+    (row,) = [i for i in host.inputs if i.name == "T_host"]
+    assert row.u == pytest.approx(5e-4 / 2, rel=1e-12)
+    moi = m * d * d
+    assert row.u_moi == pytest.approx(2 * moi / 2.0 * 2.5e-4, rel=1e-12)
+    assert host.u_kgm2 == pytest.approx(math.hypot(plain.u_kgm2, row.u_moi), rel=1e-12)
