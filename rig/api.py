@@ -154,6 +154,7 @@ def certify(
     calibration: str | Path | None = None,
     control: RunControl | None = None,
     plan: PlanFactory | None = None,
+    accept_overdue: tuple[str, str] | None = None,
 ) -> Result:
     """Run a certification of `bat` by `procedure` on `rig`, recording it in `store`.
 
@@ -162,7 +163,8 @@ def certify(
     interrupted run; its bat and procedure are the recorded ones. `calibration` names the model
     calibration for the cross-check (new runs only). `control` pauses or aborts from another thread.
     `plan` is a lab's own procedure composed from rig.plans (default: the standard one); its name is
-    recorded in RunStarted, and a resumed run must be given the same plan again.
+    recorded in RunStarted, and a resumed run must be given the same plan again. `accept_overdue`
+    (who, why) lets instruments past their calibration due date be used, and is recorded.
     Bad input (including a procedure that does not fit the rig or the bat) raises RigError before
     anything is recorded; see `Result` for how a run ends.
     """
@@ -191,6 +193,11 @@ def certify(
         named = str(Path(calibration).expanduser().resolve())
         config = config.model_copy(update={"model": Model(calibration=named, named_by="script")})
     plan_kw: dict[str, Any] = {"plan": plan} if plan is not None else {}  # else certify's default
+    if accept_overdue is not None:
+        from rig.certification import Signoff
+
+        who, why = accept_overdue
+        plan_kw["accept_overdue"] = Signoff(who, why)
     outcome = run_certification(
         store,
         proc,

@@ -17,12 +17,14 @@ from rig import __version__
 from rig.certification import (
     Emit,
     Outcome,
+    Signoff,
     _checked,
     _running,
     _traffic_drain,
     create_run,
     drive,
     history,
+    instruments_or_close,
     open_before_run,
     register_item,
 )
@@ -69,12 +71,15 @@ def run_ball_test(
     operator: Operator | None = None,
     subscribers: Iterable[Subscriber] = (),
     control: RunControl | None = None,
+    accept_overdue: Signoff | None = None,
 ) -> Outcome:
     """Run (or with `run_id`, resume) a ball test of `lot`; returns its outcome.
 
     The lot must be registered (Store.register_lot). The target is registered as what the clamp
-    holds (the run's `bat`), so that the store's runs keep naming what was struck.
+    holds (the run's `bat`), so that the store's runs keep naming what was struck. The instruments
+    are identified and their calibrations checked as a certification's are (`accept_overdue`).
     """
+    override = None if accept_overdue is None else accept_overdue.as_dict()
     resuming = run_id is not None
     if run_id is not None:
         _running(store, run_id, "--resume")
@@ -99,9 +104,11 @@ def run_ball_test(
         register_item(store, target.id, target.spec(), refusal)
         meta = {"procedure": procedure.name, "rig": identity, "lot": lot.id, "test": procedure.test}
         session = open_before_run(config)  # a port that will not open: refused, no run created
+        identified = instruments_or_close(session, config, override)  # overdue, wrong serial: refused
         run_id = create_run(store, session, procedure.test, target.id, meta)
     else:
         session = None  # a resumed test opens its devices under its lock
+        identified = None  # identified under the lock, once its devices are open
 
     def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Executor, Callable[[], Any]]:
         operator_ = operator or ScriptedOperator()
@@ -135,6 +142,8 @@ def run_ball_test(
         what="ball test",
         session=session,
         named=named,
+        identified=identified,
+        override=override,
     )
     return replace(outcome, signing=signing.note)
 

@@ -41,6 +41,21 @@ def cmd_register(args: argparse.Namespace) -> int:
     return 0
 
 
+def _accepted(args: argparse.Namespace) -> Any:
+    """--accept-overdue with --who and --why, as a Signoff; None without it."""
+    if not args.accept_overdue:
+        if args.who or args.why:
+            raise ConfigError("--who and --why go with --accept-overdue", source="command line")
+        return None
+    from rig.certification import Signoff
+
+    if not args.who or not args.why:
+        raise ConfigError(
+            "--accept-overdue needs --who NAME and --why TEXT (both recorded)", source="command line"
+        )
+    return Signoff(args.who, args.why)
+
+
 def cmd_test(args: argparse.Namespace) -> int:
     """rig balls test: run a ball test (ccor, ball-cor) on a registered lot, recording everything."""
     from rig.balls import recorded_test, rehearse_test, run_ball_test
@@ -50,6 +65,7 @@ def cmd_test(args: argparse.Namespace) -> int:
     from rig.report.live import LiveConsole
     from rig.run_signals import stop_on_signals
 
+    accept_overdue = _accepted(args)  # the flags checked before anything is opened
     control = RunControl()
     args.create_db = not args.dry_run  # a dry run writes nothing, not even a new store
     with stop_on_signals(control), open_db(args) as store:
@@ -87,6 +103,7 @@ def cmd_test(args: argparse.Namespace) -> int:
             operator=ScriptedOperator(who="script (--sim or scripted run)"),
             subscribers=[live],
             control=control,
+            accept_overdue=accept_overdue,
         )
         live.close()
     if outcome.status != "finished":
@@ -277,6 +294,13 @@ def add_parsers(sub: Any) -> None:
         help="with --sim: the simulated lab's air starts S virtual s into its daily swing (ball-cor tests"
         " at several starts measure the lot's sensitivity to the air; the lab scene's swing is 3600 s)",
     )
+    p.add_argument(
+        "--accept-overdue",
+        action="store_true",
+        help="use instruments past their calibration due date for this test (--who, --why recorded)",
+    )
+    p.add_argument("--who", metavar="NAME", help="who accepts the overdue calibration (recorded)")
+    p.add_argument("--why", metavar="TEXT", help="why (recorded)")
     p.add_argument("--dry-run", action="store_true", help="check the test against rig and lot only")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.set_defaults(handler=cmd_test)

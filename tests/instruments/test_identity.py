@@ -127,3 +127,51 @@ def test_a_resumed_run_is_identified_again_and_an_overdue_one_interrupts_it(tmp_
         kinds = [e.kind for e in store.entries(first.run_id)]
     assert done.status == "finished"
     assert kinds.count(ev.INSTRUMENTS_IDENTIFIED) == 2  # the first session and the accepted resume
+
+
+def test_a_ball_test_checks_its_instruments_as_a_certification_does(tmp_path: Path) -> None:
+    from rig.balls import run_ball_test
+    from tests.balls.test_ball_tests import lot, small
+
+    p = small("ccor")
+    config = sim_config("ideal", target=(p.target.kind, p.target.diameter_m)).model_copy(
+        update={"equipment": (_counter(-1),)}
+    )
+    with Store.open(tmp_path / "b.db") as store:
+        store.register_lot(lot())
+        with pytest.raises(ConfigError, match=r"calibration past due: gate counter"):
+            run_ball_test(store, p, lot(), config)
+        assert store.runs() == []
+        out = run_ball_test(store, p, lot(), config, accept_overdue=Signoff("Q. Manager", "checked"))
+        (entry,) = [e for e in store.entries(out.run_id) if e.kind == ev.INSTRUMENTS_IDENTIFIED]
+    assert out.status == "finished" and entry.payload["override"] == {"who": "Q. Manager", "why": "checked"}
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (["--accept-overdue"], "--accept-overdue needs --who NAME and --why TEXT"),
+        (["--who", "A"], "--who and --why go with --accept-overdue"),
+    ],
+)
+def test_the_ball_test_command_wants_who_and_why_with_an_override(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], says: str
+) -> None:
+    from rig.cli import main
+
+    code = main(
+        [
+            "balls",
+            "test",
+            "--procedure",
+            "ccor",
+            "--lot",
+            "X",
+            "--sim",
+            "ideal",
+            "--db",
+            str(tmp_path / "b.db"),
+            *args,
+        ]
+    )
+    assert code == 2 and says in capsys.readouterr().err
