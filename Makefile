@@ -50,6 +50,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_lab_store.py
 	$(BIN)/python benchmarks/bench_ball_truth.py --bats 40
 	$(BIN)/python benchmarks/bench_fit_ball.py --seeds 40
+	$(BIN)/python benchmarks/bench_instruments.py --repeat 3
 
 accuracy: $(STAMP)
 	$(BIN)/python benchmarks/accuracy_doc.py

@@ -57,6 +57,9 @@ OPTIONS: dict[str, type | tuple[type, ...]] = {
 }
 
 
+DRAIN_BYTES = 1 << 16  # one read's most
+
+
 class _Link:
     """One port: writes and reads recorded, every failure a one-line DeviceGone."""
 
@@ -71,13 +74,25 @@ class _Link:
             raise DeviceGone(self.device, f"{self.what}: write failed: {exc}") from exc
 
     def read(self) -> bytes:
+        """What has arrived (waiting up to the port's timeout for the first byte)."""
         try:
             data = self.port.read(max(1, self.port.in_waiting))
+            if len(data) == 1:  # a socket:// port says 1 for "readable": take the rest without waiting
+                data += self._drain()
         except OSError as exc:
             raise DeviceGone(self.device, f"{self.what} connection lost: {exc}") from exc
         if data:
             self.traffic.add("rx", data)
         return bytes(data)
+
+    def _drain(self) -> bytes:
+        """Everything already received, without blocking (a sensor's block of samples comes at once)."""
+        saved = self.port.timeout
+        self.port.timeout = 0
+        try:
+            return bytes(self.port.read(DRAIN_BYTES))
+        finally:
+            self.port.timeout = saved
 
     def close(self) -> None:
         try:
