@@ -18,7 +18,7 @@ from typing import Any, Protocol, runtime_checkable
 
 from rig.core.config import DEVICE_KINDS, DeviceSpec, Timeouts
 from rig.core.devices import Cannon, Clamp, Gates
-from rig.core.errors import ConfigError
+from rig.core.errors import ConfigError, RigError
 from rig.drivers.traffic import TrafficRecord
 
 ENTRY_POINT_GROUP = "bat_rig.drivers"
@@ -100,6 +100,13 @@ def factory_for(kind: str, spec: DeviceSpec, source: str = "rig config") -> Call
     if kind not in DEVICE_KINDS:
         raise ConfigError(f"no device kind {kind!r} (kinds: {', '.join(DEVICE_KINDS)})", source=source)
     name = spec.driver
+    found = [ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == name]
+    if found and name in BUILTIN:
+        raise ConfigError(
+            f"[devices.{kind}] driver {name!r} is built in, and also the entry point {found[0].value!r}: "
+            "rename the package's entry point",
+            source=source,
+        )
     if name in BUILTIN:
         target = BUILTIN[name].get(kind)
         if target is None:
@@ -108,7 +115,11 @@ def factory_for(kind: str, spec: DeviceSpec, source: str = "rig config") -> Call
                 f"[devices.{kind}] driver {name!r} drives the {serves}, not the {kind}", source=source
             )
         return _load(target, kind, name, source)
-    found = [ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == name]
+    if len({ep.value for ep in found}) > 1:
+        where = ", ".join(sorted({ep.value for ep in found}))
+        raise ConfigError(
+            f"[devices.{kind}] driver {name!r} is named by more than one package: {where}", source=source
+        )
     if found:
         return _load(found[0].value, kind, name, source)
     if ":" in name:
@@ -121,28 +132,39 @@ def factory_for(kind: str, spec: DeviceSpec, source: str = "rig config") -> Call
 
 
 def _load(target: str, kind: str, name: str, source: str) -> Callable[[DriverContext], Any]:
+    """The factory `target` ("package.module:attr.attr") names; every failure one ConfigError line."""
     module_name, _, attr = target.partition(":")
+
+    def refused(why: str) -> ConfigError:
+        return ConfigError(f"[devices.{kind}] driver {name!r}: {why}", source=source)
+
+    if not module_name or module_name.startswith("."):
+        raise refused(f"{target!r} is not package.module:factory")
     try:
         obj: Any = importlib.import_module(module_name)
-        for part in attr.split(".") if attr else ():
-            obj = getattr(obj, part)
     except ImportError as exc:
-        raise ConfigError(
-            f"[devices.{kind}] driver {name!r}: cannot import {module_name!r}: {exc}", source=source
-        ) from None
-    except AttributeError:
-        raise ConfigError(
-            f"[devices.{kind}] driver {name!r}: {module_name!r} has no {attr!r}", source=source
-        ) from None
+        raise refused(f"cannot import {module_name!r}: {exc}") from None
+    except Exception as exc:  # a lab's module that fails as it loads, whatever it raises
+        raise refused(f"importing {module_name!r} failed: {type(exc).__name__}: {exc}") from None
+    for part in attr.split(".") if attr else ():
+        if not hasattr(obj, part):
+            raise refused(f"{module_name!r} has no {attr!r}")
+        obj = getattr(obj, part)
     if not callable(obj):
-        raise ConfigError(f"[devices.{kind}] driver {name!r}: {target!r} is not a factory", source=source)
+        raise refused(f"{target!r} is not a factory")
     return obj
 
 
 def open_device(kind: str, context: DriverContext, spec: DeviceSpec) -> Any:
     """Build and open device `kind` with its configured driver; the result is checked against the
     kind's interface (a driver that lacks a method is refused, and closed, before any run uses it)."""
-    device = factory_for(kind, spec, context.source)(context)
+    factory = factory_for(kind, spec, context.source)
+    try:
+        device = factory(context)
+    except (RigError, OSError):
+        raise  # ours and the system's name their cause already
+    except Exception as exc:  # a lab's factory that fails otherwise: one line, not a traceback
+        raise context.refuse(f"driver {spec.driver!r} failed to open: {type(exc).__name__}: {exc}") from None
     missing = [m for m in [*_methods(INTERFACES[kind]), "close"] if not callable(getattr(device, m, None))]
     if missing:
         if isinstance(device, Closable):

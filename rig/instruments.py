@@ -50,10 +50,17 @@ def identify(
             **({} if said is None else _fields(said)),
         }
         for item in (e for e in config.equipment if e.device == kind and e.serial):
-            if said is not None and said.serial_number and said.serial_number != item.serial:
+            reported = _serials(said)
+            if not reported:
                 refusals.append(
-                    f"the {kind} device reports serial number {said.serial_number}, but the equipment list's "
-                    f"{item.name!r} says {item.serial}: attach the listed instrument or correct the list"
+                    f"the equipment list gives {item.name!r} serial number {item.serial}, but the {kind} "
+                    "device reports none: its identity cannot be checked"
+                )
+            elif item.serial not in reported:
+                refusals.append(
+                    f"the {kind} device reports serial number {said.serial_number if said else '?'}, but the "
+                    f"equipment list's {item.name!r} says {item.serial}: attach the listed instrument or "
+                    "correct the list"
                 )
     overdue = [e for e in config.equipment if e.due is not None and e.due < day]
     if overdue and override is None:
@@ -87,6 +94,13 @@ def _identity(kind: str, device: object) -> InstrumentIdentity | None:
     except DeviceError as exc:
         raise ConfigError(f"the {kind} did not say what it is: {exc}", source="instruments") from None
     return said if isinstance(said, InstrumentIdentity) else None
+
+
+def _serials(said: InstrumentIdentity | None) -> set[str]:
+    """The serial numbers a device reports: one, or one per part ("stage / sensor")."""
+    if said is None or not said.serial_number.strip():
+        return set()
+    return {part.strip() for part in said.serial_number.split(" / ") if part.strip()}
 
 
 def _fields(said: InstrumentIdentity) -> dict[str, str]:

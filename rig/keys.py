@@ -177,11 +177,19 @@ def unlisted_warning(store: Store, signer: Signer) -> str:
 
 
 def recorded_simulated(store: Store, run_id: str) -> bool:
-    """Whether a run was recorded on a simulated rig (a sim:// port in its RunStarted)."""
+    """Whether a run was recorded on a simulated rig: a sim:// port or address, or a device marked
+    simulated (an instrument twin), in its RunStarted (RigConfig.simulated's rule)."""
     started = store.entries(run_id, kinds=[RUN_STARTED])
     rig = started[0].payload.get("rig") if started else None
-    ports = rig.get("ports") if isinstance(rig, dict) else None
-    urls = ports.values() if isinstance(ports, dict) else ()
+    if not isinstance(rig, dict):
+        return False
+    ports = rig.get("ports")
+    urls = list(ports.values()) if isinstance(ports, dict) else []
+    devices = rig.get("devices")
+    tables = [d for d in devices.values() if isinstance(d, dict)] if isinstance(devices, dict) else []
+    urls += [d.get("address") for d in tables]
+    if any(d.get("simulated") is True for d in tables):
+        return True
     return any(isinstance(url, str) and url.startswith("sim://") for url in urls)
 
 

@@ -204,7 +204,9 @@ class VxmClamp:
         self._grip(False)
 
     def move_to(self, mm: float) -> None:
-        """Stage to `mm` from the pivot, approached from below; checked by X within the tolerance."""
+        """Stage to `mm` from the pivot, approached from below; checked by X within the tolerance.
+        Captures the sensor made before (a swing-back of the last shot) are set aside here, the
+        last exchange with the clamp before a shot is fired."""
         low, high = STAGE_RANGE_MM
         if not low <= float(mm) <= high:
             raise NotSent(self.name, "move", f"{float(mm):g} mm is outside the stage's {low:g}-{high:g} mm")
@@ -220,6 +222,7 @@ class VxmClamp:
         reached = self.geometry.mm_for(self._position_steps())
         if abs(reached - float(mm)) > self.position_tolerance_mm:
             raise DeviceError(self.name, f"stage stopped at {reached:.3f} mm, asked for {float(mm):g} mm")
+        self._forget_captures()
 
     def measure_period(self, cycles: int) -> PendulumPeriod:
         """Lift and drop the bat, sample its swing, and time `cycles` periods on the host."""
@@ -232,7 +235,14 @@ class VxmClamp:
         except ParameterError as exc:
             raise DeviceError(self.name, f"swing sensor trace gives no period: {exc}") from None
         self.last_period = est
+        self._forget_captures()  # the swing itself may have triggered the recoil capture
         return PendulumPeriod(est.period_s, est.amplitude_deg, cycles, u_s=est.u_s)
+
+    def _forget_captures(self) -> None:
+        """Take the sensor's trigger count as seen: a capture made before now (the pendulum's
+        swing, the last shot's swing-back) is never taken for the next impact's recoil."""
+        count, _, _ = self._sensor_block("TRIG?", self.reply_timeout_s)
+        self._last_trigger = max(self._last_trigger, count)
 
     def next_recoil(self, timeout_s: float) -> Recoil | None:
         """The peak recoil speed of the next triggered capture, or None if none completes in time."""

@@ -39,14 +39,19 @@ def instrument_blocks(record: dict[str, Any]) -> list[Block]:
         )
     else:
         blocks.append(Para("The rig config lists no equipment calibrations."))
-    override = last.get("override")
-    if override:
-        blocks.append(
-            Para(
-                f"Calibration past due accepted for this run by {override.get('who', '?')}: "
-                f"{override.get('why', '?')}"
+    for number, session in enumerate(sessions, 1):  # every session's override, not only the last's
+        override = session.get("override")
+        if override:
+            overdue = ", ".join(
+                e.get("name", "?") for e in session.get("equipment") or [] if e.get("status") == "past due"
             )
-        )
+            when = f" (session {number}, from {session.get('t_utc') or '?'})" if len(sessions) > 1 else ""
+            blocks.append(
+                Para(
+                    f"Calibration past due ({overdue or '?'}) accepted for this run{when} by "
+                    f"{override.get('who', '?')}: {override.get('why', '?')}"
+                )
+            )
     return blocks
 
 

@@ -20,6 +20,7 @@ from typing import Any, ClassVar
 
 from rig.drivers.vxm import stage_codec, swing_codec
 from rig.drivers.vxm.stage_codec import Index, Speed
+from rig.simulators.clamp import LIFT_S
 from rig.simulators.world import RECOIL_REPORT_S, SimWorld
 
 GRIP_WAIT_S = 2.0  # the box waits this long for the lock switch [assumed]
@@ -255,6 +256,7 @@ class VxmStageTwin:
             if not 1 <= args[0] <= 100:
                 raise ValueError("SWING takes 1-100 cycles")
             clamp.start_swing(int(args[0]))
+            self._swing_trigger()
             return ["OK"]
         if verb == "CAP":
             return self._capture(int(args[0]), args[1])
@@ -277,6 +279,14 @@ class VxmStageTwin:
         self.world.advance_to(times[-1])
         lines = [swing_codec.encode_sample(t, self._quantized(self.clamp.angle_at(t))) for t in times]
         return [f"#CAP,{n}", *lines, "#END"]
+
+    def _swing_trigger(self) -> None:
+        """The armed sensor triggers on the pendulum's own swing too, when its peak speed (a quarter
+        period after release) passes the threshold: as a real one would, whatever the host meant."""
+        period = self.world.swing_period()
+        omega = math.radians(self.world.scene.rig.swing_amplitude_deg) * 2.0 * math.pi / period
+        release = self.world.clock + LIFT_S
+        self._recoil(omega, release + period / 4.0 + RECOIL_REPORT_S, 0)
 
     def _recoil(self, omega: float, at: float, shot: int) -> None:
         if self._arm is None or math.degrees(abs(omega)) < self._arm[3]:

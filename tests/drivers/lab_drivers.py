@@ -50,3 +50,8 @@ def half_a_gates(context: DriverContext) -> HalfAGates:
 
 
 NOT_CALLABLE = 3
+
+
+def raising_factory(context: DriverContext) -> None:
+    """A lab's factory with a bug."""
+    _ = 1 / 0

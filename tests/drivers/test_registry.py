@@ -120,3 +120,21 @@ def test_a_device_marked_simulated_makes_the_rig_simulated() -> None:
 
 def test_known_drivers_start_with_the_built_in_ones() -> None:
     assert known_drivers("gates")[0] == "rig-line"
+
+
+@pytest.mark.parametrize(
+    ("driver", "says"),
+    [
+        (":factory", "is not package.module:factory"),
+        (".relative:factory", "is not package.module:factory"),
+        ("tests.drivers.lab_drivers:raising_factory", "failed to open: ZeroDivisionError"),
+        (
+            "tests.drivers.broken_module:factory",
+            "importing 'tests.drivers.broken_module' failed: RuntimeError",
+        ),
+    ],
+)
+def test_a_factory_or_module_that_fails_otherwise_is_one_line_too(driver: str, says: str) -> None:
+    with pytest.raises(ConfigError) as caught:
+        RigSession.open(RigConfig.from_dict(_sim_devices(driver=driver)))
+    assert says in str(caught.value) and "\n" not in str(caught.value)

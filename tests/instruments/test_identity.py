@@ -89,7 +89,7 @@ def test_an_accepted_overdue_calibration_is_recorded_with_who_and_why(tmp_path: 
     assert out.status == "finished"
     assert entry.payload["override"] == accepted.as_dict()
     assert entry.payload["equipment"][0]["status"] == "past due"
-    assert "PAST DUE" in text and "accepted for this run by Q. Manager: recalibration booked" in text
+    assert "PAST DUE" in text and "(gate counter) accepted for this run by Q. Manager: recalibration" in text
 
 
 def test_an_accepted_override_is_not_recorded_when_nothing_is_overdue(tmp_path: Path) -> None:
@@ -175,3 +175,83 @@ def test_the_ball_test_command_wants_who_and_why_with_an_override(
         ]
     )
     assert code == 2 and says in capsys.readouterr().err
+
+
+def test_an_override_of_an_earlier_session_stays_on_the_certificate(tmp_path: Path) -> None:
+    """Session 1 ran with an overdue calibration accepted; the resumed session 2 is in date: the
+    certificate still says who accepted what in session 1."""
+    from rig.protocols.control import RunControl
+
+    control = RunControl()
+    control.abort()
+    with Store.open(tmp_path / "r.db") as store:
+        first = certify(
+            store,
+            _procedure(),
+            BAT,
+            _config(_counter(-2)),
+            control=control,
+            accept_overdue=Signoff("A. B", "why"),
+        )
+        done = certify(store, _procedure(), BAT, _config(_counter(30)), run_id=first.run_id)
+        text = render(run_record(store, done.run_id), "md")
+    assert done.status == "finished"
+    assert "(gate counter) accepted for this run (session 1, from" in text and "by A. B: why" in text
+
+
+def test_a_listed_serial_the_device_cannot_report_refuses_the_run(tmp_path: Path) -> None:
+    from rig.core.devices import InstrumentIdentity
+    from rig.instruments import identify
+    from rig.session import RigSession
+
+    class Silent:
+        def identify(self) -> InstrumentIdentity:
+            return InstrumentIdentity("M", "1", "")
+
+    config = _config(_counter(30))
+    with RigSession.open(config) as session:
+        real, session.gates = session.gates, Silent()
+        try:
+            found = identify(session, config, None)
+        finally:
+            session.gates = real
+    assert found.refusals and "reports none: its identity cannot be checked" in found.refusals[0]
+
+
+def test_a_two_part_serial_matches_either_part(tmp_path: Path) -> None:
+    from rig.core.devices import InstrumentIdentity
+    from rig.instruments import identify
+    from rig.session import RigSession
+
+    class TwoPart:
+        def identify(self) -> InstrumentIdentity:
+            return InstrumentIdentity("VXM", "1", "VXM-1234 / SENSOR-9")
+
+    for serial, ok in (("VXM-1234", True), ("SENSOR-9", True), ("VXM-12", False)):
+        config = _config(_counter(30, serial=serial))
+        with RigSession.open(config) as session:
+            real, session.gates = session.gates, TwoPart()
+            try:
+                found = identify(session, config, None)
+            finally:
+                session.gates = real
+        assert (not found.refusals) is ok, (serial, found.refusals)
+
+
+def test_a_run_through_devices_marked_simulated_is_recorded_as_simulated(tmp_path: Path) -> None:
+    """rig certify --end and signing read the recorded rig: a twin's device (marked simulated, a
+    TCP address) makes the run simulated, as RigConfig.simulated says; a real address does not."""
+    from rig.keys import recorded_simulated
+
+    def started(devices: dict) -> bool:
+        with Store.open(tmp_path / f"{len(list(tmp_path.iterdir()))}.db") as store:
+            store.register_bat("b", {"id": "b"})
+            run = store.create_run("bbcor", "b", {})
+            store.append(run, ev.RUN_STARTED, {"procedure": {}, "bat": {}, "rig": {"devices": devices}})
+            return recorded_simulated(store, run)
+
+    twin = {"driver": "scpi-counter", "address": "TCPIP0::127.0.0.1::5025::SOCKET", "simulated": True}
+    real = {"driver": "scpi-counter", "address": "TCPIP0::10.0.0.5::5025::SOCKET", "simulated": False}
+    assert started({"gates": twin, "cannon": real, "clamp": real})
+    assert not started({"gates": real, "cannon": real, "clamp": real})
+    assert started({"gates": {**real, "address": "sim://gates?rig=x"}, "cannon": real, "clamp": real})

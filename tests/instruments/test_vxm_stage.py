@@ -168,6 +168,32 @@ def test_recoil_is_the_worlds_within_its_uncertainty(world: SimWorld, twin: VxmS
         clamp.close()
 
 
+def test_a_capture_the_pendulums_swing_triggered_is_never_an_impacts_recoil() -> None:
+    """The armed sensor also triggers on the MOI swing (a 30 degree release: its peak speed is well
+    above the threshold and resolved): the next recoil asked for, with no impact, is none, and a
+    later impact gives its own speed."""
+    lab = Scene.load("lab")
+    world = SimWorld(lab.model_copy(update={"rig": lab.rig.model_copy(update={"swing_amplitude_deg": 30.0})}))
+    twin = VxmStageTwin(world)
+    clamp, _ = _driver(twin, trigger_deg_s=30.0)
+    try:
+        clamp.clamp()
+        period = world.swing_period()
+        swing_peak = math.radians(world.scene.rig.swing_amplitude_deg) * 2 * math.pi / period
+        assert math.degrees(swing_peak) > 60.0  # the swing does trigger the sensor
+        clamp.measure_period(3)
+        assert twin._trig is not None  # it triggered
+        assert clamp.next_recoil(0.05) is None  # not taken for an impact's recoil
+        omega = 31.4159
+        with world.lock:
+            world.clamp.report_recoil(omega, world.clock + 0.02, 1)
+        recoil = clamp.next_recoil(1.0)
+        assert recoil is not None and abs(recoil.omega_rad_s - omega) <= 0.01 * omega
+    finally:
+        clamp.close()
+        twin.close()
+
+
 # -- faults ---------------------------------------------------------------------------------
 def test_a_stage_that_does_not_acknowledge_is_one_line(world: SimWorld) -> None:
     twin = VxmStageTwin(world, stage_silent_after=1)
