@@ -37,6 +37,7 @@ from rig.measure.swing import PeriodEstimate, RecoilEstimate, recoil_speed, swin
 log = logging.getLogger(__name__)
 
 NUMBER = (int, float)
+ZERO_ALLOWED = frozenset({"backlash_mm", "pre_samples", "motor"})  # may be 0 (zero_mm: any finite value)
 OPTIONS: dict[str, type | tuple[type, ...]] = {
     "sensor": str,
     "lead_mm_per_step": NUMBER,
@@ -156,6 +157,15 @@ class VxmClamp:
         opts: dict[str, Any] = context.only_options(OPTIONS)
         if "sensor" not in opts:
             raise context.refuse("option 'sensor' (the swing sensor's address) is required")
+        for key, value in opts.items():  # every number a rate, a length, a count: finite, and > 0 but these
+            if (
+                key != "zero_mm"
+                and isinstance(value, int | float)
+                and not (math.isfinite(value) and (value >= 0 if key in ZERO_ALLOWED else value > 0))
+            ):
+                raise context.refuse(
+                    f"option {key!r} must be {'>= 0' if key in ZERO_ALLOWED else '> 0'}, not {value!r}"
+                )
         geometry = StageGeometry(
             float(opts.pop("lead_mm_per_step", stage_codec.LEAD_MM_PER_STEP)),
             float(opts.pop("zero_mm", 0.0)),

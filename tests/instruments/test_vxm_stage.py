@@ -302,3 +302,13 @@ def test_a_silent_stage_interrupts_the_run_and_nothing_fires_twice(tmp_path: Pat
     assert out.status == "interrupted"
     assert "did not acknowledge the move" in out.reason and "\n" not in out.reason
     assert len([e for e in entries if e.kind == "ShotFired"]) == len(world.shots) == world.attempts
+
+
+@pytest.mark.parametrize(("option", "value"), [("period_hz", 0.0), ("sample_hz", -5.0), ("recoil_window", 0)])
+def test_a_rate_or_count_that_is_not_positive_is_refused_in_one_line(
+    twin: VxmStageTwin, option: str, value: float
+) -> None:
+    from rig.core.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=rf"option '{option}' must be > 0"):
+        _driver(twin, **{option: value})
