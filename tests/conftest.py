@@ -9,6 +9,7 @@ Profiles (choose with HYPOTHESIS_PROFILE, default "ci"):
 from __future__ import annotations
 
 import os
+import signal
 from collections.abc import Iterator
 
 import pytest
@@ -47,6 +48,23 @@ def paper_params() -> CollisionParams:
 def _private_key_dir(tmp_path_factory: pytest.TempPathFactory, monkeypatch: pytest.MonkeyPatch) -> None:
     """Rig keys (rig.keys) go to an empty folder of each test's own, never the user's."""
     monkeypatch.setenv("RIG_KEY_DIR", str(tmp_path_factory.mktemp("rig-keys")))
+
+
+# SIGINT and SIGTERM as the test process started with them
+SIGNAL_DISPOSITIONS = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+
+
+@pytest.fixture(autouse=True)
+def _signal_dispositions_restored() -> Iterator[None]:
+    """A CLI run in this process (in a test or a module's fixture) leaves SIGINT and SIGTERM
+    ignored (rig.run_signals: it is reporting its outcome and exiting); an ignored signal is
+    inherited by every child a later test starts, which then cannot be terminated. Each test
+    starts, and leaves, with the dispositions the test process started with."""
+    for s, handler in SIGNAL_DISPOSITIONS.items():
+        signal.signal(s, handler)
+    yield
+    for s, handler in SIGNAL_DISPOSITIONS.items():
+        signal.signal(s, handler)
 
 
 @pytest.fixture

@@ -196,7 +196,7 @@ class ScpiCounterTwin:
     def device_table(self) -> dict[str, Any]:
         """The `[devices.gates]` table of a rig config that uses this twin."""
         if not self.address:
-            raise RuntimeError("start() the twin first: it has no address yet")
+            raise RuntimeError("the twin is not serving yet: it has no address")
         options = {"resolution_ps": round(self.resolution_s * 1e12, 6)}
         return {"driver": self.DRIVER, "address": self.address, "options": options, "simulated": True}
 

@@ -151,7 +151,7 @@ class VxmStageTwin:
     def device_table(self) -> dict[str, Any]:
         """The rig config's [devices.clamp] table for this twin (the sensor's URL among the options)."""
         if not self._servers:
-            raise RuntimeError("start() the twin first")
+            raise RuntimeError("the twin is not serving yet: it has no address")
         options = {
             "sensor": self._servers[1].url,
             "lead_mm_per_step": self.lead,
