@@ -151,6 +151,19 @@ class ModbusCannon:
                 )
             time.sleep(self.poll_s)
 
+    def load_ball(self, ball_id: str) -> None:
+        """Tell the PLC which ball is in the breech (SAFE only): its id in the ball registers, one
+        write, so that the PLC's record (and a simulated world) knows the ball of each shot."""
+        try:
+            codec.SPECS["LOAD"].check(ball_id)
+            values = plc.encode_ball(ball_id)
+        except ValueError as exc:
+            raise ParameterError(f"{self.name} LOAD", (ball_id,), str(exc)) from None
+        reason = codec.refuse_in_state("LOAD", self.plc_status().status.state)
+        if reason is not None:
+            raise NotSent(self.name, "LOAD", reason)
+        self.transport.write_registers(self.regs.ball, values)
+
     def arm(self) -> None:
         """SAFE -> ARMED; written only if a fresh read shows no fault and refuse_arm allows it."""
         reason = plc.refuse_plc_arm(self._read_before("ARM"))

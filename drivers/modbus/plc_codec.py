@@ -30,6 +30,7 @@ STATE_CODES: dict[int, CannonState] = {
 STATE_VALUES = {state: code for code, state in STATE_CODES.items()}
 COMMANDS: dict[str, int] = {"ARM": 1, "FIRE": 2, "VENT": 3, "RESET": 4}  # written to the command register
 COMMAND_NAMES = {code: verb for verb, code in COMMANDS.items()}
+BALL_REGISTERS = 20  # a ball id of up to 40 characters (drivers/cannon/codec.py BALL_ID_MAX)
 FAULT_CODES: dict[int, str] = {0: "", 1: "MISFIRE", 2: "SENSOR"}  # others: reported by number
 FAULT_VALUES = {name: code for code, name in FAULT_CODES.items()}
 
@@ -71,6 +72,7 @@ class RegisterMap:
     temperature: int = 6
     humidity: int = 7
     command: int = 8
+    ball: int = 9  # first of BALL_REGISTERS: the id of the ball in the breech, two ASCII characters each
 
     STATUS = ("state", "pressure", "setpoint", "interlocks", "shots", "fault")
 
@@ -88,6 +90,14 @@ class RegisterMap:
         if len(set(addresses)) != len(addresses):
             twice = sorted({a for a in addresses if addresses.count(a) > 1})
             raise ValueError(f"two registers share address {twice[0]}")
+        inside = [
+            n for n in known if n != "ball" and regs.ball <= getattr(regs, n) < regs.ball + BALL_REGISTERS
+        ]
+        if inside or regs.ball + BALL_REGISTERS > 0x10000:
+            raise ValueError(
+                f"the ball id takes {BALL_REGISTERS} registers from {regs.ball}"
+                + (f": register {inside[0]!r} lies among them" if inside else ": past the last address")
+            )
         start, count = regs.status_block()
         if count > MAX_BLOCK:
             raise ValueError(
@@ -124,6 +134,22 @@ class PlcStatus:
     def open_interlocks(self) -> list[str]:
         """Every open interlock by its own name (net and breech too)."""
         return [n for n, bit in INTERLOCK_BITS.items() if not self.interlock_bits >> bit & 1]
+
+
+def encode_ball(ball_id: str) -> list[int]:
+    """A ball id as BALL_REGISTERS registers: two ASCII characters each, first in the high byte,
+    zero-padded; ValueError for a character outside ASCII or an id too long."""
+    data = ball_id.encode("ascii")
+    if not data or len(data) > 2 * BALL_REGISTERS:
+        raise ValueError(f"a ball id is 1-{2 * BALL_REGISTERS} characters, not {len(data)}")
+    data = data.ljust(2 * BALL_REGISTERS, b"\0")
+    return [data[i] << 8 | data[i + 1] for i in range(0, len(data), 2)]
+
+
+def decode_ball(registers: list[int]) -> str:
+    """The ball id BALL_REGISTERS registers hold (up to the first zero byte); ValueError if not ASCII."""
+    data = b"".join(bytes((r >> 8 & 0xFF, r & 0xFF)) for r in registers).split(b"\0", 1)[0]
+    return data.decode("ascii")
 
 
 def check_unit(unit: object) -> int:

@@ -105,6 +105,10 @@ class ModbusTransport:
         """Write one holding register (function 6)."""
         self._call(6, address, lambda: self.client.write_register(address, value, device_id=self.unit))
 
+    def write_registers(self, address: int, values: list[int]) -> None:
+        """Write consecutive holding registers in one request (function 16)."""
+        self._call(16, address, lambda: self.client.write_registers(address, values, device_id=self.unit))
+
     def device_identification(self, read_code: int = 3) -> dict[int, bytes]:
         """The objects of Read Device Identification (function 43/14): id -> bytes."""
         response = self._call(

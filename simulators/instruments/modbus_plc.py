@@ -26,6 +26,7 @@ from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
 from rig.core.devices import CannonState, Environment
+from rig.drivers.cannon.codec import refuse_in_state
 from rig.drivers.modbus import plc_codec as plc
 from rig.simulators.world import SimWorld
 
@@ -123,7 +124,7 @@ class ModbusPlcTwin:
             loop.close()
 
     async def _serve(self, host: str, port: int, ready: threading.Event) -> None:
-        size = max(getattr(self.regs, n) for n in self.regs.__dataclass_fields__) + 1
+        size = max(getattr(self.regs, n) for n in self.regs.__dataclass_fields__) + plc.BALL_REGISTERS
         device = SimDevice(
             id=self.unit,
             simdata=[SimData(0, count=size, values=0, datatype=DataType.REGISTERS)],
@@ -202,6 +203,8 @@ class ModbusPlcTwin:
                 registers[reg - start] = value
 
     def _write(self, address: int, values: list[int]) -> ExcCodes | None:
+        if address == self.regs.ball:  # the ball id, written whole in one request
+            return self._load(values)
         for offset, value in enumerate(values):
             reg = address + offset
             if reg == self.regs.setpoint:
@@ -222,6 +225,23 @@ class ModbusPlcTwin:
             self.commands.append(verb)
             if reg == self.regs.command:
                 self.last_command = value
+        return None
+
+    def _load(self, values: list[int]) -> ExcCodes | None:
+        """LOAD: the ball in the breech, for the world's own record of each shot's ball."""
+        if len(values) != plc.BALL_REGISTERS:
+            return self._refused(
+                "LOAD", f"{len(values)} registers, not {plc.BALL_REGISTERS}", ExcCodes.ILLEGAL_VALUE
+            )
+        try:
+            ball_id = plc.decode_ball(values)
+        except ValueError:
+            return self._refused("LOAD", "not an ASCII ball id", ExcCodes.ILLEGAL_VALUE)
+        reason = refuse_in_state("LOAD", self.world.cannon.state)
+        if reason is not None or not ball_id:
+            return self._refused("LOAD", reason or "an empty ball id", ExcCodes.DEVICE_FAILURE)
+        self.world.load_ball(ball_id)
+        self.commands.append("LOAD")
         return None
 
     def _command(self, verb: str) -> tuple[str, str] | None:

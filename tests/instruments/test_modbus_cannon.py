@@ -221,6 +221,24 @@ def test_a_shot_through_the_plc_against_the_closed_forms(world: SimWorld, twin: 
     assert wire.fires() == 1
 
 
+def test_the_ball_in_the_breech_is_named_to_the_plc_when_safe_only(
+    world: SimWorld, twin: ModbusPlcTwin
+) -> None:
+    from rig.core.errors import NotSent
+
+    assert plc.decode_ball(plc.encode_ball("LOT-07-12")) == "LOT-07-12"
+    assert len(plc.encode_ball("x" * 40)) == plc.BALL_REGISTERS
+    with driver(twin.address) as cannon:
+        cannon.load_ball("LOT-07-12")
+        assert world.ball_id == "LOT-07-12"
+        ready(world, cannon)
+        cannon.arm()
+        with pytest.raises(NotSent, match="LOAD"):
+            cannon.load_ball("LOT-07-13")  # not while ARMED: the ball is the one in the breech
+        cannon.vent()
+    assert world.ball_id == "LOT-07-12"
+
+
 def test_unit_0_is_refused_before_anything_is_sent(twin: ModbusPlcTwin) -> None:
     seen: list[TrafficRecord] = []
     context = DriverContext("cannon", "cannon", twin.address, {"unit": 0}, on_traffic=seen.append)
@@ -454,7 +472,10 @@ def test_a_certification_with_the_cannon_on_the_simulated_plc(tmp_path: Path) ->
         base64.b64decode(c["data_b64"]) for c in chunks if (c["device"], c["dir"]) == ("cannon", "rx")
     )
     frames, rest = plc.split_frames(rx)
-    assert rest == b"" and {f.function for f in frames} == {3, 6}  # the record holds the Modbus frames
+    assert rest == b"" and {f.function for f in frames} == {3, 6, 16}  # the record holds the Modbus frames
+    # each ball the world launched is the ball the record names for that shot (LOAD, function 16)
+    named = [e.payload["ball"] for e in entries if e.kind == "ShotFired"]
+    assert [s.ball_id for s in world.shots] == named and twin.commands.count("LOAD") >= len(named)
     print(f"\ncertification through the simulated PLC: {len(fired)} shots in {took:.1f} s")
 
 
