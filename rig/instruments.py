@@ -46,7 +46,7 @@ def identify(
         devices[kind] = {
             "driver": spec.driver,
             "address": spec.address,
-            "simulated": spec.simulated or str(spec.address).startswith("sim://"),
+            "simulated": spec.is_simulated,
             **({} if said is None else _fields(said)),
         }
         for item in (e for e in config.equipment if e.device == kind and e.serial):

@@ -18,7 +18,7 @@ from pathlib import Path
 from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric.ed25519 import Ed25519PrivateKey
 
-from rig.core.config import RIG_NAME_PATTERN
+from rig.core.config import RIG_NAME_PATTERN, recorded_rig_simulated
 from rig.core.errors import ConfigError, RecordRefused
 from rig.core.events import RUN_STARTED
 from rig.store import LogEntry, Store
@@ -177,20 +177,11 @@ def unlisted_warning(store: Store, signer: Signer) -> str:
 
 
 def recorded_simulated(store: Store, run_id: str) -> bool:
-    """Whether a run was recorded on a simulated rig: a sim:// port or address, or a device marked
-    simulated (an instrument twin), in its RunStarted (RigConfig.simulated's rule)."""
+    """Whether a run was recorded on a simulated rig: RigConfig.simulated's rule applied to the rig
+    its RunStarted recorded (a sim:// address, or a device marked simulated: an instrument twin)."""
     started = store.entries(run_id, kinds=[RUN_STARTED])
     rig = started[0].payload.get("rig") if started else None
-    if not isinstance(rig, dict):
-        return False
-    ports = rig.get("ports")
-    urls = list(ports.values()) if isinstance(ports, dict) else []
-    devices = rig.get("devices")
-    tables = [d for d in devices.values() if isinstance(d, dict)] if isinstance(devices, dict) else []
-    urls += [d.get("address") for d in tables]
-    if any(d.get("simulated") is True for d in tables):
-        return True
-    return any(isinstance(url, str) and url.startswith("sim://") for url in urls)
+    return isinstance(rig, dict) and recorded_rig_simulated(rig)
 
 
 def keys_in(store: Store) -> list[RegisteredKey]:

@@ -15,15 +15,13 @@ from typing import TYPE_CHECKING, Any
 from urllib.parse import quote
 
 from rig.core.bat import BatSpec
-from rig.core.config import RigConfig
+from rig.core.config import DEVICE_KINDS, RigConfig
 from rig.core.units import INCH
 from rig.drivers.registry import DriverContext, open_device
 from rig.drivers.traffic import TrafficRecord
 
 if TYPE_CHECKING:
     from rig.simulators.scene import Scene
-
-DEVICES = ("cannon", "gates", "clamp")
 
 
 # A lab that tests balls (60 mph, 25 m/s) calibrates its cannon's aim down to low pressures too.
@@ -71,7 +69,7 @@ def sim_config(
         loaded = loaded.model_copy(update={"session": session})
     if bat is not None or target is not None or effects or session:
         install_world(rig, scene, loaded)
-    ports = {dev: f"sim://{dev}?scene={quote(scene, safe='')}&rig={rig}" for dev in DEVICES}
+    ports = {dev: f"sim://{dev}?scene={quote(scene, safe='')}&rig={rig}" for dev in DEVICE_KINDS}
     fragment = loaded.rig_config_fragment(BALL_AIM_PRESSURES_KPA) if target else loaded.rig_config_fragment()
     data = {"name": f"simulated rig ({loaded.name})", "ports": ports, **fragment}
     return RigConfig.from_dict(data, source=f"scene {scene}")
@@ -126,7 +124,7 @@ class RigSession:
             return lambda rec: traffic.append((name, rec))
 
         try:
-            for kind in DEVICES:
+            for kind in DEVICE_KINDS:
                 spec = config.device(kind)
                 context = DriverContext(
                     kind=kind,

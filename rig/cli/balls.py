@@ -19,6 +19,7 @@ from rig.cli.common import (
     refuse_overwriting_store,
     resolve_run,
     shown_db,
+    signoff_from,
     sim_session,
 )
 from rig.cli.common import console as out
@@ -47,13 +48,7 @@ def _accepted(args: argparse.Namespace) -> Any:
         if args.who or args.why:
             raise ConfigError("--who and --why go with --accept-overdue", source="command line")
         return None
-    from rig.certification import Signoff
-
-    if not args.who or not args.why:
-        raise ConfigError(
-            "--accept-overdue needs --who NAME and --why TEXT (both recorded)", source="command line"
-        )
-    return Signoff(args.who, args.why)
+    return signoff_from(args, "--accept-overdue")
 
 
 def cmd_test(args: argparse.Namespace) -> int:

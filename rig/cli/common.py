@@ -143,6 +143,15 @@ def rig_config(args: argparse.Namespace, bat: Any = None, session: str | None = 
     return RigConfig.from_dict({"ports": ports}, source="command line")
 
 
+def signoff_from(args: argparse.Namespace, flag: str) -> Any:
+    """--who and --why for `flag` (a decision recorded with its taker and reason), as a Signoff."""
+    from rig.certification import Signoff
+
+    if not args.who or not args.why:
+        raise ConfigError(f"{flag} needs --who NAME and --why TEXT (both recorded)", source="command line")
+    return Signoff(args.who, args.why)
+
+
 def sim_session(store: Any) -> str:
     """A simulated run's session: the store's count of runs so far, so that a test or certification
     run again (or resumed) in a store draws its own simulated noise, and a store replays alike."""

@@ -24,20 +24,13 @@ from rig.cli.common import (
     resolve_run,
     rig_config,
     shown_db,
+    signoff_from,
     sim_session,
 )
 from rig.cli.common import console as out
 from rig.core import events as ev
 from rig.core.dbpath import DB_HELP
 from rig.core.events import Verdict
-
-
-def _signoff(args: argparse.Namespace, flag: str) -> Any:
-    from rig.certification import Signoff
-
-    if not args.who or not args.why:
-        raise ConfigError(f"{flag} needs --who NAME and --why TEXT (both recorded)", source="command line")
-    return Signoff(args.who, args.why)
 
 
 def _resume_command(store: Any, run_id: str, args: argparse.Namespace) -> str:
@@ -74,7 +67,7 @@ def _interrupted(outcome: Any, args: argparse.Namespace, resume: str) -> int:
 def _end(args: argparse.Namespace) -> int:
     from rig.certification import end_run
 
-    signoff = _signoff(args, "--end")
+    signoff = signoff_from(args, "--end")
     with open_db(args) as store:
         outcome = end_run(store, resolve_run(store, args.end), signoff)
     print(f"run {outcome.run_id} {outcome.reason}")  # a success: stdout, no error prefix
@@ -109,13 +102,13 @@ def cmd_certify(args: argparse.Namespace) -> int:
         return _end(args)
     if args.rig_checked and not args.resume:
         raise ConfigError("--rig-checked goes with --resume RUN", source="command line")
-    rig_checked = _signoff(args, "--rig-checked") if args.rig_checked else None
+    rig_checked = signoff_from(args, "--rig-checked") if args.rig_checked else None
     if args.accept_overdue and args.rig_checked:
         raise ConfigError(
             "--accept-overdue and --rig-checked each need their own --who/--why: give one",
             source="command line",
         )
-    accept_overdue = _signoff(args, "--accept-overdue") if args.accept_overdue else None
+    accept_overdue = signoff_from(args, "--accept-overdue") if args.accept_overdue else None
     control = RunControl()
     args.create_db = True
     with stop_on_signals(control), _certify_store(args) as store:

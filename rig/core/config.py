@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import re
 import socket
+from collections.abc import Mapping
 from datetime import date
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
@@ -55,6 +56,32 @@ class DeviceSpec(_Model):
         default_factory=dict, max_length=200
     )
     simulated: bool = False  # a simulated twin (rig sim serve --instruments writes it): no bat is measured
+
+    @property
+    def is_simulated(self) -> bool:
+        """Marked simulated, or at a sim:// address (simulated_device)."""
+        return simulated_device(self.address, self.simulated)
+
+
+def simulated_device(address: object, marked: object = False) -> bool:
+    """The one rule for a simulated device: marked so (an instrument twin), or at a sim:// address."""
+    return marked is True or (isinstance(address, str) and address.startswith("sim://"))
+
+
+def recorded_rig_simulated(rig: Mapping[str, Any]) -> bool:
+    """RigConfig.simulated of a rig config as a run recorded it (a JSON mapping, read leniently)."""
+    ports, devices = _table(rig, "ports"), _table(rig, "devices")
+    for kind in DEVICE_KINDS:
+        table = _table(devices, kind)
+        if simulated_device(table.get("address") or ports.get(kind), table.get("simulated")):
+            return True
+    return False
+
+
+def _table(data: Mapping[str, Any], key: str) -> Mapping[str, Any]:
+    """data[key] if it is a table, else an empty one."""
+    found = data.get(key)
+    return found if isinstance(found, dict) else {}
 
 
 class Devices(_Model):
@@ -272,10 +299,7 @@ class RigConfig(_Model):
     def simulated(self) -> bool:
         """Whether any device of this rig is simulated (a sim:// port or a device marked simulated):
         its runs measure no bat."""
-        return any(
-            spec.simulated or str(spec.address).startswith("sim://")
-            for spec in map(self.device, DEVICE_KINDS)
-        )
+        return any(spec.is_simulated for spec in map(self.device, DEVICE_KINDS))
 
     def identity_name(self) -> str:
         """The rig's name: [identity] name, else sim-SCENE for a simulated rig, else the host name."""
