@@ -21,25 +21,19 @@ import argparse
 import random
 import statistics
 import sys
-import tempfile
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks.bench_ball_truth
 
-from benchmarks.bench_ball_truth import SCENE, lot_terms
-from rig.certification import certify, history
-from rig.core.bat import BatSpec
+from benchmarks.bench_ball_truth import SCENE, certified_population, lot_terms
 from rig.core.units import INCH
 from rig.measure.metrics import compute_metrics
 from rig.physics import CollisionParams
-from rig.population.simulate import simulated_population
 from rig.protocols.ball_terms import BallTerms, hit_balls
-from rig.protocols.procedure import Procedure
-from rig.protocols.state import RunState, fold
-from rig.session import scene_with_bat, sim_config
+from rig.protocols.state import RunState
+from rig.session import scene_with_bat
 from rig.simulators.scene import Scene
 from rig.simulators.truth import BBCOR_SPEED_M_S, collision_of
-from rig.store import Store
 
 Parts = tuple[float, float, float]  # a bat's mean chain error, correction error, speed effect
 
@@ -48,15 +42,8 @@ def decompose(n: int, seed: int) -> list[Parts]:
     """Each certified bat's parts (a bat whose run ends without a verdict is said and skipped)."""
     terms = lot_terms()
     scene = Scene.load(SCENE)
-    folder = Path(tempfile.mkdtemp(prefix="bench-decomp-"))
     rows = []
-    for bat in simulated_population(n, seed, 0, 0.0):
-        path = folder / f"{bat.spec.id}.toml"
-        path.write_text(bat.toml(SCENE, seed))
-        spec = BatSpec.load(path)
-        with Store.open(folder / "runs.db") as store:
-            done = certify(store, Procedure.load("bbcor"), spec, sim_config(SCENE, bat=spec), ball=terms)
-            state = fold(history(store, done.run_id))
+    for spec, done, state in certified_population(n, seed, terms, "bench-decomp-"):
         if "ball" not in (state.verdict or {}):
             print(f"  {spec.id}: no verdict ({done.reason})")
             continue

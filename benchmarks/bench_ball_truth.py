@@ -20,18 +20,19 @@ import math
 import statistics
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 from rig.balls import run_ball_test
-from rig.certification import certify, history
+from rig.certification import Outcome, certify, history
 from rig.core.ball import BallLot, Conditioning
 from rig.core.bat import BatSpec
 from rig.population.simulate import simulated_population
 from rig.protocols.ball_procedure import BallProcedure
 from rig.protocols.ball_terms import terms_from_lot
 from rig.protocols.procedure import Procedure
-from rig.protocols.state import fold
+from rig.protocols.state import RunState, fold
 from rig.session import air_starting_at, scene_with_bat, sim_config
 from rig.simulators.scene import Scene
 from rig.simulators.truth import true_metric
@@ -65,12 +66,12 @@ def lot_terms(lot_id: str = "SIM-LOT", hours: int = HOURS) -> dict[str, Any]:
         return terms_from_lot(lot_now, results).model_dump(mode="json")
 
 
-def run(n: int, seed: int, with_ball: bool) -> list[tuple[str, float, float, float, float]]:
-    """(bat id, certified mean, truth, U, u) for each bat."""
-    scene = Scene.load(SCENE)
-    terms = lot_terms() if with_ball else None
-    folder = Path(tempfile.mkdtemp(prefix="bench-ball-"))
-    out = []
+def certified_population(
+    n: int, seed: int, terms: dict[str, Any] | None, prefix: str
+) -> Iterator[tuple[BatSpec, Outcome, RunState]]:
+    """Each bat of the simulated population certified on the lab scene (with the lot's ball terms
+    if given): its spec, its run's outcome and the run's folded state."""
+    folder = Path(tempfile.mkdtemp(prefix=prefix))
     for bat in simulated_population(n, seed, 0, 0.0):
         path = folder / f"{bat.spec.id}.toml"
         path.write_text(bat.toml(SCENE, seed))
@@ -78,6 +79,15 @@ def run(n: int, seed: int, with_ball: bool) -> list[tuple[str, float, float, flo
         with Store.open(folder / "runs.db") as store:
             done = certify(store, Procedure.load("bbcor"), spec, sim_config(SCENE, bat=spec), ball=terms)
             state = fold(history(store, done.run_id))
+        yield spec, done, state
+
+
+def run(n: int, seed: int, with_ball: bool) -> list[tuple[str, float, float, float, float]]:
+    """(bat id, certified mean, truth, U, u) for each bat."""
+    scene = Scene.load(SCENE)
+    terms = lot_terms() if with_ball else None
+    out = []
+    for spec, done, state in certified_population(n, seed, terms, "bench-ball-"):
         verdict = state.verdict or {}
         if "mean" not in verdict:  # the run stopped (e.g. its re-shoot budget): no value, not covered
             print(f"  {spec.id}: no verdict ({done.status}: {done.reason})")
