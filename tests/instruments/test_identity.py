@@ -12,12 +12,13 @@ from rig.certification import Signoff, certify
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import Equipment, RigConfig
+from rig.core.devices import InstrumentIdentity
 from rig.core.errors import ConfigError
-from rig.instruments import today_utc
+from rig.instruments import identify, today_utc
 from rig.protocols.procedure import Procedure
 from rig.report.certificate import render
 from rig.report.record import run_record
-from rig.session import sim_config
+from rig.session import RigSession, sim_config
 from rig.store import Store
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -199,43 +200,35 @@ def test_an_override_of_an_earlier_session_stays_on_the_certificate(tmp_path: Pa
     assert "(gate counter) accepted for this run (session 1, from" in text and "by A. B: why" in text
 
 
-def test_a_listed_serial_the_device_cannot_report_refuses_the_run(tmp_path: Path) -> None:
-    from rig.core.devices import InstrumentIdentity
-    from rig.instruments import identify
-    from rig.session import RigSession
+class _SaysSerial:
+    """Gates that say only a serial number (what identify() reads of a device)."""
 
-    class Silent:
-        def identify(self) -> InstrumentIdentity:
-            return InstrumentIdentity("M", "1", "")
+    def __init__(self, serial: str) -> None:
+        self.serial = serial
 
-    config = _config(_counter(30))
+    def identify(self) -> InstrumentIdentity:
+        return InstrumentIdentity("M", "1", self.serial)
+
+
+def _refusals_with_gates_saying(serial: str, config: RigConfig) -> tuple[str, ...]:
+    """rig.instruments.identify's refusals for `config`'s open rig whose gates report `serial`."""
     with RigSession.open(config) as session:
-        real, session.gates = session.gates, Silent()
+        real, session.gates = session.gates, _SaysSerial(serial)
         try:
-            found = identify(session, config, None)
+            return identify(session, config, None).refusals
         finally:
             session.gates = real
-    assert found.refusals and "reports none: its identity cannot be checked" in found.refusals[0]
 
 
-def test_a_two_part_serial_matches_either_part(tmp_path: Path) -> None:
-    from rig.core.devices import InstrumentIdentity
-    from rig.instruments import identify
-    from rig.session import RigSession
+def test_a_listed_serial_the_device_cannot_report_refuses_the_run() -> None:
+    refusals = _refusals_with_gates_saying("", _config(_counter(30)))
+    assert refusals and "reports none: its identity cannot be checked" in refusals[0]
 
-    class TwoPart:
-        def identify(self) -> InstrumentIdentity:
-            return InstrumentIdentity("VXM", "1", "VXM-1234 / SENSOR-9")
 
+def test_a_two_part_serial_matches_either_part() -> None:
     for serial, ok in (("VXM-1234", True), ("SENSOR-9", True), ("VXM-12", False)):
-        config = _config(_counter(30, serial=serial))
-        with RigSession.open(config) as session:
-            real, session.gates = session.gates, TwoPart()
-            try:
-                found = identify(session, config, None)
-            finally:
-                session.gates = real
-        assert (not found.refusals) is ok, (serial, found.refusals)
+        refusals = _refusals_with_gates_saying("VXM-1234 / SENSOR-9", _config(_counter(30, serial=serial)))
+        assert (not refusals) is ok, (serial, refusals)
 
 
 def test_a_run_through_devices_marked_simulated_is_recorded_as_simulated(tmp_path: Path) -> None:
