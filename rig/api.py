@@ -192,12 +192,12 @@ def certify(
     if calibration is not None:
         named = str(Path(calibration).expanduser().resolve())
         config = config.model_copy(update={"model": Model(calibration=named, named_by="script")})
-    plan_kw: dict[str, Any] = {"plan": plan} if plan is not None else {}  # else certify's default
+    given: dict[str, Any] = {"plan": plan} if plan is not None else {}  # else certify's defaults
     if accept_overdue is not None:
         from rig.certification import Signoff
 
         who, why = accept_overdue
-        plan_kw["accept_overdue"] = Signoff(who, why)
+        given["accept_overdue"] = Signoff(who, why)
     outcome = run_certification(
         store,
         proc,
@@ -207,7 +207,7 @@ def certify(
         operator=operator or ScriptedOperator(who="script (rig.certify)"),
         subscribers=[on_event] if on_event is not None else [],
         control=control,
-        **plan_kw,
+        **given,
     )
     return _result(store, outcome)
 

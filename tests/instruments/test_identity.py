@@ -248,3 +248,29 @@ def test_a_run_through_devices_marked_simulated_is_recorded_as_simulated(tmp_pat
     assert started({"gates": twin, "cannon": real, "clamp": real})
     assert not started({"gates": real, "cannon": real, "clamp": real})
     assert started({"gates": {**real, "address": "sim://gates?rig=x"}, "cannon": real, "clamp": real})
+
+
+def test_the_python_api_takes_an_override_as_who_and_why(tmp_path: Path) -> None:
+    import rig
+    from rig.core.errors import ConfigError as Refused
+
+    past_due = {"name": "gate counter", "device": "gates", "due": str(today_utc() - timedelta(days=1))}
+    spec = rig.simulated("ideal", equipment=[past_due])
+    with rig.open_store(tmp_path / "api.db") as store:
+        with pytest.raises(Refused, match="calibration past due: gate counter"):
+            rig.certify(
+                bat=rig.Bat.load(ROOT / "protocols" / "examples" / "sample-bat.toml"),
+                procedure="bbcor",
+                rig=spec,
+                store=store,
+            )
+        result = rig.certify(
+            bat=rig.Bat.load(ROOT / "protocols" / "examples" / "sample-bat.toml"),
+            procedure="bbcor",
+            rig=spec,
+            store=store,
+            accept_overdue=("Q. Manager", "checked against a reference counter"),
+        )
+        (entry,) = store.entries(result.run_id, kinds=[ev.INSTRUMENTS_IDENTIFIED])
+    assert result.finished
+    assert entry.payload["override"] == {"who": "Q. Manager", "why": "checked against a reference counter"}
