@@ -23,16 +23,37 @@ from rig.drivers.traffic import TrafficRecord
 
 ENTRY_POINT_GROUP = "bat_rig.drivers"
 
-# name -> kind -> "module:factory". Adding an instrument class is one module and one line here.
-BUILTIN: Mapping[str, Mapping[str, str]] = {
-    "rig-line": {
-        "cannon": "rig.drivers.cannon.driver:CannonDriver.from_context",
-        "gates": "rig.drivers.gates.driver:GatesDriver.from_context",
-        "clamp": "rig.drivers.clamp.driver:ClampDriver.from_context",
-    },
-    "scpi-counter": {"gates": "rig.drivers.scpi.counter:ScpiCounterGates.from_context"},
-    "vxm-stage": {"clamp": "rig.drivers.vxm.clamp:VxmClamp.from_context"},
-    "modbus-cannon": {"cannon": "rig.drivers.modbus.cannon:ModbusCannon.from_context"},
+
+@dataclass(frozen=True)
+class Builtin:
+    """A built-in driver: the factory of each device kind it drives ("module:attr"), and the simulated
+    twin that speaks its wire ("module:class" in rig.simulators; named here, imported only there)."""
+
+    factories: Mapping[str, str]
+    twin: str | None = None
+
+
+# name -> its factories and twin. Adding an instrument class is its module(s) and one line here.
+BUILTIN: Mapping[str, Builtin] = {
+    "rig-line": Builtin(
+        {
+            "cannon": "rig.drivers.cannon.driver:CannonDriver.from_context",
+            "gates": "rig.drivers.gates.driver:GatesDriver.from_context",
+            "clamp": "rig.drivers.clamp.driver:ClampDriver.from_context",
+        }
+    ),
+    "scpi-counter": Builtin(
+        {"gates": "rig.drivers.scpi.counter:ScpiCounterGates.from_context"},
+        twin="rig.simulators.instruments.scpi_counter:ScpiCounterTwin",
+    ),
+    "vxm-stage": Builtin(
+        {"clamp": "rig.drivers.vxm.clamp:VxmClamp.from_context"},
+        twin="rig.simulators.instruments.vxm_stage:VxmStageTwin",
+    ),
+    "modbus-cannon": Builtin(
+        {"cannon": "rig.drivers.modbus.cannon:ModbusCannon.from_context"},
+        twin="rig.simulators.instruments.modbus_plc:ModbusPlcTwin",
+    ),
 }
 
 INTERFACES: Mapping[str, type] = {"cannon": Cannon, "gates": Gates, "clamp": Clamp}
@@ -91,7 +112,7 @@ def _type_names(expected: type | tuple[type, ...]) -> str:
 
 def known_drivers(kind: str) -> list[str]:
     """The names a rig config can give for device `kind`: built in, then installed entry points."""
-    names = [name for name, kinds in BUILTIN.items() if kind in kinds]
+    names = [name for name, entry in BUILTIN.items() if kind in entry.factories]
     return names + sorted(ep.name for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name not in BUILTIN)
 
 
@@ -108,9 +129,9 @@ def factory_for(kind: str, spec: DeviceSpec, source: str = "rig config") -> Call
             source=source,
         )
     if name in BUILTIN:
-        target = BUILTIN[name].get(kind)
+        target = BUILTIN[name].factories.get(kind)
         if target is None:
-            serves = ", ".join(BUILTIN[name])
+            serves = ", ".join(BUILTIN[name].factories)
             raise ConfigError(
                 f"[devices.{kind}] driver {name!r} drives the {serves}, not the {kind}", source=source
             )

@@ -111,10 +111,11 @@ def cmd_sim_serve(args: argparse.Namespace) -> int:
                 "--instruments serves TCP ports of 127.0.0.1: drop --kind", source="command line"
             )
         target = output_file(args.write_config, "--write-config")
-        serve_instruments(scene, base_port=args.base_port, write_config=target)
+        serve_instruments(scene, base_port=args.base_port, write_config=target, chosen=dict(args.twin or []))
         return 0
-    if args.write_config is not None:
-        raise ConfigError("--write-config goes with --instruments", source="command line")
+    if args.write_config is not None or args.twin:
+        what = "--write-config" if args.write_config is not None else "--twin"
+        raise ConfigError(f"{what} goes with --instruments", source="command line")
     serve(scene, kind=args.kind or "pty", base_port=args.base_port)
     return 0
 
@@ -128,6 +129,14 @@ def _base_port(text: str) -> int:
     if not 0 <= port <= MAX_BASE_PORT:
         raise argparse.ArgumentTypeError(f"{port} is not a port from 1 to {MAX_BASE_PORT} (or 0: any free)")
     return port
+
+
+def _twin_choice(text: str) -> tuple[str, str]:
+    """KIND=DRIVER of --twin."""
+    kind, sep, driver = text.partition("=")
+    if not sep or not kind.strip() or not driver.strip():
+        raise argparse.ArgumentTypeError(f"{text!r} is not KIND=DRIVER (e.g. gates=scpi-counter)")
+    return kind.strip(), driver.strip()
 
 
 def add_parsers(sub: Any) -> None:
@@ -160,7 +169,17 @@ def add_parsers(sub: Any) -> None:
         help="with --instruments: write the rig config that names the three drivers (rig certify --config)",
     )
     p.add_argument(
-        "--base-port", type=_base_port, default=0, help="first of three TCP ports (default: any free ports)"
+        "--twin",
+        type=_twin_choice,
+        action="append",
+        metavar="KIND=DRIVER",
+        help="with --instruments: serve device KIND by DRIVER's twin (default: the first built-in with one)",
+    )
+    p.add_argument(
+        "--base-port",
+        type=_base_port,
+        default=0,
+        help="first of the consecutive TCP ports (default: any free ports)",
     )
     p.add_argument(
         "--bat", metavar="BAT.toml", help="simulate this bat (its length, mass, MOI, balance, hoop)"

@@ -11,22 +11,19 @@ from __future__ import annotations
 
 import importlib
 import threading
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any, Protocol, TextIO
 
+from rig.core.config import DEVICE_KINDS
 from rig.core.errors import ConfigError
 from rig.core.tomlfile import dump_toml
+from rig.drivers.registry import BUILTIN
 from rig.simulators.scene import Scene
 from rig.simulators.warmup import warm_up
 from rig.simulators.world import SimWorld
 
-# device -> the twin that serves it ("module:class"); a device without one is not served this way
-TWINS = {
-    "cannon": "rig.simulators.instruments.modbus_plc:ModbusPlcTwin",
-    "gates": "rig.simulators.instruments.scpi_counter:ScpiCounterTwin",
-    "clamp": "rig.simulators.instruments.vxm_stage:VxmStageTwin",
-}
-PORTS_PER_TWIN = 2  # the stage and its sensor take two; the others one
+PORTS = 1  # ports a twin takes unless its class says otherwise (the stage and its sensor: 2)
 
 
 class Twin(Protocol):
@@ -40,27 +37,64 @@ class Twin(Protocol):
     def close(self) -> None: ...
 
 
-def twin_class(kind: str) -> type[Any] | None:
-    """The twin class of device `kind`, None if it has none (yet)."""
-    module, _, name = TWINS[kind].partition(":")
-    try:
-        cls: type[Any] = getattr(importlib.import_module(module), name)
-        return cls
-    except ModuleNotFoundError:
-        return None
+def twin_drivers(chosen: Mapping[str, str] | None = None) -> dict[str, str]:
+    """Device kind -> the driver whose twin serves it: the chosen one (kind -> driver name), else
+    the first built-in driver of that kind that has a twin. ConfigError (one line) for a kind or a
+    driver that cannot be served, or a kind left without a twin."""
+    chosen = dict(chosen or {})
+    for kind, name in chosen.items():
+        if kind not in DEVICE_KINDS:
+            raise ConfigError(
+                f"--twin {kind}={name}: no device kind {kind!r} (kinds: {', '.join(DEVICE_KINDS)})"
+            )
+        entry = BUILTIN.get(name)
+        if entry is None or entry.twin is None or kind not in entry.factories:
+            served = ", ".join(n for n, e in BUILTIN.items() if e.twin and kind in e.factories) or "none"
+            raise ConfigError(
+                f"--twin {kind}={name}: no twin of driver {name!r} for the {kind} (twins: {served})"
+            )
+    drivers: dict[str, str] = {}
+    for kind in DEVICE_KINDS:
+        found = chosen.get(kind) or next(
+            (n for n, e in BUILTIN.items() if e.twin is not None and kind in e.factories), None
+        )
+        if found is None:
+            raise ConfigError(f"no instrument twin for the {kind}")
+        drivers[kind] = found
+    return drivers
 
 
-def start_twins(world: SimWorld, host: str = "127.0.0.1", base_port: int = 0) -> list[Twin]:
-    """Start a twin for every device of `world` that has one; stop them all if one fails."""
+def twin_class(driver: str) -> type[Any]:
+    """The twin class of built-in `driver` (its registry line names it)."""
+    target = BUILTIN[driver].twin
+    if target is None:
+        raise ConfigError(f"driver {driver!r} has no simulated twin")
+    module, _, name = target.partition(":")
+    cls: type[Any] = getattr(importlib.import_module(module), name)
+    return cls
+
+
+def start_twins(
+    world: SimWorld,
+    host: str = "127.0.0.1",
+    base_port: int = 0,
+    chosen: Mapping[str, str] | None = None,
+) -> list[Twin]:
+    """Start a twin for every device of `world` (`chosen`: kind -> driver, see twin_drivers); with
+    `base_port` the twins take consecutive ports from it; stop them all if one fails."""
+    classes = [twin_class(driver) for driver in twin_drivers(chosen).values()]
+    needed = sum(int(getattr(cls, "PORTS", PORTS)) for cls in classes)
+    if base_port and base_port + needed - 1 > 65535:
+        raise ConfigError(f"--base-port {base_port}: the twins need {needed} ports from it, past 65535")
     twins: list[Twin] = []
+    port = base_port
     try:
-        for i, kind in enumerate(TWINS):
-            cls = twin_class(kind)
-            if cls is None:
-                raise ConfigError(f"no instrument twin for the {kind} ({TWINS[kind]} is missing)")
+        for cls in classes:
             twin = cls(world)
             twins.append(twin)
-            twin.start(host, base_port + PORTS_PER_TWIN * i if base_port else 0)
+            twin.start(host, port)
+            if base_port:
+                port += int(getattr(cls, "PORTS", PORTS))
     except BaseException:
         for twin in twins:
             twin.close()
@@ -88,8 +122,9 @@ def serve_instruments(
     stop: threading.Event | None = None,
     out: TextIO | None = None,
     warm: bool = True,
+    chosen: Mapping[str, str] | None = None,
 ) -> None:
-    """Serve `scene` through the three twins until interrupted or `stop` is set."""
+    """Serve `scene` through the twins (`chosen`: kind -> driver) until interrupted or `stop` is set."""
     import sys
 
     out = out if out is not None else sys.stdout
@@ -97,7 +132,7 @@ def serve_instruments(
     if warm:
         warm_up(scene)
     world = SimWorld(scene)
-    twins = start_twins(world, host, base_port)
+    twins = start_twins(world, host, base_port, chosen)
     try:
         config = rig_config(scene, twins)
         for kind, table in config["devices"].items():

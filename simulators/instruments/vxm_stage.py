@@ -105,6 +105,7 @@ class VxmStageTwin:
 
     DRIVER: ClassVar[str] = "vxm-stage"
     KIND: ClassVar[str] = "clamp"
+    PORTS: ClassVar[int] = 2  # the stage's and the sensor's
 
     def __init__(
         self,

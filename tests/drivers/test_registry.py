@@ -52,7 +52,7 @@ def test_an_unknown_driver_name_lists_the_known_ones() -> None:
 
 
 def test_a_built_in_driver_of_another_kind_is_refused() -> None:
-    name = next((n for n, kinds in BUILTIN.items() if "gates" not in kinds), None)
+    name = next((n for n, entry in BUILTIN.items() if "gates" not in entry.factories), None)
     if name is None:
         pytest.skip("every built-in driver drives the gates")
     with pytest.raises(ConfigError, match=rf"driver '{name}' drives the .*, not the gates"):
