@@ -55,10 +55,21 @@ def open_port(
     baudrate: int = BAUDRATE,
     timeout: float = 0.05,
     write_timeout: float = 1.0,
+    parity: str = "N",
+    stopbits: int = 1,
+    exclusive: bool | None = None,
 ) -> SerialLike:
-    """Open a port by path or URL; any failure is a `DeviceGone` naming the device and URL."""
+    """Open a port by path or URL (8 data bits); any failure is a `DeviceGone` naming the device and URL."""
     try:
-        return serial.serial_for_url(url, baudrate=baudrate, timeout=timeout, write_timeout=write_timeout)
+        return serial.serial_for_url(
+            url,
+            baudrate=baudrate,
+            timeout=timeout,
+            write_timeout=write_timeout,
+            parity=parity,
+            stopbits=stopbits,
+            exclusive=exclusive,
+        )
     except RigError:
         raise  # ours already names its cause (e.g. a simulator's bad scene file)
     except (serial.SerialException, OSError, ValueError) as exc:

@@ -1,4 +1,4 @@
-"""The air cannon on a PLC over Modbus TCP (driver `modbus-cannon`; implements rig.core.devices.Cannon).
+"""The air cannon on a PLC over Modbus TCP or RTU (driver `modbus-cannon`; a rig.core.devices.Cannon).
 
 Every decision is taken on one fresh read of the status block (state, pressure, setpoint,
 interlocks, shot counter, fault: one Read Holding Registers): FIRE is written only when that read,
@@ -17,7 +17,7 @@ from rig.core.devices import CannonStatus, Environment, InstrumentIdentity
 from rig.core.errors import DeviceError, DeviceTimeout, GarbledReply, NotSent, ParameterError, SafetyRefusal
 from rig.drivers.cannon import codec
 from rig.drivers.modbus import plc_codec as plc
-from rig.drivers.modbus.transport import ModbusTransport
+from rig.drivers.modbus.transport import TRANSPORTS, ModbusTransport, SerialLine
 from rig.drivers.registry import DriverContext
 from rig.drivers.traffic import TrafficRecord
 
@@ -28,7 +28,8 @@ VENDOR, PRODUCT_CODE, REVISION, MODEL, SERIAL = 0x00, 0x01, 0x02, 0x05, 0x80
 
 
 class ModbusCannon:
-    """The cannon's PLC: registers per `plc_codec.RegisterMap`, one unit of a Modbus TCP server."""
+    """The cannon's PLC: registers per `plc_codec.RegisterMap`, one unit of a Modbus TCP server, or
+    of an RTU line when `serial` gives the line's settings."""
 
     def __init__(
         self,
@@ -41,29 +42,52 @@ class ModbusCannon:
         ready_timeout_s: float = 120.0,
         poll_s: float = DEFAULT_POLL_S,
         on_traffic: Callable[[TrafficRecord], None] | None = None,
+        serial: SerialLine | None = None,
     ) -> None:
         self.name = name
         self.regs = registers or plc.RegisterMap()
         self.ready_timeout_s = ready_timeout_s
         self.poll_s = poll_s
         self.transport = ModbusTransport(
-            name, address, unit, timeout_s=reply_timeout_s, on_traffic=on_traffic
+            name, address, unit, timeout_s=reply_timeout_s, on_traffic=on_traffic, serial=serial
         )
 
     @classmethod
     def from_context(cls, context: DriverContext) -> Self:
         """The `modbus-cannon` driver of a rig config: options unit, registers, poll_s, timeout_s (a
-        reply's time limit for this PLC, instead of the rig's timeouts.reply_s)."""
+        reply's time limit for this PLC, instead of the rig's timeouts.reply_s), transport ("tcp",
+        the default, or "rtu": the address is then a serial port) and, for RTU, baud, parity, stopbits."""
         known: dict[str, type | tuple[type, ...]] = {
             "unit": int,
             "registers": dict,
             "poll_s": (int, float),
             "timeout_s": (int, float),
+            "transport": str,
+            "baud": int,
+            "parity": str,
+            "stopbits": int,
         }
         options = context.only_options(known)
+        transport = options.get("transport", "tcp")
+        if transport not in TRANSPORTS:
+            raise context.refuse(
+                f"modbus-cannon: transport {transport!r} must be one of {', '.join(TRANSPORTS)}"
+            )
+        line_options = sorted({"baud", "parity", "stopbits"} & set(options))
+        if transport == "tcp" and line_options:
+            raise context.refuse(f'modbus-cannon: option {line_options[0]!r} is for transport = "rtu"')
         try:
             unit = plc.check_unit(options.get("unit", 1))
             regs = plc.RegisterMap.from_options(options.get("registers", {}))
+            serial = (
+                SerialLine(
+                    baud=options.get("baud", 19200),
+                    parity=options.get("parity", "E"),
+                    stopbits=options.get("stopbits", 1),
+                )
+                if transport == "rtu"
+                else None
+            )
         except ValueError as exc:
             raise context.refuse(f"modbus-cannon: {exc}") from None
         poll_s = float(options.get("poll_s", DEFAULT_POLL_S))
@@ -82,6 +106,7 @@ class ModbusCannon:
                 ready_timeout_s=context.timeouts.pressure_ready_s,
                 poll_s=poll_s,
                 on_traffic=context.on_traffic,
+                serial=serial,
             )
         except ValueError as exc:
             raise context.refuse(f"modbus-cannon: {exc}") from None

@@ -1,4 +1,7 @@
-"""A simulated cannon PLC: pymodbus's own Modbus TCP server in front of a SimWorld's SimCannon.
+"""A simulated cannon PLC: pymodbus's own Modbus server in front of a SimWorld's SimCannon.
+
+On TCP by default; with `transport="rtu"` the server speaks RTU frames (unit, PDU, CRC-16) and a pty
+in front of it (rig.simulators.ptybridge) is the serial port the driver opens, as a USB adapter.
 
 The registers are drivers/modbus/plc_codec.py's map. Every read is filled from the world's cannon at
 that moment; every write goes to the cannon's own logic (SimCannon.pset/arm/fire/vent/reset), so the
@@ -20,6 +23,7 @@ import threading
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
+from pymodbus import FramerType
 from pymodbus.constants import ExcCodes
 from pymodbus.pdu.device import ModbusDeviceIdentification
 from pymodbus.server import ModbusTcpServer
@@ -28,6 +32,7 @@ from pymodbus.simulator import DataType, SimData, SimDevice
 from rig.core.devices import CannonState, Environment
 from rig.drivers.cannon.codec import refuse_in_state
 from rig.drivers.modbus import plc_codec as plc
+from rig.simulators.ptybridge import PtyBridge
 from rig.simulators.world import SimWorld
 
 IDENTITY = {"VendorName": "bat-rig simulator", "ProductCode": "SIM-PLC", "MajorMinorRevision": "sim-1"}
@@ -55,7 +60,13 @@ class ModbusPlcTwin:
         fault_times: int = 1,
         door_opens_after_arm: bool = False,
         poll_limit_s: float = 60.0,
+        transport: str = "tcp",
     ) -> None:
+        if transport not in ("tcp", "rtu"):
+            raise ValueError(f"transport must be 'tcp' or 'rtu', not {transport!r}")
+        self.transport = transport
+        self.bridge: PtyBridge | None = None
+        self.tcp_address = ""  # RTU: where the server itself listens (RTU frames over TCP)
         self.world = world
         self.unit = plc.check_unit(unit)
         self.regs = plc.RegisterMap.from_options(registers or {})
@@ -74,7 +85,8 @@ class ModbusPlcTwin:
 
     # -- the twin API ---------------------------------------------------------------------------
     def start(self, host: str = "127.0.0.1", port: int = 0) -> str:
-        """Serve in a daemon thread; the address (host:port) the driver connects to."""
+        """Serve in a daemon thread; the address the driver connects to (host:port, or for RTU the
+        pty's path)."""
         ready = threading.Event()
         failure: list[BaseException] = []
         self._thread = threading.Thread(
@@ -85,6 +97,11 @@ class ModbusPlcTwin:
             raise RuntimeError(
                 f"simulated PLC did not start on {host}:{port}: {failure[0] if failure else 'timeout'}"
             )
+        if self.transport == "rtu":
+            self.tcp_address = self.address
+            bound_host, _, bound_port = self.address.rpartition(":")
+            self.bridge = PtyBridge(bound_host, int(bound_port))
+            self.address = self.bridge.start()
         return self.address
 
     def device_table(self) -> dict[str, Any]:
@@ -94,12 +111,25 @@ class ModbusPlcTwin:
             "driver": self.DRIVER,
             "address": self.address,
             # a reply waits for the simulated physics (a shot's collision), seconds on a busy machine
-            "options": {"unit": self.unit, "registers": table, "poll_s": 0.01, "timeout_s": REPLY_TIMEOUT_S},
+            "options": {
+                "unit": self.unit,
+                "registers": table,
+                "poll_s": 0.01,
+                "timeout_s": REPLY_TIMEOUT_S,
+                # a pty takes no parity (its termios refuses PARENB): the spec's no-parity form, 2 stop bits
+                **(
+                    {"transport": "rtu", "baud": 115200, "parity": "N", "stopbits": 2}
+                    if self.transport == "rtu"
+                    else {}
+                ),
+            },
             "simulated": True,
         }
 
     def close(self) -> None:
         """Stop serving (open connections are closed)."""
+        if self.bridge is not None:
+            self.bridge.close()
         if self._loop is not None and self._stop is not None and self._loop.is_running():
             self._loop.call_soon_threadsafe(self._stop.set)
         if self._thread is not None:
@@ -134,7 +164,10 @@ class ModbusPlcTwin:
             info_name={**IDENTITY, "ModelName": MODEL_NAME}, info={0x80: SERIAL}
         )
         self._stop = asyncio.Event()
-        self._server = server = ModbusTcpServer(device, address=(host, port), identity=identity)
+        framer = FramerType.RTU if self.transport == "rtu" else FramerType.SOCKET
+        self._server = server = ModbusTcpServer(
+            device, address=(host, port), identity=identity, framer=framer
+        )
         await server.serve_forever(background=True)
         sock = server.transport.sockets[0]  # type: ignore[attr-defined]  # a listening asyncio Server
         self.address = f"{host}:{sock.getsockname()[1]}"
