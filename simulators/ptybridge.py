@@ -3,7 +3,8 @@
 A simulated instrument that speaks its serial protocol on TCP (pymodbus's server with the RTU
 framer, say) becomes a device path a driver opens with pyserial as it would a USB adapter. The pty
 is raw (no echo, no line editing, every byte passed). Faults for tests: `garble_next()` flips one
-bit of the next reply, `inject(data)` puts bytes on the line, `unplug()` closes the pty as a pulled adapter would (its path is gone).
+bit of the next reply, `inject(data)` puts bytes on the line, `unplug()` closes the pty as a pulled
+adapter would (its path is gone).
 """
 
 from __future__ import annotations
