@@ -24,6 +24,22 @@ from rig.drivers.traffic import Direction, TrafficRecord
 TERMINATION = "\n"
 
 
+# what pyvisa-py needs beyond itself for a resource class (its own messages say so too)
+NEEDS = {
+    "USB": "USB needs pyusb and the system's libusb: pip install pyusb",
+    "GPIB": "GPIB needs linux-gpib or gpib-ctypes and the board's driver",
+}
+
+
+def resource_kind(resource: str) -> str | None:
+    """The interface of a VISA resource string (TCPIP, USB, GPIB, ASRL), None if it is not one."""
+    head = resource.split("::", 1)[0].upper()
+    for kind in ("TCPIP", "USB", "GPIB", "ASRL"):
+        if head.startswith(kind) and "::" in resource:
+            return kind
+    return None
+
+
 class VisaLink:
     """One VISA resource spoken to in text lines; `write`, `query`, `reconnect`, `close`."""
 
@@ -48,6 +64,13 @@ class VisaLink:
         self._open()
 
     def _open(self) -> None:
+        kind = resource_kind(self.resource_name)
+        if kind is None:
+            raise DeviceGone(
+                self.device,
+                f"{self.resource_name!r} is not a VISA resource string "
+                "(e.g. TCPIP0::host::5025::SOCKET, USB0::0x0957::0x1907::SERIAL::INSTR, GPIB0::3::INSTR)",
+            )
         try:
             if self._manager is None:
                 self._manager = pyvisa.ResourceManager(self._backend)
@@ -59,8 +82,11 @@ class VisaLink:
                 open_timeout=self._ms(self.timeout_s),
             )
         except (VisaIOError, OSError, ValueError, pyvisa.errors.Error) as exc:
+            why = " ".join(str(exc).split())  # pyvisa-py's messages for USB and GPIB span lines
+            need = NEEDS.get(kind, "")
             raise DeviceGone(
-                self.device, f"cannot open VISA resource {self.resource_name!r}: {exc}"
+                self.device,
+                f"cannot open VISA resource {self.resource_name!r}: {why}" + (f" ({need})" if need else ""),
             ) from None
         sock = self._socket()
         if sock is not None:
