@@ -111,10 +111,16 @@ def cmd_sim_serve(args: argparse.Namespace) -> int:
                 "--instruments serves TCP ports of 127.0.0.1: drop --kind", source="command line"
             )
         target = output_file(args.write_config, "--write-config")
-        serve_instruments(scene, base_port=args.base_port, write_config=target, chosen=dict(args.twin or []))
+        serve_instruments(
+            scene,
+            base_port=args.base_port,
+            write_config=target,
+            chosen=dict(args.twin or []),
+            serial=args.serial,
+        )
         return 0
-    if args.write_config is not None or args.twin:
-        what = "--write-config" if args.write_config is not None else "--twin"
+    if args.write_config is not None or args.twin or args.serial:
+        what = "--write-config" if args.write_config is not None else "--twin" if args.twin else "--serial"
         raise ConfigError(f"{what} goes with --instruments", source="command line")
     serve(scene, kind=args.kind or "pty", base_port=args.base_port)
     return 0
@@ -167,6 +173,11 @@ def add_parsers(sub: Any) -> None:
         "--write-config",
         metavar="RIG.toml",
         help="with --instruments: write the rig config that names the three drivers (rig certify --config)",
+    )
+    p.add_argument(
+        "--serial",
+        action="store_true",
+        help="with --instruments: the PLC (Modbus RTU), the stage and the sensor on ptys, as serial ports",
     )
     p.add_argument(
         "--twin",

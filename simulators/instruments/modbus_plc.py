@@ -1,6 +1,6 @@
 """A simulated cannon PLC: pymodbus's own Modbus server in front of a SimWorld's SimCannon.
 
-On TCP by default; with `transport="rtu"` the server speaks RTU frames (unit, PDU, CRC-16) and a pty
+On TCP by default; with `serial=True` the server speaks RTU frames (unit, PDU, CRC-16) and a pty
 in front of it (rig.simulators.ptybridge) is the serial port the driver opens, as a USB adapter.
 
 The registers are drivers/modbus/plc_codec.py's map. Every read is filled from the world's cannon at
@@ -46,6 +46,7 @@ class ModbusPlcTwin:
 
     DRIVER: ClassVar[str] = "modbus-cannon"
     KIND: ClassVar[str] = "cannon"
+    SERIAL: ClassVar[bool] = True  # serial=True serves it on a pty
 
     def __init__(
         self,
@@ -60,11 +61,9 @@ class ModbusPlcTwin:
         fault_times: int = 1,
         door_opens_after_arm: bool = False,
         poll_limit_s: float = 60.0,
-        transport: str = "tcp",
+        serial: bool = False,
     ) -> None:
-        if transport not in ("tcp", "rtu"):
-            raise ValueError(f"transport must be 'tcp' or 'rtu', not {transport!r}")
-        self.transport = transport
+        self.transport = "rtu" if serial else "tcp"  # serial: RTU frames, on a pty in front of the server
         self.bridge: PtyBridge | None = None
         self.tcp_address = ""  # RTU: where the server itself listens (RTU frames over TCP)
         self.world = world

@@ -79,9 +79,12 @@ def start_twins(
     host: str = "127.0.0.1",
     base_port: int = 0,
     chosen: Mapping[str, str] | None = None,
+    serial: bool = False,
 ) -> list[Twin]:
     """Start a twin for every device of `world` (`chosen`: kind -> driver, see twin_drivers); with
-    `base_port` the twins take consecutive ports from it; stop them all if one fails."""
+    `base_port` the twins take consecutive ports from it; with `serial` each twin that has a serial
+    form (SERIAL = True: the PLC on Modbus RTU, the stage and sensor) serves it on ptys; stop them
+    all if one fails."""
     classes = [twin_class(driver) for driver in twin_drivers(chosen).values()]
     needed = sum(int(getattr(cls, "PORTS", PORTS)) for cls in classes)
     if base_port and base_port + needed - 1 > 65535:
@@ -90,7 +93,7 @@ def start_twins(
     port = base_port
     try:
         for cls in classes:
-            twin = cls(world)
+            twin = cls(world, serial=True) if serial and getattr(cls, "SERIAL", False) else cls(world)
             twins.append(twin)
             twin.start(host, port)
             if base_port:
@@ -123,8 +126,10 @@ def serve_instruments(
     out: TextIO | None = None,
     warm: bool = True,
     chosen: Mapping[str, str] | None = None,
+    serial: bool = False,
 ) -> None:
-    """Serve `scene` through the twins (`chosen`: kind -> driver) until interrupted or `stop` is set."""
+    """Serve `scene` through the twins (`chosen`: kind -> driver; `serial`: on ptys where a twin
+    can) until interrupted or `stop` is set."""
     import sys
 
     out = out if out is not None else sys.stdout
@@ -132,7 +137,7 @@ def serve_instruments(
     if warm:
         warm_up(scene)
     world = SimWorld(scene)
-    twins = start_twins(world, host, base_port, chosen)
+    twins = start_twins(world, host, base_port, chosen, serial)
     try:
         config = rig_config(scene, twins)
         for kind, table in config["devices"].items():

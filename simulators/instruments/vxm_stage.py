@@ -21,6 +21,7 @@ from typing import Any, ClassVar
 from rig.drivers.vxm import stage_codec, swing_codec
 from rig.drivers.vxm.stage_codec import Index, Speed
 from rig.simulators.clamp import LIFT_S
+from rig.simulators.ptybridge import PtyBridge
 from rig.simulators.world import RECOIL_REPORT_S, SimWorld
 
 GRIP_WAIT_S = 2.0  # the box waits this long for the lock switch [assumed]
@@ -105,6 +106,7 @@ class VxmStageTwin:
 
     DRIVER: ClassVar[str] = "vxm-stage"
     KIND: ClassVar[str] = "clamp"
+    SERIAL: ClassVar[bool] = True  # serial=True serves it on a pty
     PORTS: ClassVar[int] = 2  # the stage's and the sensor's
 
     def __init__(
@@ -118,7 +120,10 @@ class VxmStageTwin:
         stage_silent_after: int | None = None,
         drop_after: int | None = None,
         sensor_silent_after: int | None = None,
+        serial: bool = False,
     ) -> None:
+        self.serial = serial  # serve each instrument on a pty (its serial port) in front of its TCP port
+        self._bridges: list[PtyBridge] = []
         self.world, self.clamp = world, world.clamp
         self.backlash_mm, self.resolution_deg = backlash_mm, resolution_deg
         self.lead, self.zero_mm = lead_mm_per_step, zero_mm
@@ -147,22 +152,34 @@ class VxmStageTwin:
             _Server("vxm-stage", self._stage, host, port),
             _Server("swing-sensor", self._sensor, host, port + 1 if port else 0),
         ]
-        return self._servers[0].url
+        if self.serial:
+            for server in self._servers:
+                bound_host, bound_port = server.sock.getsockname()[:2]
+                self._bridges.append(PtyBridge(bound_host, bound_port))
+                self._bridges[-1].start()
+        return self.urls()[0]
+
+    def urls(self) -> list[str]:
+        """Where the stage and the sensor are: pty paths when serving serial, else socket:// URLs."""
+        return [b.path for b in self._bridges] if self.serial else [s.url for s in self._servers]
 
     def device_table(self) -> dict[str, Any]:
         """The rig config's [devices.clamp] table for this twin (the sensor's URL among the options)."""
         if not self._servers:
             raise RuntimeError("the twin is not serving yet: it has no address")
+        stage, sensor = self.urls()
         options = {
-            "sensor": self._servers[1].url,
+            "sensor": sensor,
             "lead_mm_per_step": self.lead,
             "zero_mm": self.zero_mm,
             "backlash_mm": max(0.1, 2 * self.backlash_mm),
         }
-        return {"driver": self.DRIVER, "address": self._servers[0].url, "options": options, "simulated": True}
+        return {"driver": self.DRIVER, "address": stage, "options": options, "simulated": True}
 
     def close(self) -> None:
         """Stop serving; the world's clamp forgets this twin."""
+        for bridge in self._bridges:
+            bridge.close()
         for server in self._servers:
             server.close()
         with contextlib.suppress(ValueError):

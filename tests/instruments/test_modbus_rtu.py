@@ -102,7 +102,7 @@ def world() -> SimWorld:
 
 @pytest.fixture
 def twin(world: SimWorld) -> Iterator[ModbusPlcTwin]:
-    plc_twin = ModbusPlcTwin(world, transport="rtu")
+    plc_twin = ModbusPlcTwin(world, serial=True)
     plc_twin.start()
     yield plc_twin
     plc_twin.close()
@@ -142,8 +142,8 @@ def test_the_same_driver_reaches_an_rtu_line_behind_a_device_server(twin: Modbus
 
 
 def test_interlocks_open_fire_nothing_over_rtu(world: SimWorld) -> None:
-    plain = ModbusPlcTwin(world, transport="rtu")
-    after_arm = ModbusPlcTwin(world, transport="rtu", door_opens_after_arm=True)
+    plain = ModbusPlcTwin(world, serial=True)
+    after_arm = ModbusPlcTwin(world, serial=True, door_opens_after_arm=True)
     plain.start(), after_arm.start()
     wire = Wire()
     refused: Counter[str] = Counter()
@@ -230,7 +230,7 @@ def test_bad_rtu_options_are_refused_in_one_line(options: dict[str, Any], said: 
 def test_a_certification_through_the_plc_on_an_rtu_line(tmp_path: Path) -> None:
     config = sim_config("lab", rig_name="modbus-rtu-cert", bat=BAT)
     world = get_world("modbus-rtu-cert")
-    twin = ModbusPlcTwin(world, transport="rtu")
+    twin = ModbusPlcTwin(world, serial=True)
     twin.start()
     devices = Devices(cannon=DeviceSpec(**twin.device_table()))
     config = config.model_copy(update={"devices": devices})
