@@ -16,10 +16,10 @@ import platform
 from dataclasses import dataclass
 from typing import Any
 
-from rig import __version__
 from rig.core import events as ev
 from rig.core.ball import BallLot
 from rig.core.errors import ConfigError
+from rig.core.version import __version__
 from rig.protocols import ball_eval, steps
 from rig.protocols.ball_procedure import BallProcedure, Slot
 from rig.protocols.control import RunAborted

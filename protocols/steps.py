@@ -10,12 +10,12 @@ from __future__ import annotations
 import platform
 from typing import Any
 
-from rig import __version__
 from rig.core import events as ev
 from rig.core.bat import PIVOT_FROM_KNOB_IN, BatSpec
 from rig.core.devices import STAGE_RANGE_MM
 from rig.core.errors import ConfigError
 from rig.core.units import INCH
+from rig.core.version import __version__
 from rig.measure.moi import entered_budget, pendulum_moi
 from rig.protocols import evaluate
 from rig.protocols.ball_terms import BallTerms

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import importlib
 
-__version__ = "0.1.0"
+from rig.core.version import __version__
 
 _API = (
     "Bat",

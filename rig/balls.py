@@ -13,7 +13,6 @@ from collections.abc import Callable, Iterable
 from dataclasses import replace
 from typing import Any
 
-from rig import __version__
 from rig.certification import (
     Emit,
     Outcome,
@@ -33,6 +32,7 @@ from rig.core.ball import BALL_TESTS, BallLot
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RigError
 from rig.core.events import RunEvent, Subscriber
+from rig.core.version import __version__
 from rig.keys import recorded_rig, signing_for
 from rig.protocols.ball_eval import lot_result
 from rig.protocols.ball_procedure import BallProcedure

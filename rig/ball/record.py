@@ -6,8 +6,8 @@ import hashlib
 from collections.abc import Mapping, Sequence
 from datetime import UTC, datetime
 
-import rig
 from rig.ball.fit import SELECTION, BallFitResult, model_ccor, speed_levels
+from rig.core.version import __version__
 from rig.measure.selection import variant_rows
 from rig.physics.ball_law import BALL_NAMES, BallLaw, BallProvenance
 
@@ -77,7 +77,7 @@ def ball_law(
             speed_min_m_s=float(data.speed.min()),
             speed_max_m_s=float(data.speed.max()),
             created_utc=datetime.now(UTC).isoformat(timespec="seconds"),
-            software=f"rig {rig.__version__}",
+            software=f"rig {__version__}",
             fixed=fixed,
         ),
     )

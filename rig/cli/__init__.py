@@ -51,7 +51,7 @@ def _version() -> str:
     try:
         return version("bat-rig")
     except PackageNotFoundError:
-        from rig import __version__
+        from rig.core.version import __version__
 
         return __version__
 

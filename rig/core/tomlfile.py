@@ -54,9 +54,7 @@ def dump_toml(data: dict[str, Any]) -> str:
 
 
 def _table(data: dict[str, Any], path: tuple[str, ...], lines: list[str]) -> None:
-    plain = {
-        k: v for k, v in data.items() if (v is not None and not isinstance(v, dict)) or _inline(k, v)
-    }
+    plain = {k: v for k, v in data.items() if (v is not None and not isinstance(v, dict)) or _inline(k, v)}
     nested = {k: v for k, v in data.items() if isinstance(v, dict) and k not in plain}
     if path and (plain or not nested):
         lines += ["", "[" + ".".join(map(_key, path)) + "]"]

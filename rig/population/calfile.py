@@ -15,9 +15,9 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
 
-import rig
 from rig.core.errors import ConfigError, ParameterError
 from rig.core.files import DATA_BYTES, read_json_file
+from rig.core.version import __version__
 from rig.measure.selection import variant_rows
 from rig.physics import CollisionParams
 from rig.population.calcheck import check_calibration
@@ -178,7 +178,7 @@ def calibration_record(
             "hoop_min_hz": min(hoops),
             "hoop_max_hz": max(hoops),
             "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
-            "software": f"rig {rig.__version__}",
+            "software": f"rig {__version__}",
             "moi_min_kgm2": min(mois),
             "moi_max_kgm2": max(mois),
         },
