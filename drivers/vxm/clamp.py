@@ -2,7 +2,9 @@
 
 Two connections (both pyserial URLs through rig.drivers.transport.open_port): the stage at the
 device's `address`, the swing sensor at the `sensor` option. Both are read synchronously with a
-deadline on every wait; every byte out and in is recorded through `on_traffic` before it is parsed.
+deadline on every wait; every byte in is recorded through `on_traffic` before it is parsed, every
+byte out once its write succeeded (a reply is read only after the write returned, so the record
+keeps the wire's order, and a failed write leaves no bytes that never left).
 The period and the recoil are computed on the host (rig.measure.swing); the last estimates, with
 their standard uncertainties, stay on `last_period` and `last_recoil`.
 """
@@ -68,11 +70,13 @@ class _Link:
         self.device, self.what, self.port, self.traffic = device, what, port, traffic
 
     def send(self, data: bytes) -> None:
-        self.traffic.add("tx", data)
+        """Write `data`; recorded (stamped when handed over) only once the write succeeded."""
+        started = time.monotonic()
         try:
             self.port.write(data)
         except OSError as exc:
             raise DeviceGone(self.device, f"{self.what}: write failed: {exc}") from exc
+        self.traffic.add("tx", data, started)
 
     def read(self) -> bytes:
         """What has arrived (waiting up to the port's timeout for the first byte)."""

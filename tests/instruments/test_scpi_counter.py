@@ -7,6 +7,7 @@ import itertools
 import os
 import socket
 import tempfile
+import time
 from collections import Counter
 from collections.abc import Iterator
 from pathlib import Path
@@ -359,6 +360,34 @@ def test_a_rebound_that_misses_a_screen_gives_the_true_rebound_speed_or_is_refus
     finally:
         gates.close()
         twin.close()
+
+
+def test_a_write_to_a_closed_peer_leaves_no_tx_record_of_the_failed_line(
+    world: SimWorld, twin_factory: Any
+) -> None:
+    """The counter hangs up: the first write after it may still reach the socket, a later one fails
+    (broken pipe). Each line written is in the record; the line whose write failed never left and is
+    not."""
+    twin = twin_factory()
+    traffic: list[TrafficRecord] = []
+    gates = open_gates(twin.address, traffic)
+    try:
+        twin._hang_up()
+        time.sleep(0.05)
+        failed = None
+        for i in range(50):
+            try:
+                gates.link.write(f"INP1:LEV {i}")
+            except DeviceGone:
+                failed = i
+                break
+            time.sleep(0.01)
+    finally:
+        gates.close()
+    assert failed is not None, "no write to the closed peer failed"
+    sent = [r.data for r in traffic if r.direction == "tx"]
+    assert f"INP1:LEV {failed}\n".encode() not in sent
+    assert all(f"INP1:LEV {i}\n".encode() in sent for i in range(failed))
 
 
 def test_garbled_reply_is_fetched_again(world: SimWorld, twin_factory: Any) -> None:

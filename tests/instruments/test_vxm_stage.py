@@ -4,6 +4,7 @@ certification with the clamp on the twin and cannon + gates on sim:// of the sam
 from __future__ import annotations
 
 import math
+import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
@@ -231,6 +232,31 @@ def test_a_silent_sensor_after_a_shot_is_a_lost_device_not_a_hang(world: SimWorl
     finally:
         clamp.close()
         twin.close()
+
+
+def test_a_write_to_a_closed_peer_leaves_no_tx_record_of_the_failed_bytes(twin: VxmStageTwin) -> None:
+    """The stage's connection closes: the first write after it may still reach the socket, a later
+    one fails (broken pipe, DeviceGone). Bytes written are in the record; those whose write failed
+    never left and are not."""
+    clamp, traffic = _driver(twin)
+    try:
+        twin._servers[0].close()  # the stage hangs up
+        time.sleep(0.05)
+        failed = None
+        for i in range(50):
+            try:
+                clamp._stage.send(f"V{i},".encode())
+            except DeviceGone as exc:
+                assert "stage: write failed" in str(exc)
+                failed = i
+                break
+            time.sleep(0.01)
+    finally:
+        clamp.close()
+    assert failed is not None, "no write to the closed peer failed"
+    sent = [r.data for r in traffic if r.direction == "tx"]
+    assert f"V{failed},".encode() not in sent
+    assert all(f"V{i},".encode() in sent for i in range(failed))
 
 
 def test_a_garbled_sensor_line_is_one_line(world: SimWorld, twin: VxmStageTwin) -> None:
