@@ -219,8 +219,8 @@ class VxmClamp:
 
     def move_to(self, mm: float) -> None:
         """Stage to `mm` from the pivot, approached from below; checked by X within the tolerance.
-        Captures the sensor made before (a swing-back of the last shot) are set aside here, the
-        last exchange with the clamp before a shot is fired."""
+        Captures the sensor made before (a swing-back of the last shot) are set aside here, and
+        again in `before_fire`."""
         low, high = STAGE_RANGE_MM
         if not low <= float(mm) <= high:
             raise NotSent(self.name, "move", f"{float(mm):g} mm is outside the stage's {low:g}-{high:g} mm")
@@ -251,6 +251,12 @@ class VxmClamp:
         self.last_period = est
         self._forget_captures()  # the swing itself may have triggered the recoil capture
         return PendulumPeriod(est.period_s, est.amplitude_deg, cycles, u_s=est.u_s)
+
+    def before_fire(self) -> None:
+        """rig.core.devices.FireAware: the cannon is about to fire. Captures made since the stage
+        moved (an operator touching the bat before FIRE) are set aside, so that a shot which does
+        not trigger the sensor reports no recoil rather than the touch."""
+        self._forget_captures()
 
     def _forget_captures(self) -> None:
         """Take the sensor's trigger count as seen: a capture made before now (the pendulum's
