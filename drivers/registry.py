@@ -71,6 +71,9 @@ class DriverContext:
     """What a driver's factory is given: the device, where it is, its options and the rig's timeouts.
 
     `on_traffic` takes every raw exchange (bytes out 'tx', bytes in 'rx'): the run records them.
+    `gate_positions_m` is where the rig config puts the gates (its [gates] positions_m, m from the
+    impact point, gate 1 farthest), for a gates driver whose mapping of edges needs it (None: not
+    known).
     """
 
     kind: str
@@ -80,6 +83,7 @@ class DriverContext:
     timeouts: Timeouts = field(default_factory=Timeouts)
     on_traffic: Callable[[TrafficRecord], None] | None = None
     source: str = "rig config"
+    gate_positions_m: tuple[float, float, float] | None = None
 
     def refuse(self, message: str) -> ConfigError:
         """A configuration error naming the device's [devices] table."""

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 
 from rig.core.config import RigConfig
-from rig.core.devices import Cannon, Clamp, GateConfig, GateCrossing, Gates, Recoil
+from rig.core.devices import Cannon, Clamp, FireAware, GateConfig, GateCrossing, Gates, Recoil
 from rig.core.errors import DeviceError, DeviceGone, GarbledReply, RigError, SafetyRefusal
 from rig.measure.speeds import ShotDataError, shot_speeds, split_passes
 
@@ -69,10 +69,14 @@ def fire_shot(
 ) -> ShotRecord:
     """Aim for `speed_m_s`, fire once, collect the gate events and compute speeds.
 
-    `on_crossing` sees each gate event the moment it arrives (live speeds, displays).
+    `on_crossing` sees each gate event the moment it arrives (live speeds, displays). A clamp that
+    is FireAware is told the shot is coming once the tank is ready, before the interlock read (so
+    that read stays as close to FIRE as before).
     """
     pressure = config.aim.pressure_for(speed_m_s)
     cannon.set_pressure(pressure, wait_ready=True)
+    if isinstance(clamp, FireAware):
+        clamp.before_fire()
     status = cannon.status()
     if not status.interlocks.all_closed:
         raise SafetyRefusal("cannon", "interlock open: " + ", ".join(status.interlocks.open_names()))

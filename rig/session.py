@@ -134,6 +134,7 @@ class RigSession:
                     timeouts=config.timeouts,
                     on_traffic=log(kind),
                     source=source,
+                    gate_positions_m=config.gates.positions_m,
                 )
                 opened.append(open_device(kind, context, spec))
         except BaseException:

@@ -3,12 +3,16 @@
 The counter does not stream: `arm()` configures it and sends INIT before the cannon fires,
 `crossings()` fetches the shot's stamps afterwards (FETC?) and maps them to gates
 (rig.drivers.scpi.counter_codec). Implements rig.core.devices.Gates.
+
+The gates' positions (the rig config's [gates] positions_m, given through the DriverContext) let a
+shot of 5 stamps be mapped: its timing tells which rebound screen was missed, or the shot is
+refused as ambiguous. A driver given no positions refuses every 5-stamp shot (6 are needed).
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from typing import Any, Self
 
 from rig.core.devices import GateConfig, GateCrossing, InstrumentIdentity
@@ -37,10 +41,17 @@ class ScpiCounterGates:
     DRIVER = "scpi-counter"
 
     def __init__(
-        self, link: VisaLink, setup: codec.CounterSetup, *, fetch_timeout_s: float | None = None
+        self,
+        link: VisaLink,
+        setup: codec.CounterSetup,
+        *,
+        fetch_timeout_s: float | None = None,
+        gate_positions_m: Sequence[float] | None = None,
     ) -> None:
         self.link = link
         self.setup = setup
+        # gate 1 farthest, from the impact point: what tells a 5-stamp shot's missed screen
+        self.gate_positions_m = None if gate_positions_m is None else tuple(gate_positions_m)
         self.name = link.device
         self.fetch_timeout_s = fetch_timeout_s or setup.measurement_timeout_s + link.timeout_s
         self._armed = False
@@ -60,7 +71,7 @@ class ScpiCounterGates:
             raise context.refuse(f"fetch_timeout_s {fetch} outside 0.05-600 s")
         link = VisaLink(context.address, device=context.name, timeout_s=context.timeouts.reply_s,
                         on_traffic=context.on_traffic)  # fmt: skip
-        device = cls(link, setup, fetch_timeout_s=fetch)
+        device = cls(link, setup, fetch_timeout_s=fetch, gate_positions_m=context.gate_positions_m)
         try:
             device.identify()  # a raw socket opens even where nothing listens: ask before any run
         except BaseException:
@@ -111,7 +122,8 @@ class ScpiCounterGates:
         waits up to its measurement timeout, and the fetch up to `fetch_timeout_s`.
 
         GarbledReply for an unreadable reply (the next call fetches again); UnexpectedMessage if
-        the stamps cannot be mapped to gates: the shot is refused, never mended.
+        the stamps cannot be mapped to gates (a 5-stamp shot whose timing does not say which rebound
+        screen was missed among them): the shot is refused, never mended.
         """
         if not self._armed or self._fetched:
             return
@@ -131,7 +143,7 @@ class ScpiCounterGates:
             raise GarbledReply(self.name, f"FETC? reply: {exc}") from None
         self._fetched = True
         try:
-            mapped = codec.map_stamps(stamps, self.setup)
+            mapped = codec.map_stamps(stamps, self.setup, self.gate_positions_m)
         except codec.StampError as exc:
             raise UnexpectedMessage(self.name, f"shot refused: {exc}") from None
         received = time.monotonic()

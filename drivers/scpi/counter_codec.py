@@ -3,7 +3,9 @@
 Wiring the driver expects: the three screens' outputs OR-ed into channel 1; the counter time-stamps
 every rising edge (`CONF:ARR:TST (n),(@1)`). A shot gives 3 inbound stamps then up to 3 rebound
 stamps, in time order; the gate of each comes from that order (1, 2, 3, then 3, 2, 1), as the
-screens are passed. Sans-I/O: the driver and the simulated twin both use these functions.
+screens are passed. A shot of 5 stamps has lost one rebound edge, and the order alone cannot say
+which: the timing, with the gates' positions, tells it or the shot is refused (`map_stamps`).
+Sans-I/O: the driver and the simulated twin both use these functions.
 """
 
 from __future__ import annotations
@@ -17,6 +19,16 @@ from rig.core.devices import GateConfig, GateCrossing, InstrumentIdentity
 
 N_GATES = 3
 GATE_ORDER = (1, 2, 3, 3, 2, 1)  # the screens a ball passes: inbound far to near, rebound near to far
+# The two ways a rebound gives 2 stamps, as (gate order, what was missed): under or past the far
+# screen (a slow rebound drops below gate 1), or the near screen's edge lost on the rebound.
+FIVE_STAMP_CANDIDATES = (((1, 2, 3, 3, 2), "gate 1 at the end"), ((1, 2, 3, 2, 1), "gate 3 on the rebound"))
+# A 5-stamp candidate agrees when the measured interval from the inbound gate-3 stamp to the first
+# rebound stamp is within REBOUND_GAP_ABS_S + REBOUND_GAP_REL x the interval it predicts. The
+# absolute part holds what the prediction leaves out: the ball's contact with the bat (about 1 ms)
+# and the bat's recoil; the relative part drag and the speeds' change over the gate distances
+# (about 1 % over a metre). [assumed: chosen here, not from a measured rig]
+REBOUND_GAP_ABS_S = 2e-3
+REBOUND_GAP_REL = 0.05
 MAX_EDGES = len(GATE_ORDER)
 COUNTER_BITS = 48  # ticks are stamps / resolution; 48 bits hold 5600 s at 20 ps (no wrap in a shot)
 NO_VALUE = 9.91e37  # SCPI "not a number": a reading the instrument does not have
@@ -40,7 +52,9 @@ class CounterSetup:
     """What the host tells the counter, and how it reads the result (rig config options)."""
 
     expected_edges: int = MAX_EDGES  # stamps the counter waits for (SAMP:COUN)
-    min_edges: int = 5  # fewest stamps that still give both speeds: 3 inbound + 2 rebound
+    # fewest stamps that still give both speeds: 3 inbound + 2 rebound (5 stamps need the gates'
+    # positions to tell which rebound screen was missed: map_stamps)
+    min_edges: int = 5
     resolution_ps: float = 20.0  # 53230A single-shot resolution (53220A: 100 ps, and no stamps)
     trigger_level_v: float = 1.0  # [assumed] screens' TTL-like output; the threshold sits below its high
     impedance_ohm: float = 1e6  # [assumed] a screen drives a high-impedance input
@@ -142,9 +156,18 @@ def _is_no_value(value: float) -> bool:
     return abs(value - NO_VALUE) <= 1e-6 * NO_VALUE
 
 
-def map_stamps(stamps: Sequence[float | None], setup: CounterSetup) -> tuple[GateCrossing, ...]:
+def map_stamps(
+    stamps: Sequence[float | None], setup: CounterSetup, positions_m: Sequence[float] | None = None
+) -> tuple[GateCrossing, ...]:
     """Stamps of one shot -> crossings (gate by order, tick = stamp / resolution). Refuses (StampError)
-    missing values before real ones, too few or too many stamps, and stamps that do not rise."""
+    missing values before real ones, too few or too many stamps, and stamps that do not rise.
+
+    Six stamps (or fewer than five) are mapped by GATE_ORDER. Five stamps have lost one rebound edge:
+    the far screen at the end (1, 2, 3, 3, 2) or the near screen on the rebound (1, 2, 3, 2, 1), and
+    the rebound speed is computed over another gate pair in each. With the gates' positions
+    (`positions_m`, gate 1 farthest, from the impact point: the rig config's [gates] positions_m)
+    the timing tells them apart (`five_stamp_order`); without them a 5-stamp shot is refused.
+    """
     present = list(stamps)
     while present and present[-1] is None:
         present.pop()
@@ -166,8 +189,55 @@ def map_stamps(stamps: Sequence[float | None], setup: CounterSetup) -> tuple[Gat
             )
     if min(ticks) < 0:
         raise StampError(f"negative time stamp {min(real)!r} s")
+    order: Sequence[int] = GATE_ORDER
+    if len(real) == MAX_EDGES - 1:
+        if positions_m is None:
+            raise StampError(
+                "5 time stamps: which rebound screen was missed cannot be told without the gates' "
+                "positions (the driver was not given them)"
+            )
+        order = five_stamp_order(real, positions_m)
     modulus = 1 << COUNTER_BITS
-    return tuple(GateCrossing(g, t % modulus) for g, t in zip(GATE_ORDER, ticks, strict=False))
+    return tuple(GateCrossing(g, t % modulus) for g, t in zip(order, ticks, strict=False))
+
+
+def five_stamp_order(stamps_s: Sequence[float], positions_m: Sequence[float]) -> tuple[int, ...]:
+    """The gates of 5 rising stamps, from their timing; StampError ("ambiguous ...") unless exactly one
+    of FIVE_STAMP_CANDIDATES agrees.
+
+    The inbound speed is that over gates 2 -> 3 (stamps 2 and 3). Each candidate takes the two
+    rebound stamps as its gate pair (c, d), so its rebound speed is (x_d - x_c) / (t5 - t4), and
+    predicts the interval from the inbound gate-3 stamp to the first rebound stamp: x3 / v_in (to
+    the impact point) + x_c / v_out (back out to gate c). It agrees when the measured t4 - t3 is
+    within REBOUND_GAP_ABS_S + REBOUND_GAP_REL x its prediction. Gates spaced so that both
+    candidates predict about the same (x2^2 near x1 x3) leave every 5-stamp shot ambiguous.
+    """
+    if len(stamps_s) != MAX_EDGES - 1:
+        raise ValueError(f"five_stamp_order takes 5 stamps, not {len(stamps_s)}")
+    x = tuple(float(p) for p in positions_m)
+    if len(x) != N_GATES or not x[0] > x[1] > x[2] > 0.0:
+        raise ValueError(f"gate positions {tuple(positions_m)} must be three, farthest first, > 0")
+    t = [float(s) for s in stamps_s]
+    v_in = (x[1] - x[2]) / (t[2] - t[1])
+    gap, rebound_dt = t[3] - t[2], t[4] - t[3]
+    agree: list[tuple[int, ...]] = []
+    fits: list[str] = []
+    for order, missed in FIVE_STAMP_CANDIDATES:
+        gate_c, gate_d = order[3], order[4]
+        x_c, x_d = x[gate_c - 1], x[gate_d - 1]
+        v_out = (x_d - x_c) / rebound_dt
+        predicted = x[2] / v_in + x_c / v_out
+        tolerance = REBOUND_GAP_ABS_S + REBOUND_GAP_REL * predicted
+        if abs(gap - predicted) <= tolerance:
+            agree.append(order)
+        fits.append(f"missed {missed} predicts {predicted * 1e3:.2f} ms")
+    if len(agree) == 1:
+        return agree[0]
+    which = "both agree" if agree else "neither agrees"
+    raise StampError(
+        f"ambiguous 5-stamp shot: inbound gate 3 to the first rebound stamp took {gap * 1e3:.2f} ms; "
+        f"{', '.join(fits)}: {which} within {REBOUND_GAP_ABS_S * 1e3:g} ms + {REBOUND_GAP_REL * 100:g} %"
+    )
 
 
 def format_stamps(stamps: Sequence[float | None], prescaler: int = 1) -> str:

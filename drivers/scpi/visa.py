@@ -1,6 +1,9 @@
 """A VISA line transport (PyVISA, pure-Python `@py` backend): SCPI text lines out and in, recorded.
 
-Every line written and read goes to `on_traffic` as the bytes on the wire ("\\n" included). VISA
+Every line written and read goes to `on_traffic` as the bytes on the wire ("\\n" included); a line
+written is recorded once the write has succeeded (stamped when it was handed over), so a failed
+write leaves no bytes in the record that never left. The link is synchronous - a reply is read
+only after its write returned - so the record keeps the order of the wire. VISA
 failures become the project's errors with one line naming the resource: a timeout DeviceTimeout,
 a refused, reset or closed connection DeviceGone. After a timeout the next call reopens the
 resource first (a late reply must not be taken for the answer to a later query).
@@ -122,9 +125,10 @@ class VisaLink:
                 self._resource.close()
             self._resource = None
 
-    def _record(self, direction: Direction, data: bytes) -> None:
+    def _record(self, direction: Direction, data: bytes, t_s: float | None = None) -> None:
         if self.on_traffic is not None:
-            self.on_traffic(TrafficRecord(t_s=time.monotonic(), direction=direction, data=data))
+            when = time.monotonic() if t_s is None else t_s
+            self.on_traffic(TrafficRecord(t_s=when, direction=direction, data=data))
 
     def _ready(self) -> Any:
         if self.closed:
@@ -134,15 +138,16 @@ class VisaLink:
         return self._resource
 
     def write(self, line: str) -> None:
-        """Send one SCPI line."""
+        """Send one SCPI line; recorded once written (a failed write records nothing)."""
         resource = self._ready()
         data = (line + TERMINATION).encode("ascii")
-        self._record("tx", data)
+        started = time.monotonic()
         try:
             resource.write_raw(data)
         except (VisaIOError, OSError) as exc:
             self._resource = None
             raise DeviceGone(self.device, f"{line}: connection to {self.resource_name} lost: {exc}") from None
+        self._record("tx", data, started)
 
     def query(self, line: str, timeout_s: float | None = None) -> str:
         """Send `line` and read one reply line (within `timeout_s`, else the link's timeout)."""

@@ -2,7 +2,9 @@
 
 Two connections (both pyserial URLs through rig.drivers.transport.open_port): the stage at the
 device's `address`, the swing sensor at the `sensor` option. Both are read synchronously with a
-deadline on every wait; every byte out and in is recorded through `on_traffic` before it is parsed.
+deadline on every wait; every byte in is recorded through `on_traffic` before it is parsed, every
+byte out once its write succeeded (a reply is read only after the write returned, so the record
+keeps the wire's order, and a failed write leaves no bytes that never left).
 The period and the recoil are computed on the host (rig.measure.swing); the last estimates, with
 their standard uncertainties, stay on `last_period` and `last_recoil`.
 """
@@ -68,11 +70,13 @@ class _Link:
         self.device, self.what, self.port, self.traffic = device, what, port, traffic
 
     def send(self, data: bytes) -> None:
-        self.traffic.add("tx", data)
+        """Write `data`; recorded (stamped when handed over) only once the write succeeded."""
+        started = time.monotonic()
         try:
             self.port.write(data)
         except OSError as exc:
             raise DeviceGone(self.device, f"{self.what}: write failed: {exc}") from exc
+        self.traffic.add("tx", data, started)
 
     def read(self) -> bytes:
         """What has arrived (waiting up to the port's timeout for the first byte)."""
@@ -215,8 +219,8 @@ class VxmClamp:
 
     def move_to(self, mm: float) -> None:
         """Stage to `mm` from the pivot, approached from below; checked by X within the tolerance.
-        Captures the sensor made before (a swing-back of the last shot) are set aside here, the
-        last exchange with the clamp before a shot is fired."""
+        Captures the sensor made before (a swing-back of the last shot) are set aside here, and
+        again in `before_fire`."""
         low, high = STAGE_RANGE_MM
         if not low <= float(mm) <= high:
             raise NotSent(self.name, "move", f"{float(mm):g} mm is outside the stage's {low:g}-{high:g} mm")
@@ -247,6 +251,12 @@ class VxmClamp:
         self.last_period = est
         self._forget_captures()  # the swing itself may have triggered the recoil capture
         return PendulumPeriod(est.period_s, est.amplitude_deg, cycles, u_s=est.u_s)
+
+    def before_fire(self) -> None:
+        """rig.core.devices.FireAware: the cannon is about to fire. Captures made since the stage
+        moved (an operator touching the bat before FIRE) are set aside, so that a shot which does
+        not trigger the sensor reports no recoil rather than the touch."""
+        self._forget_captures()
 
     def _forget_captures(self) -> None:
         """Take the sensor's trigger count as seen: a capture made before now (the pendulum's

@@ -156,6 +156,21 @@ class BallLoader(Protocol):
 
 
 @runtime_checkable
+class FireAware(Protocol):
+    """A device told that the cannon is about to fire (optional, like BallLoader).
+
+    `before_fire()` is called once per shot in the fire path (rig.protocols.shot.fire_shot), after
+    the tank has reached its pressure and before the interlocks are read and FIRE is written: the
+    last moment before the shot that does not come between the interlock read and FIRE. A clamp
+    whose sensor captures on its own (rig.drivers.vxm) sets aside there what it captured before
+    the shot (an operator touching the bat after the stage moved), so the shot's recoil is only
+    the shot's.
+    """
+
+    def before_fire(self) -> None: ...
+
+
+@runtime_checkable
 class Gates(Protocol):
     """Light gates streaming timestamped beam breaks."""
 

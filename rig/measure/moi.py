@@ -7,7 +7,9 @@ The bat swings on the pivot 6 in from the knob; its small-amplitude period T0 gi
 with m the bat's mass, d the pivot-to-balance-point distance, g the local gravity, T the timed
 period at release amplitude theta0 (first-order amplitude correction). Each input's standard
 uncertainty is propagated with its exact sensitivity (GUM, independent inputs); the period's u
-combines the timer's resolution over N cycles and the scatter of repeated timings.
+combines the timer's resolution over N cycles and the scatter of repeated timings, and, for periods
+a host fitted to a swing sensor's samples, the part of the fits' own u the scatter does not show
+(so their random error, which the scatter already contains, is counted once).
 """
 
 from __future__ import annotations
@@ -137,7 +139,14 @@ def period_u(periods_s: Sequence[float], cycles: int, timer_resolution_s: float)
 
 
 def pendulum_budget(reading: PendulumReading, unc: PendulumUncertainty) -> MoiBudget:
-    """The MOI from the pendulum and its GUM budget (exact partial derivatives)."""
+    """The MOI from the pendulum and its GUM budget (exact partial derivatives).
+
+    With the host fit's u of each period (`host_u_s`, a swing sensor), u_host of their mean is
+    sqrt(sum u_i^2) / r. The scatter of the r timings (T_scatter, s / sqrt(r)) is an estimate of
+    the same random error, so adding u_host in full would count it twice. The `T_host` row holds
+    only what u_host goes beyond the scatter, sqrt(max(0, u_host^2 - u_scatter^2)): T_scatter and
+    T_host combine to max(u_scatter, u_host). One timing (scatter 0) keeps the whole host u.
+    """
     r = reading
     if not r.periods_s or r.cycles < 1:
         raise ParameterError("periods_s", r.periods_s, "need at least one timing of at least one cycle")
@@ -180,10 +189,14 @@ def pendulum_budget(reading: PendulumReading, unc: PendulumUncertainty) -> MoiBu
         ),
         MoiInput("g", "local gravity", r.gravity_m_s2, "m/s²", unc.gravity_m_s2, moi / r.gravity_m_s2),
     ]
-    if r.host_u_s:  # independent fits, one per timing: u of their mean
+    if r.host_u_s:  # independent fits, one per timing: u of their mean, less what the scatter shows
         u_host = math.sqrt(sum(u * u for u in r.host_u_s)) / len(r.host_u_s)
-        what = f"period: host fit of the sampled swing ({len(r.host_u_s)} timings)"
-        rows.insert(2, MoiInput("T_host", what, t, "s", u_host, 2 * moi / t))
+        beyond = math.sqrt(max(0.0, u_host * u_host - u_scatter * u_scatter))
+        what = (
+            f"period: host fit's u of the mean of {len(r.host_u_s)} timings, beyond their scatter "
+            "(with T_scatter: the larger of the two)"
+        )
+        rows.insert(2, MoiInput("T_host", what, t, "s", beyond, 2 * moi / t))
     return _finish(moi, "pendulum", rows)
 
 

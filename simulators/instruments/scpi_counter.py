@@ -29,7 +29,10 @@ _WORDS = {
     "INPut:SLOPe": ("POS", "NEG", "POSITIVE", "NEGATIVE"),
     "TRIGger:SOURce": ("IMM", "IMMEDIATE", "EXT", "EXTERNAL", "BUS"),
 }
-FAULTS = ("short_on_shot", "short_by", "silent_on_shot", "garble_on_shot", "drop_on_shot", "resolution_ps")
+FAULTS = (
+    "short_on_shot", "short_by", "miss_rebound_on_shot", "miss_rebound_gate", "silent_on_shot",
+    "garble_on_shot", "drop_on_shot", "resolution_ps",
+)  # fmt: skip
 
 
 @dataclass
@@ -43,8 +46,11 @@ class ScpiCounterTwin:
     """The counter: `start()` serves it on a local port; `device_table()` is its rig config table.
 
     Fault options (shot = the world's FIRE count, 1-based; 0 = never): `short_on_shot` misses the
-    last `short_by` edges of that shot; `silent_on_shot` never answers its FETC?; `garble_on_shot`
-    spoils one byte of its first FETC? reply; `drop_on_shot` closes the connection on its FETC?.
+    last `short_by` edges of that shot; `miss_rebound_on_shot` misses the rebound edge of gate
+    `miss_rebound_gate` (1-3, default 3) of that shot (gate 3: the near screen missed on the way
+    back; gate 1: the far one, as a rebound under it); `silent_on_shot` never answers its FETC?;
+    `garble_on_shot` spoils one byte of its first FETC? reply; `drop_on_shot` closes the connection on
+    its FETC?.
     """
 
     DRIVER: ClassVar[str] = "scpi-counter"
@@ -56,6 +62,8 @@ class ScpiCounterTwin:
             raise ValueError(
                 f"scpi-counter twin has no option {unknown[0]!r} (it takes: {', '.join(FAULTS)})"
             )
+        if not 1 <= int(fault_options.get("miss_rebound_gate", 3)) <= codec.N_GATES:
+            raise ValueError(f"miss_rebound_gate must be 1-{codec.N_GATES}")
         self.world = world
         self.faults = {k: int(v) for k, v in fault_options.items() if k != "resolution_ps"}
         self.resolution_s = float(fault_options.get("resolution_ps", 20.0)) * 1e-12
@@ -87,6 +95,9 @@ class ScpiCounterTwin:
             return
         missing = self.faults.get("short_by", 2) if shot == self.faults.get("short_on_shot", 0) else 0
         kept = sorted(crossings, key=lambda c: c.time_s)
+        if shot == self.faults.get("miss_rebound_on_shot", 0):
+            blind = self.faults.get("miss_rebound_gate", 3)
+            kept = [c for c in kept if c.inbound or c.gate != blind]
         for c in kept[: max(0, len(kept) - missing)]:
             value = self._latch.latch(c.gate, c.time_s - self.init_time) * self.resolution_s
             self.stamps.append(_Stamp(c.time_s, value, shot))

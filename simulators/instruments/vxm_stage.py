@@ -176,6 +176,13 @@ class VxmStageTwin:
         }
         return {"driver": self.DRIVER, "address": stage, "options": options, "simulated": True}
 
+    def touch(self, omega_rad_s: float = 3.0) -> None:
+        """Someone moves the bat by hand now (an operator between the stage's move and FIRE): the
+        armed sensor captures it as it would an impact's recoil, if `omega_rad_s` passes its
+        threshold. Not a shot: the world records nothing."""
+        with self.world.lock:
+            self._recoil(omega_rad_s, self.world.clock + RECOIL_REPORT_S, 0)
+
     def close(self) -> None:
         """Stop serving; the world's clamp forgets this twin."""
         for bridge in self._bridges:

@@ -7,6 +7,7 @@ import itertools
 import os
 import socket
 import tempfile
+import time
 from collections import Counter
 from collections.abc import Iterator
 from pathlib import Path
@@ -63,10 +64,68 @@ def test_closed_form_speeds_through_the_codec() -> None:
 
 def test_five_stamps_give_both_speeds_four_are_refused() -> None:
     stamps = closed_form_stamps(60.8, 10.0)
-    five = codec.map_stamps([*stamps[:5], None], SETUP)
+    five = codec.map_stamps([*stamps[:5], None], SETUP, POSITIONS)
     assert [c.gate for c in five] == [1, 2, 3, 3, 2]
     with pytest.raises(codec.StampError, match="4 time stamps, fewer than the 5"):
-        codec.map_stamps([*stamps[:4], None, None], SETUP)
+        codec.map_stamps([*stamps[:4], None, None], SETUP, POSITIONS)
+
+
+# Gates whose rebound pairs differ (3 -> 2 is 0.4 m, 2 -> 1 is 0.3 m): a 5-stamp shot mapped to the
+# wrong pair gets a rebound speed a third off.
+UNEVEN = (0.9, 0.6, 0.2)
+
+
+def stamps_through(
+    positions: tuple[float, float, float], v_in: float, v_out: float, contact_s: float = 0.8e-3
+) -> list[float]:
+    """The 6 stamps of a ball through `positions` at v_in, in contact with the bat for `contact_s`,
+    back at v_out: gates 1, 2, 3, 3, 2, 1."""
+    t0, x1 = 0.0123, positions[0]
+    t_leave = t0 + x1 / v_in + contact_s
+    return [t0 + (x1 - x) / v_in for x in positions] + [t_leave + x / v_out for x in reversed(positions)]
+
+
+def rebound_of(crossings: Any, positions: tuple[float, float, float]) -> float | None:
+    cfg = SETUP.gate_config()
+    return shot_speeds(split_passes(crossings, cfg), positions, cfg).rebound
+
+
+@pytest.mark.parametrize("v_out", [6.0, 12.0, 25.0, 40.0])
+@pytest.mark.parametrize(("missed", "gates"), [(3, [1, 2, 3, 2, 1]), (5, [1, 2, 3, 3, 2])])
+@pytest.mark.parametrize("positions", [UNEVEN, POSITIONS])
+def test_a_five_stamp_shot_is_mapped_by_its_timing_and_gives_the_true_rebound_speed(
+    v_out: float, missed: int, gates: list[int], positions: tuple[float, float, float]
+) -> None:
+    """Stamp 4 (the near screen on the rebound) or stamp 6 (the far screen at the end) missed: the
+    interval from the inbound gate-3 stamp to the first rebound stamp tells which, and the rebound
+    speed is the true one (by order alone, the first case took gates 3, 2 for 2, 1)."""
+    six = stamps_through(positions, 60.8, v_out)
+    five = [s for i, s in enumerate(six) if i != missed]
+    crossings = codec.map_stamps([*five, None], SETUP, positions)
+    assert [c.gate for c in crossings] == gates
+    assert rebound_of(crossings, positions) == pytest.approx(v_out, rel=1e-6)
+
+
+def test_a_five_stamp_shot_is_refused_when_its_timing_does_not_tell() -> None:
+    # without the gates' positions nothing tells the two apart
+    five = stamps_through(UNEVEN, 60.8, 20.0)[:5]
+    with pytest.raises(codec.StampError, match="5 time stamps: which rebound screen was missed"):
+        codec.map_stamps(five, SETUP)
+    # gates spaced geometrically (x2^2 = x1 x3): both candidates predict the same interval
+    geometric = (0.8, 0.4, 0.2)
+    for missed in (3, 5):
+        five = [s for i, s in enumerate(stamps_through(geometric, 60.8, 20.0)) if i != missed]
+        with pytest.raises(
+            codec.StampError, match=r"^ambiguous 5-stamp shot: .*: both agree within "
+        ) as caught:
+            codec.map_stamps(five, SETUP, geometric)
+        assert "\n" not in str(caught.value)
+    # a first rebound stamp that fits neither (a stray edge 40 ms late)
+    five = [*stamps_through(UNEVEN, 60.8, 20.0)[:3], 0.08, 0.09]
+    with pytest.raises(
+        codec.StampError, match=r"^ambiguous 5-stamp shot: .*: neither agrees within 2 ms \+ 5 %$"
+    ):
+        codec.map_stamps(five, SETUP, UNEVEN)
 
 
 @pytest.mark.parametrize(
@@ -144,9 +203,19 @@ def world() -> SimWorld:
     return SimWorld(Scene.load("ideal"))
 
 
-def open_gates(address: str, traffic: list[TrafficRecord], **options: Any) -> Any:
+def open_gates(
+    address: str,
+    traffic: list[TrafficRecord],
+    gate_positions_m: tuple[float, float, float] | None = None,
+    **options: Any,
+) -> Any:
     context = DriverContext(
-        kind="gates", name="gates", address=address, options=options, on_traffic=traffic.append
+        kind="gates",
+        name="gates",
+        address=address,
+        options=options,
+        on_traffic=traffic.append,
+        gate_positions_m=gate_positions_m,
     )
     return open_device("gates", context, DeviceSpec(driver="scpi-counter", address=address, options=options))
 
@@ -248,6 +317,77 @@ def test_too_few_stamps_refuse_the_shot(world: SimWorld, twin_factory: Any) -> N
     finally:
         gates.close()
     assert b"9.91" in b"".join(r.data for r in traffic if r.direction == "rx")  # the raw reply kept
+
+
+def uneven_world(positions: tuple[float, float, float]) -> SimWorld:
+    ideal = Scene.load("ideal")
+    rig = ideal.rig.model_copy(update={"gate_positions_m": positions})
+    return SimWorld(ideal.model_copy(update={"rig": rig}))
+
+
+@pytest.mark.parametrize(("blind", "order"), [(3, [1, 2, 3, 2, 1]), (1, [1, 2, 3, 3, 2])])
+def test_a_rebound_that_misses_a_screen_gives_the_true_rebound_speed_or_is_refused(
+    blind: int, order: list[int]
+) -> None:
+    """Through the twin, a rebound that misses the near screen (gate 3) or the far one (gate 1):
+    with the gates' positions (as the session gives them) the driver maps the 5 stamps by their
+    timing and the rebound speed is the world's; on gates spaced so that the timing cannot tell,
+    the shot is refused in one line; never a wrong speed."""
+    world = uneven_world(UNEVEN)
+    twin = ScpiCounterTwin(world, miss_rebound_on_shot=1, miss_rebound_gate=blind)
+    twin.start()
+    gates = open_gates(twin.address, [], gate_positions_m=UNEVEN)
+    try:
+        gates.arm()
+        truth = fire(world, 1)
+        crossings = list(gates.crossings(0.5))
+    finally:
+        gates.close()
+        twin.close()
+    assert [c.gate for c in crossings] == order
+    assert rebound_of(crossings, UNEVEN) == pytest.approx(truth.rebound_speed, rel=1e-6)  # ideal: no drag
+
+    geometric = (0.8, 0.4, 0.2)
+    world = uneven_world(geometric)
+    twin = ScpiCounterTwin(world, miss_rebound_on_shot=1, miss_rebound_gate=blind)
+    twin.start()
+    gates = open_gates(twin.address, [], gate_positions_m=geometric)
+    try:
+        gates.arm()
+        fire(world, 1)
+        with pytest.raises(UnexpectedMessage, match=r"shot refused: ambiguous 5-stamp shot: "):
+            list(gates.crossings(0.5))
+    finally:
+        gates.close()
+        twin.close()
+
+
+def test_a_write_to_a_closed_peer_leaves_no_tx_record_of_the_failed_line(
+    world: SimWorld, twin_factory: Any
+) -> None:
+    """The counter hangs up: the first write after it may still reach the socket, a later one fails
+    (broken pipe). Each line written is in the record; the line whose write failed never left and is
+    not."""
+    twin = twin_factory()
+    traffic: list[TrafficRecord] = []
+    gates = open_gates(twin.address, traffic)
+    try:
+        twin._hang_up()
+        time.sleep(0.05)
+        failed = None
+        for i in range(50):
+            try:
+                gates.link.write(f"INP1:LEV {i}")
+            except DeviceGone:
+                failed = i
+                break
+            time.sleep(0.01)
+    finally:
+        gates.close()
+    assert failed is not None, "no write to the closed peer failed"
+    sent = [r.data for r in traffic if r.direction == "tx"]
+    assert f"INP1:LEV {failed}\n".encode() not in sent
+    assert all(f"INP1:LEV {i}\n".encode() in sent for i in range(failed))
 
 
 def test_garbled_reply_is_fetched_again(world: SimWorld, twin_factory: Any) -> None:

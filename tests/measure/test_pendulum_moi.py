@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from rig.core.bat import PIVOT_FROM_KNOB_M
@@ -16,7 +17,7 @@ from rig.core.config import Pendulum
 from rig.core.devices import PendulumPeriod
 from rig.core.errors import ParameterError
 from rig.core.units import G_STANDARD
-from rig.measure.moi import pendulum_moi
+from rig.measure.moi import MoiBudget, pendulum_moi
 from rig.simulators.physics import pendulum_period
 
 PEND = Pendulum(gravity_m_s2=G_STANDARD)
@@ -68,7 +69,8 @@ def test_a_balance_point_at_or_behind_the_pivot_is_refused() -> None:
 
 def test_a_host_computed_periods_uncertainty_enters_the_budget_as_its_own_row() -> None:
     """A swing sensor's periods come with the host fit's u: the budget adds T_host, u of the mean of
-    independent fits (sqrt(sum u_i^2) / r) times dI/dT = 2 I / T, and the combined u grows by it in
+    independent fits (sqrt(sum u_i^2) / r) times dI/dT = 2 I / T, beyond what the timings' scatter
+    shows; with equal periods (scatter 0) that is all of it, and the combined u grows by it in
     quadrature; a timer's periods (no u) add no such row."""
     g, m = 9.81, 0.9
     d = g / math.pi**2  # T0 = 2 s at zero amplitude
@@ -84,3 +86,49 @@ def test_a_host_computed_periods_uncertainty_enters_the_budget_as_its_own_row() 
     moi = m * d * d
     assert row.u_moi == pytest.approx(2 * moi / 2.0 * 2.5e-4, rel=1e-12)
     assert host.u_kgm2 == pytest.approx(math.hypot(plain.u_kgm2, row.u_moi), rel=1e-12)
+
+
+def _period_u(budget: MoiBudget) -> float:
+    """u of the mean period from the budget's period rows (T_res, T_scatter, T_host) combined."""
+    rows = [i for i in budget.inputs if i.name.startswith("T_")]
+    assert {i.name for i in rows} <= {"T_res", "T_scatter", "T_host"}
+    return math.sqrt(sum(i.u**2 for i in rows))
+
+
+def test_the_host_u_and_the_scatter_combine_to_the_larger_not_their_sum() -> None:
+    """The scatter of r timings already holds the fits' random error: T_host is only the host u
+    beyond it, so T_scatter and T_host together are max(u_scatter, u_host)."""
+    g, m = 9.81, 0.9
+    d = g / math.pi**2
+    pend = Pendulum(gravity_m_s2=g, timer_resolution_s=1e-9)
+    spread = [2.0 - 1e-3, 2.0, 2.0 + 1e-3]  # s = 1e-3, u_scatter = 1e-3 / sqrt(3)
+    u_scatter = 1e-3 / math.sqrt(3.0)
+    for host_u, expected in ((1e-4, u_scatter), (3e-3, 3e-3 / math.sqrt(3.0))):
+        timings = [PendulumPeriod(p, 0.0, 10, u_s=host_u) for p in spread]
+        _, budget = pendulum_moi(timings, m, PIVOT_FROM_KNOB_M + d, pend)
+        rows = {i.name: i.u for i in budget.inputs}
+        assert math.hypot(rows["T_scatter"], rows["T_host"]) == pytest.approx(expected, rel=1e-9)
+    (host,) = [i for i in budget.inputs if i.name == "T_host"]
+    assert "beyond their scatter" in host.what
+
+
+@pytest.mark.parametrize("r", [3, 5])
+def test_the_period_u_covers_the_fit_noise_once_monte_carlo(r: int) -> None:
+    """Monte Carlo independent of the budget code: each draw is r periods = truth + the fit's noise
+    (normal, sigma known), each reported with host u = sigma, as a swing sensor's fits are. Over
+    many draws (estimated T - truth) / u_T, with u_T from the budget's period rows combined, must
+    have an SD near 1: within 0.85-1.15 (expected about 0.92-0.93 for r = 3 and 5: u_T is
+    max(s, sigma) / sqrt(r), a little above sigma / sqrt(r) on average). Counting the fit's error
+    twice (T_host = sigma / sqrt(r) in full beside the scatter) gave about 0.77 and 0.74."""
+    g, m, truth, sigma = 9.81, 0.9, 2.0, 2e-4
+    d = g / math.pi**2
+    pend = Pendulum(gravity_m_s2=g, timer_resolution_s=1e-9)  # T_res negligible beside sigma
+    rng = np.random.default_rng(20250611 + r)
+    draws = 4000
+    z = np.empty(draws)
+    for k, periods in enumerate(truth + rng.normal(0.0, sigma, (draws, r))):
+        timings = [PendulumPeriod(float(p), 0.0, 10, u_s=sigma) for p in periods]
+        _, budget = pendulum_moi(timings, m, PIVOT_FROM_KNOB_M + d, pend)
+        z[k] = (float(np.mean(periods)) - truth) / _period_u(budget)
+    sd = float(np.std(z, ddof=1))
+    assert 0.85 <= sd <= 1.15, sd
