@@ -28,8 +28,11 @@ from types import ModuleType
 # another process shares the CPUs; passive waiting costs microseconds. Set before numba loads it.
 os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 
-import numba as nb
 import numpy as np
+
+from rig.physics._jit import numba_or_plain
+
+nb = numba_or_plain(__name__)  # numba here; plain Python when loaded as the interpreted kernel
 
 _TABLES = "scipy.integrate._ivp.dop853_coefficients"
 

@@ -57,3 +57,23 @@ def test_single_solves_start_interpreted_and_switch_to_the_compiled_kernel() -> 
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.split() == ["False", "True", "True"]
+
+
+def test_the_interpreted_kernel_is_the_compiled_kernels_file_unedited_and_needs_no_numba() -> None:
+    """One source: the interpreted kernel is _dop853.py executed as it is, under another name, and
+    loading it does not load numba (the point of having it)."""
+    code = (
+        "import sys\n"
+        "from rig.physics import _interpreted\n"
+        "k = _interpreted.load()\n"
+        "print('numba' in sys.modules, k.__file__, k._rhs.__code__.co_filename)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120
+    )
+    numba_loaded, file, rhs_file = out.stdout.split()
+    assert numba_loaded == "False"
+    assert file == rhs_file == _dop853.__file__
+    kernel = _interpreted.load()
+    for name in ("_rhs", "_gfun", "_gdot", "_damping_rate", "solve_one"):
+        assert getattr(kernel, name).__code__.co_code == getattr(_dop853, name).py_func.__code__.co_code
