@@ -177,7 +177,8 @@ def _load(target: str, kind: str, name: str, source: str) -> Callable[[DriverCon
         obj = getattr(obj, part)
     if not callable(obj):
         raise refused(f"{target!r} is not a factory")
-    return obj
+    factory: Callable[[DriverContext], Any] = obj
+    return factory
 
 
 def open_device(kind: str, context: DriverContext, spec: DeviceSpec) -> Any:

@@ -234,6 +234,6 @@ def ball_test(ctx: PlanContext) -> Plan[dict[str, Any]]:
         while not slot_done(ctx, slot):
             yield from shoot(ctx, slot)
     yield Checkpoint()
-    verdict = yield Decide()
+    verdict: dict[str, Any] = yield Decide()
     yield Record(ev.event(ev.RUN_FINISHED, **verdict))
     return verdict

@@ -109,7 +109,8 @@ class CheckingRig:
         """A valid shot whose metric peaks at the middle of the planned scan."""
         own = getattr(ctx, "rehearsed_shot", None)
         if own is not None:  # a context of its own kind (a ball test) says what its nominal shot is
-            return own()
+            nominal: dict[str, Any] = own()
+            return nominal
         p = ctx.procedure
         planned = p.scan.locations_in()
         mid = (planned[0] + planned[-1]) / 2
@@ -129,7 +130,8 @@ class CheckingRig:
         """No verdict: a dry run decides nothing."""
         own = getattr(ctx, "rehearsed_verdict", None)
         if own is not None:
-            return own()
+            rehearsed: dict[str, Any] = own()
+            return rehearsed
         p = ctx.procedure
         return {
             "verdict": ev.Verdict.PASS,

@@ -30,8 +30,8 @@ def _metric_u(p: Procedure, bud: dict[str, Any], v_pitch_plus_bat: float) -> flo
     outs = bud["outputs"]
     if p.standard is Metric.BBS:
         # BBS = v_pitch e_A + v_bat (e_A + 1): dominated by e_A; the swing model is a definition.
-        return outs["e_a"]["u"] * v_pitch_plus_bat
-    return outs[p.standard.value]["u"]
+        return float(outs["e_a"]["u"]) * v_pitch_plus_bat
+    return float(outs[p.standard.value]["u"])
 
 
 def shot(

@@ -144,14 +144,16 @@ class LiveRig:
         """The shot's measurement (rig.protocols.evaluate; a context of its own kind measures its own)."""
         own = getattr(ctx, "evaluate_shot", None)
         if own is not None:
-            return own(fired)
+            measured: dict[str, Any] = own(fired)
+            return measured
         return evaluate.shot(fired.record, ctx.procedure, ctx.bat, ctx.state, fired.failure, ctx.config)
 
     def decide(self, ctx: PlanContext) -> dict[str, Any]:
         """The verdict (rig.protocols.evaluate; a context of its own kind decides its own)."""
         own = getattr(ctx, "decide_run", None)
         if own is not None:
-            return own()
+            decided: dict[str, Any] = own()
+            return decided
         return evaluate.verdict(ctx.procedure, ctx.bat, ctx.state, ctx.config)
 
     def problem(self, text: str) -> None:
@@ -198,7 +200,8 @@ class Executor:
             try:
                 msg = send(value)
             except StopIteration as stop:
-                return stop.value
+                result: T = stop.value
+                return result
             except BaseException as exc:
                 self._lose_requested(exc)
                 raise

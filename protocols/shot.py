@@ -6,6 +6,7 @@ import contextlib
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 from rig.core.config import RigConfig
 from rig.core.devices import Cannon, Clamp, FireAware, GateConfig, GateCrossing, Gates, Recoil
@@ -39,7 +40,7 @@ class ShotRecord:
     extra_crossings: tuple[GateCrossing, ...] = ()
     notes: tuple[str, ...] = ()
 
-    def as_dict(self) -> dict:
+    def as_dict(self) -> dict[str, Any]:
         """JSON-ready view, raw timestamps included."""
         out = asdict(self)
         out["gate_config"] = asdict(self.gate_config)

@@ -305,7 +305,7 @@ def valid_hits(ctx: PlanContext) -> Plan[None]:
 
 def decide(ctx: PlanContext) -> Plan[dict[str, Any]]:
     """Decide the verdict from the valid hits and record it; returns the RunFinished payload."""
-    verdict = yield Decide()
+    verdict: dict[str, Any] = yield Decide()
     yield Record(ev.event(ev.RUN_FINISHED, **verdict))
     return verdict
 

@@ -12,6 +12,7 @@ RTU goes over a serial port: a device path (`/dev/ttyUSB0`, `COM3`) or a pyseria
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 import time
@@ -121,8 +122,9 @@ class _RecordingSerialClient(_Records, ModbusSerialClient):
             return True
         self.failure = ""
         params = self.comm_params
+        port: Any = None
         try:
-            port: Any = open_port(
+            port = open_port(
                 str(params.host),
                 baudrate=int(params.baudrate or 19200),
                 timeout=float(params.timeout_connect or 1.0),
@@ -135,19 +137,21 @@ class _RecordingSerialClient(_Records, ModbusSerialClient):
             self.socket = port
         except DeviceGone as exc:
             self.failure = str(exc.__cause__ or exc)
-            self.close()
         except Exception as exc:  # a setting the port refuses (termios.error is no OSError)
             self.failure = (
                 f"the port refuses its settings: {' '.join(str(exc).split()) or type(exc).__name__}"
             )
-            self.close()
+            if port is not None:
+                with contextlib.suppress(Exception):
+                    port.close()
         return self.socket is not None
 
     def send(self, request: bytes, addr: tuple[Any, ...] | None = None) -> int:
         """Send and record a frame (first recording what was still waiting on the line)."""
         if self.socket is not None and request:
             try:
-                stale = self.socket.read(self._in_waiting()) if self._in_waiting() else b""
+                waiting = int(self.socket.in_waiting)
+                stale = self.socket.read(waiting) if waiting else b""
             except OSError:
                 stale = b""  # super().send meets the same failure and says so
             if stale:
@@ -190,6 +194,9 @@ class ModbusTransport:
             raise DeviceGone(
                 name, f"cannot connect to {self.wire} (unit {self.unit})" + (f": {why}" if why else "")
             )
+
+    def _close_client(self) -> None:
+        self.client.close()  # type: ignore[no-untyped-call]  # pymodbus leaves close() unannotated
 
     def _record(self, direction: str, data: bytes) -> None:
         if direction == "rx":
@@ -238,7 +245,7 @@ class ModbusTransport:
             try:
                 response = request()
             except ConnectionException as exc:
-                self.client.close()
+                self._close_client()
                 raise DeviceGone(self.name, f"{where}: connection lost ({_why(exc)})") from None
             except ModbusIOException as exc:
                 if not self.client.connected:
@@ -253,7 +260,7 @@ class ModbusTransport:
             except ModbusException as exc:
                 raise GarbledReply(self.name, f"{where}: {_why(exc)}") from None
             except OSError as exc:
-                self.client.close()
+                self._close_client()
                 raise DeviceGone(self.name, f"{where}: {exc}") from None
         if isinstance(response, ExceptionResponse) or response.isError():
             code = int(getattr(response, "exception_code", 0))
@@ -270,7 +277,7 @@ class ModbusTransport:
     def close(self) -> None:
         """Close the connection (a later request would open it again)."""
         with self._lock:
-            self.client.close()
+            self._close_client()
 
 
 def _why(exc: Exception) -> str:

@@ -81,7 +81,8 @@ class ScpiCounterGates:
 
     def identify(self) -> InstrumentIdentity:
         """`*IDN?`: maker, model, serial number, firmware."""
-        return self._parse(codec.parse_idn, self.link.query("*IDN?"), "*IDN?")
+        identity: InstrumentIdentity = self._parse(codec.parse_idn, self.link.query("*IDN?"), "*IDN?")
+        return identity
 
     def config(self) -> GateConfig:
         """Three gates; ticks of the counter's resolution, 48 bits (stamps never wrap in a shot)."""

@@ -326,6 +326,6 @@ class RigConfig(_Model):
         return config
 
     @classmethod
-    def from_dict(cls, data: dict, source: str = "config") -> RigConfig:
+    def from_dict(cls, data: dict[str, Any], source: str = "config") -> RigConfig:
         """Validate a mapping; errors name the source and the field."""
         return validate(cls, data, source)

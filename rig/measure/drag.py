@@ -41,7 +41,8 @@ def kappa(
 ) -> np.ndarray:
     """Drag constant rho Cd A / (2 m), 1/m, for a sphere of this diameter and mass."""
     area = math.pi * diameter_m * diameter_m / 4.0
-    return np.asarray(rho) * np.asarray(cd) * area / (2.0 * np.asarray(mass_kg))
+    out: np.ndarray = np.asarray(rho) * np.asarray(cd) * area / (2.0 * np.asarray(mass_kg))
+    return out
 
 
 def inbound_impact_speed(
@@ -49,7 +50,8 @@ def inbound_impact_speed(
 ) -> np.ndarray:
     """Speed at the impact point of a ball that crossed x_far then x_near (m from it) dt apart."""
     span = np.asarray(x_far) - np.asarray(x_near)
-    return span / np.asarray(dt) * np.exp(-np.asarray(k) * x_near) * phi(np.asarray(k) * span)
+    speed: np.ndarray = span / np.asarray(dt) * np.exp(-np.asarray(k) * x_near) * phi(np.asarray(k) * span)
+    return speed
 
 
 def rebound_impact_speed(
@@ -57,12 +59,14 @@ def rebound_impact_speed(
 ) -> np.ndarray:
     """Speed leaving the impact point of a ball that crossed x_near then x_far dt apart."""
     span = np.asarray(x_far) - np.asarray(x_near)
-    return span / np.asarray(dt) * np.exp(np.asarray(k) * x_near) * phi(-np.asarray(k) * span)
+    speed: np.ndarray = span / np.asarray(dt) * np.exp(np.asarray(k) * x_near) * phi(-np.asarray(k) * span)
+    return speed
 
 
 def saturation_pressure_kpa(t_c: float | complex) -> float | complex:
     """Saturation vapour pressure over water, kPa (Magnus form, Alduchov and Eskridge 1996)."""
-    return 0.61094 * np.exp(17.625 * t_c / (t_c + 243.04))
+    kpa: float | complex = 0.61094 * np.exp(17.625 * t_c / (t_c + 243.04))
+    return kpa
 
 
 @overload

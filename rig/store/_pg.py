@@ -113,7 +113,7 @@ class PgConn:
         """Whether a transaction is open (BEGIN without COMMIT or ROLLBACK yet)."""
         from psycopg import pq
 
-        return self._conn.info.transaction_status != pq.TransactionStatus.IDLE
+        return bool(self._conn.info.transaction_status != pq.TransactionStatus.IDLE)
 
     def lock_chain(self, chain: str) -> None:
         """Hold the chain's append lock until the transaction ends."""

@@ -128,4 +128,5 @@ def _target_entries(target: Any, run_id: str) -> list[LogEntry]:
         target.run(run_id)
     except UnknownRecord:
         return []
-    return target.entries(run_id)
+    entries: list[LogEntry] = target.entries(run_id)
+    return entries
