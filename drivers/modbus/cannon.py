@@ -17,7 +17,7 @@ from rig.core.devices import CannonStatus, Environment, InstrumentIdentity
 from rig.core.errors import DeviceError, DeviceTimeout, GarbledReply, NotSent, ParameterError, SafetyRefusal
 from rig.drivers.cannon import codec
 from rig.drivers.modbus import plc_codec as plc
-from rig.drivers.modbus.transport import TRANSPORTS, ModbusTransport, SerialLine
+from rig.drivers.modbus.transport import LINE_OPTIONS, TRANSPORTS, ModbusTransport, SerialLine
 from rig.drivers.registry import DriverContext
 from rig.drivers.traffic import TrafficRecord
 
@@ -73,21 +73,13 @@ class ModbusCannon:
             raise context.refuse(
                 f"modbus-cannon: transport {transport!r} must be one of {', '.join(TRANSPORTS)}"
             )
-        line_options = sorted({"baud", "parity", "stopbits"} & set(options))
+        line_options = [name for name in LINE_OPTIONS if name in options]
         if transport == "tcp" and line_options:
             raise context.refuse(f'modbus-cannon: option {line_options[0]!r} is for transport = "rtu"')
         try:
             unit = plc.check_unit(options.get("unit", 1))
             regs = plc.RegisterMap.from_options(options.get("registers", {}))
-            serial = (
-                SerialLine(
-                    baud=options.get("baud", 19200),
-                    parity=options.get("parity", "E"),
-                    stopbits=options.get("stopbits", 1),
-                )
-                if transport == "rtu"
-                else None
-            )
+            serial = SerialLine(**{n: options[n] for n in line_options}) if transport == "rtu" else None
         except ValueError as exc:
             raise context.refuse(f"modbus-cannon: {exc}") from None
         poll_s = float(options.get("poll_s", DEFAULT_POLL_S))

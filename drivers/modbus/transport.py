@@ -17,7 +17,7 @@ import logging
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any
 
 from pymodbus import FramerType
@@ -55,6 +55,9 @@ class SerialLine:
             raise ValueError(f"parity {self.parity!r} must be 'E' (even), 'O' (odd) or 'N' (none)")
         if self.stopbits not in (1, 2):
             raise ValueError(f"stopbits {self.stopbits} must be 1 or 2")
+
+
+LINE_OPTIONS = tuple(f.name for f in fields(SerialLine))  # the driver's RTU-only options
 
 
 def parse_address(address: str) -> tuple[str, int]:

@@ -47,21 +47,23 @@ def twin_drivers(chosen: Mapping[str, str] | None = None) -> dict[str, str]:
             raise ConfigError(
                 f"--twin {kind}={name}: no device kind {kind!r} (kinds: {', '.join(DEVICE_KINDS)})"
             )
-        entry = BUILTIN.get(name)
-        if entry is None or entry.twin is None or kind not in entry.factories:
-            served = ", ".join(n for n, e in BUILTIN.items() if e.twin and kind in e.factories) or "none"
+        if name not in _with_twins(kind):
+            served = ", ".join(_with_twins(kind)) or "none"
             raise ConfigError(
                 f"--twin {kind}={name}: no twin of driver {name!r} for the {kind} (twins: {served})"
             )
     drivers: dict[str, str] = {}
     for kind in DEVICE_KINDS:
-        found = chosen.get(kind) or next(
-            (n for n, e in BUILTIN.items() if e.twin is not None and kind in e.factories), None
-        )
+        found = chosen.get(kind) or next(iter(_with_twins(kind)), None)
         if found is None:
             raise ConfigError(f"no instrument twin for the {kind}")
         drivers[kind] = found
     return drivers
+
+
+def _with_twins(kind: str) -> list[str]:
+    """The built-in drivers of device `kind` that have a twin, in the registry's order."""
+    return [name for name, entry in BUILTIN.items() if entry.twin is not None and kind in entry.factories]
 
 
 def twin_class(driver: str) -> type[Any]:
