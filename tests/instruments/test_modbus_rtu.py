@@ -35,6 +35,7 @@ from rig.simulators.scene import Scene
 from rig.simulators.urlhandler import get_world
 from rig.simulators.world import SimWorld
 from rig.store import Store
+from tests.instruments.attempts import fire_with_an_interlock_open
 
 ROOT = Path(__file__).resolve().parents[2]
 BAT = BatSpec.load(ROOT / "protocols" / "examples" / "sample-bat.toml")
@@ -146,27 +147,9 @@ def test_interlocks_open_fire_nothing_over_rtu(world: SimWorld) -> None:
     after_arm = ModbusPlcTwin(world, serial=True, door_opens_after_arm=True)
     plain.start(), after_arm.start()
     wire = Wire()
-    refused: Counter[str] = Counter()
     try:
         with driver(plain.address, wire) as cannon, driver(after_arm.address, wire) as cannon_b:
-            world.set_interlock("clamp", True)
-            for attempt in range(100):
-                which = ("door", "clamp", "estop", "after-arm")[attempt % 4]
-                if which == "after-arm":
-                    cannon_b.set_pressure(P)
-                    cannon_b.arm()
-                    with pytest.raises(SafetyRefusal, match="FIRE not sent"):
-                        cannon_b.fire()
-                    world.set_interlock("door", True)
-                else:
-                    cannon.set_pressure(P)
-                    world.set_interlock(which, False)
-                    with pytest.raises(SafetyRefusal, match="ARM not sent"):
-                        cannon.arm()
-                    with pytest.raises(SafetyRefusal, match="FIRE not sent"):
-                        cannon.fire()
-                    world.set_interlock(which, True)
-                refused[which] += 1
+            refused = fire_with_an_interlock_open(world, cannon, cannon_b, 100, P)
     finally:
         plain.close(), after_arm.close()
     assert refused == {"door": 25, "clamp": 25, "estop": 25, "after-arm": 25}

@@ -20,6 +20,7 @@ from hypothesis import strategies as st
 from rig.certification import certify
 from rig.core.bat import BatSpec
 from rig.core.config import DeviceSpec, RigConfig
+from rig.core.devices import GateCrossing
 from rig.core.errors import ConfigError, DeviceGone, DeviceTimeout, GarbledReply, UnexpectedMessage
 from rig.drivers.registry import DriverContext, open_device
 from rig.drivers.scpi import counter_codec as codec
@@ -32,6 +33,7 @@ from rig.simulators.scene import Scene
 from rig.simulators.urlhandler import get_world, reset_worlds
 from rig.simulators.world import SimWorld
 from rig.store import Store
+from tests.instruments.attempts import write_until_one_fails
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE_BAT = ROOT / "protocols" / "examples" / "sample-bat.toml"
@@ -325,6 +327,27 @@ def uneven_world(positions: tuple[float, float, float]) -> SimWorld:
     return SimWorld(ideal.model_copy(update={"rig": rig}))
 
 
+def shot_missing_a_rebound_screen(
+    positions: tuple[float, float, float], blind: int
+) -> tuple[list[GateCrossing] | UnexpectedMessage, Any]:
+    """One shot through the twin on gates at `positions` whose rebound misses screen `blind`: the
+    driver's crossings (or its refusal) and the world's truth of the shot."""
+    world = uneven_world(positions)
+    twin = ScpiCounterTwin(world, miss_rebound_on_shot=1, miss_rebound_gate=blind)
+    twin.start()
+    gates = open_gates(twin.address, [], gate_positions_m=positions)
+    try:
+        gates.arm()
+        truth = fire(world, 1)
+        try:
+            return list(gates.crossings(0.5)), truth
+        except UnexpectedMessage as exc:
+            return exc, truth
+    finally:
+        gates.close()
+        twin.close()
+
+
 @pytest.mark.parametrize(("blind", "order"), [(3, [1, 2, 3, 2, 1]), (1, [1, 2, 3, 3, 2])])
 def test_a_rebound_that_misses_a_screen_gives_the_true_rebound_speed_or_is_refused(
     blind: int, order: list[int]
@@ -333,33 +356,14 @@ def test_a_rebound_that_misses_a_screen_gives_the_true_rebound_speed_or_is_refus
     with the gates' positions (as the session gives them) the driver maps the 5 stamps by their
     timing and the rebound speed is the world's; on gates spaced so that the timing cannot tell,
     the shot is refused in one line; never a wrong speed."""
-    world = uneven_world(UNEVEN)
-    twin = ScpiCounterTwin(world, miss_rebound_on_shot=1, miss_rebound_gate=blind)
-    twin.start()
-    gates = open_gates(twin.address, [], gate_positions_m=UNEVEN)
-    try:
-        gates.arm()
-        truth = fire(world, 1)
-        crossings = list(gates.crossings(0.5))
-    finally:
-        gates.close()
-        twin.close()
+    crossings, truth = shot_missing_a_rebound_screen(UNEVEN, blind)
+    assert not isinstance(crossings, UnexpectedMessage)
     assert [c.gate for c in crossings] == order
     assert rebound_of(crossings, UNEVEN) == pytest.approx(truth.rebound_speed, rel=1e-6)  # ideal: no drag
 
-    geometric = (0.8, 0.4, 0.2)
-    world = uneven_world(geometric)
-    twin = ScpiCounterTwin(world, miss_rebound_on_shot=1, miss_rebound_gate=blind)
-    twin.start()
-    gates = open_gates(twin.address, [], gate_positions_m=geometric)
-    try:
-        gates.arm()
-        fire(world, 1)
-        with pytest.raises(UnexpectedMessage, match=r"shot refused: ambiguous 5-stamp shot: "):
-            list(gates.crossings(0.5))
-    finally:
-        gates.close()
-        twin.close()
+    refused, _ = shot_missing_a_rebound_screen((0.8, 0.4, 0.2), blind)  # geometric: the timing cannot tell
+    assert isinstance(refused, UnexpectedMessage)
+    assert "shot refused: ambiguous 5-stamp shot: " in str(refused)
 
 
 def test_a_write_to_a_closed_peer_leaves_no_tx_record_of_the_failed_line(
@@ -374,17 +378,11 @@ def test_a_write_to_a_closed_peer_leaves_no_tx_record_of_the_failed_line(
     try:
         twin._hang_up()
         time.sleep(0.05)
-        failed = None
-        for i in range(50):
-            try:
-                gates.link.write(f"INP1:LEV {i}")
-            except DeviceGone:
-                failed = i
-                break
-            time.sleep(0.01)
+        found = write_until_one_fails(lambda i: gates.link.write(f"INP1:LEV {i}"))
     finally:
         gates.close()
-    assert failed is not None, "no write to the closed peer failed"
+    assert found is not None, "no write to the closed peer failed"
+    failed = found[0]
     sent = [r.data for r in traffic if r.direction == "tx"]
     assert f"INP1:LEV {failed}\n".encode() not in sent
     assert all(f"INP1:LEV {i}\n".encode() in sent for i in range(failed))

@@ -29,6 +29,7 @@ from rig.simulators.scene import Scene
 from rig.simulators.urlhandler import get_world
 from rig.simulators.world import SimWorld
 from rig.store import Store
+from tests.instruments.attempts import write_until_one_fails
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE_BAT = ROOT / "protocols" / "examples" / "sample-bat.toml"
@@ -244,18 +245,12 @@ def test_a_write_to_a_closed_peer_leaves_no_tx_record_of_the_failed_bytes(twin: 
     try:
         twin._servers[0].close()  # the stage hangs up
         time.sleep(0.05)
-        failed = None
-        for i in range(50):
-            try:
-                clamp._stage.send(f"V{i},".encode())
-            except DeviceGone as exc:
-                assert "stage: write failed" in str(exc)
-                failed = i
-                break
-            time.sleep(0.01)
+        found = write_until_one_fails(lambda i: clamp._stage.send(f"V{i},".encode()))
     finally:
         clamp.close()
-    assert failed is not None, "no write to the closed peer failed"
+    assert found is not None, "no write to the closed peer failed"
+    failed, exc = found
+    assert "stage: write failed" in str(exc)
     sent = [r.data for r in traffic if r.direction == "tx"]
     assert f"V{failed},".encode() not in sent
     assert all(f"V{i},".encode() in sent for i in range(failed))
