@@ -202,7 +202,11 @@ class ModbusTransport:
         self.client.close()  # type: ignore[no-untyped-call]  # pymodbus leaves close() unannotated
 
     def _record(self, direction: str, data: bytes) -> None:
-        if direction == "rx":
+        if (
+            direction == "tx"
+        ):  # bytes read before the request went out (noise, a late reply) are not its reply
+            self._rx_since_request = 0
+        else:
             self._rx_since_request += len(data)
         if self.on_traffic is not None:
             self.on_traffic(TrafficRecord(t_s=time.monotonic(), direction=direction, data=data))  # type: ignore[arg-type]

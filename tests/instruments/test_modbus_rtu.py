@@ -10,6 +10,7 @@ checked on the spec's own example.
 from __future__ import annotations
 
 import base64
+import socket
 import struct
 import time
 from collections import Counter
@@ -22,7 +23,7 @@ import pytest
 from rig.certification import certify
 from rig.core.bat import BatSpec
 from rig.core.config import Devices, DeviceSpec
-from rig.core.errors import ConfigError, DeviceGone, SafetyRefusal
+from rig.core.errors import ConfigError, DeviceGone, DeviceTimeout, SafetyRefusal
 from rig.drivers.modbus import plc_codec as plc
 from rig.drivers.modbus.cannon import ModbusCannon
 from rig.drivers.modbus.transport import SerialLine
@@ -31,6 +32,7 @@ from rig.drivers.traffic import TrafficRecord
 from rig.protocols.procedure import Procedure
 from rig.session import sim_config
 from rig.simulators.instruments.modbus_plc import ModbusPlcTwin
+from rig.simulators.ptybridge import PtyBridge
 from rig.simulators.scene import Scene
 from rig.simulators.urlhandler import get_world
 from rig.simulators.world import SimWorld
@@ -264,3 +266,23 @@ def test_bytes_waiting_on_the_line_before_a_request_are_recorded_not_dropped(twi
     at = directions.index(("rx", b"\x00\xffnoise"))
     assert directions[at + 1][0] == "tx"  # recorded where it was on the wire: before the request
     assert len(wire.tx()) == 2
+
+
+def test_noise_before_a_request_that_gets_no_reply_is_a_timeout_not_a_garbled_reply() -> None:
+    """Bytes waiting on the line before the request are recorded, but they are not its reply: a PLC
+    that then says nothing is DeviceTimeout ("no reply"), not a GarbledReply."""
+    silent = socket.create_server(("127.0.0.1", 0))  # accepts (backlog) and never answers
+    bridge = PtyBridge("127.0.0.1", silent.getsockname()[1])
+    bridge.start()
+    wire = Wire()
+    try:
+        with driver(bridge.path, wire, timeout_s=0.5) as cannon:
+            bridge.inject(b"\x00\xffnoise")
+            time.sleep(0.2)
+            with pytest.raises(DeviceTimeout) as info:
+                cannon.status()
+    finally:
+        bridge.close()
+        silent.close()
+    assert "no reply" in str(info.value) and "\n" not in str(info.value)
+    assert ("rx", b"\x00\xffnoise") in [(r.direction, r.data) for r in wire.records]
