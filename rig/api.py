@@ -16,12 +16,12 @@ from typing import Any
 
 from rig.core import events as ev
 from rig.core.bat import BatSpec
-from rig.core.config import Model, RigConfig
+from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RigError
 from rig.core.events import Verdict  # the one verdict enum (a str, so == "PASS" holds)
+from rig.protocols.control import Operator, RunControl, ScriptedOperator
 from rig.protocols.plan import PlanFactory
 from rig.protocols.procedure import Procedure
-from rig.protocols.runner import Operator, RunControl, ScriptedOperator
 from rig.store import Store
 
 Bat = BatSpec  # `rig.Bat.load("bat.toml")`: table [bat] of a TOML file
@@ -168,8 +168,8 @@ def certify(
     Bad input (including a procedure that does not fit the rig or the bat) raises RigError before
     anything is recorded; see `Result` for how a run ends.
     """
-    from rig.certification import certify as run_certification
-    from rig.modal.link import with_measured_hoop
+    from rig.certification import prepare, run_prepared
+    from rig.request import CertifyRequest, Signoff, calibrated
 
     if not isinstance(rig, RigSpec):
         raise ConfigError("rig must be rig.simulated(SCENE) or rig.from_config(PATH)", "rig")
@@ -186,29 +186,24 @@ def certify(
             raise ConfigError("give bat= and procedure= (or resume= a run id)", "certify")
         if not isinstance(bat, BatSpec):
             raise ConfigError("bat must be a rig.Bat (rig.Bat.load(PATH))", "bat")
-        proc = _procedure(procedure)
-        spec = with_measured_hoop(store, bat)  # before the rig: a simulated bat takes the measured hoop
-    config = rig.config_for(spec)
-    if calibration is not None:
-        named = str(Path(calibration).expanduser().resolve())
-        config = config.model_copy(update={"model": Model(calibration=named, named_by="script")})
-    given: dict[str, Any] = {"plan": plan} if plan is not None else {}  # else certify's defaults
+        proc, spec = _procedure(procedure), bat
+    given: dict[str, Any] = {"plan": plan} if plan is not None else {}  # else the request's default
     if accept_overdue is not None:
-        from rig.certification import Signoff
-
         who, why = accept_overdue
         given["accept_overdue"] = Signoff(who, why)
-    outcome = run_certification(
-        store,
+    request = CertifyRequest(
         proc,
         spec,
-        config,
+        lambda measured: calibrated(
+            rig.config_for(measured), calibration, "script"
+        ),  # with its measured hoop
         run_id=run_id,
         operator=operator or ScriptedOperator(who="script (rig.certify)"),
-        subscribers=[on_event] if on_event is not None else [],
+        subscribers=(on_event,) if on_event is not None else (),
         control=control,
         **given,
     )
+    outcome = run_prepared(store, prepare(store, request))
     return _result(store, outcome)
 
 

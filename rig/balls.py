@@ -19,11 +19,11 @@ from rig.certification import (
     Signoff,
     _checked,
     _running,
-    _traffic_drain,
     create_run,
     drive,
     history,
     instruments_or_close,
+    live_executor,
     open_before_run,
     register_item,
 )
@@ -39,7 +39,7 @@ from rig.protocols.ball_procedure import BallProcedure
 from rig.protocols.ball_steps import BallContext, ball_test
 from rig.protocols.control import Operator, RunControl, ScriptedOperator
 from rig.protocols.dryrun import Rehearsal, rehearse
-from rig.protocols.executor import Executor, LiveRig
+from rig.protocols.executor import Executor
 from rig.protocols.state import fold
 from rig.session import RigSession
 from rig.store import Store
@@ -120,14 +120,7 @@ def run_ball_test(
             who=getattr(operator_, "who", "operator"),
             lot=lot,
         )
-        executor = Executor(
-            ctx,
-            LiveRig(session.cannon, session.gates, session.clamp),
-            emit,
-            operator_,
-            control,
-            _traffic_drain(session),
-        )
+        executor = live_executor(session, ctx, emit, operator_, control)
         return executor, lambda: executor.run(ball_test)
 
     named = ev.RigNamed(name=rig, simulated=config.simulated, signing=signing.note)

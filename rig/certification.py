@@ -1,6 +1,8 @@
-"""Certify a bat: store, devices, procedure runner and subscribers wired together.
+"""Certify a bat: store, devices, the plan's executor and subscribers wired together.
 
-Every persisted event is appended to the store (committed) before the runner goes on, so a run
+A certification is asked for with one request (rig.request.CertifyRequest), rehearsed once
+(`prepare`) and then recorded and run (`run_prepared`); the API, the CLI and the console all go
+this way. Every persisted event is appended to the store (committed) before the plan goes on, so a run
 killed at any moment resumes from its record: no shot lost, none fired twice. Any error during a
 run (a device fault, a signal, a bug) ends the session with a RunInterrupted entry naming it.
 """
@@ -11,7 +13,7 @@ import base64
 import contextlib
 import logging
 import traceback
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Protocol
@@ -25,13 +27,15 @@ from rig.core.version import __version__
 from rig.instruments import Identified, identify
 from rig.keys import Signer, recorded_rig, recorded_simulated, sign_run, signing_for
 from rig.modal.link import with_measured_hoop
+from rig.protocols.control import BudgetExceeded, Operator, RunControl
 from rig.protocols.dryrun import rehearse
 from rig.protocols.evaluate import run_calibration
-from rig.protocols.plan import PlanFactory
+from rig.protocols.executor import Backend, Executor, LiveRig
+from rig.protocols.plan import PlanContext
 from rig.protocols.procedure import Procedure
-from rig.protocols.runner import BudgetExceeded, Operator, RunControl, Runner
+from rig.protocols.runner import run_to_verdict
 from rig.protocols.state import RunState
-from rig.protocols.steps import certification
+from rig.request import CertifyRequest, Prepared, Signoff
 from rig.session import RigSession
 from rig.store import RunLocked, Store, StoreDamaged, StoreGone
 
@@ -48,25 +52,6 @@ class Outcome:
     reason: str = ""
     budget_exceeded: bool = False  # resume only with a recorded rig check (Signoff), or end the run
     signing: str = ""  # what the operator should know of the run's signature (rig.keys.Signing)
-
-
-@dataclass(frozen=True)
-class Signoff:
-    """Who takes a recorded decision about a run, and why (a rig check, ending a run)."""
-
-    who: str
-    why: str
-
-    def __post_init__(self) -> None:
-        for name, text in (("who", self.who), ("why", self.why)):
-            if not isinstance(text, str) or not text.strip() or len(text) > 500 or not text.isprintable():
-                raise ConfigError(
-                    f"give a name and a reason ({name}: 1-500 printable characters)", source=name
-                )
-
-    def as_dict(self) -> dict[str, str]:
-        """JSON-ready view."""
-        return {"who": self.who.strip(), "why": self.why.strip()}
 
 
 def history(store: Store, run_id: str) -> list[RunEvent]:
@@ -157,56 +142,46 @@ def _where(exc: BaseException) -> str:
     return "; ".join(f"{Path(f.filename).name}:{f.lineno} in {f.name}" for f in frames[-3:])
 
 
-def certify(
-    store: Store,
-    procedure: Procedure,
-    bat: BatSpec,
-    config: RigConfig,
-    *,
-    run_id: str | None = None,
-    operator: Operator | None = None,
-    subscribers: Iterable[Subscriber] = (),
-    control: RunControl | None = None,
-    confirm_fire: bool = False,
-    review_shots: bool = False,
-    on_open: Callable[[RigSession], None] | None = None,
-    rig_checked: Signoff | None = None,
-    plan: PlanFactory = certification,
-    ball: dict[str, Any] | None = None,
-    sign_simulated: bool = False,
-    accept_overdue: Signoff | None = None,
-) -> Outcome:
-    """Run (or with `run_id`, resume) a certification; returns its outcome.
-
-    `on_open` sees the open session before the runner starts: an operator console uses it to read
-    device status on the runner's thread while the runner waits for the operator. `rig_checked`
-    records that the rig was checked (who, why): the re-shoot budget starts again. `plan` is the
-    procedure's plan (rig.protocols.steps.certification, or a lab's own from the same steps). `ball`:
-    the ball terms (rig.protocols.ball_terms.BallTerms fields: the lot, its measured wear, spread and
-    sensitivities, the ball law), recorded in RunStarted; None: assumed defaults, budgeted whole.
-    `sign_simulated`: sign a simulated run even with a real rig's key (rig.keys.signing_for); the
-    listeners first hear RigNamed: the rig, whether it is simulated, and what its signature will be.
-    `accept_overdue` (who, why) lets instruments past their calibration due date be used, recorded
-    with the instruments' identities (rig.instruments); without it such a run is refused.
-    """
-    listeners = list(subscribers)
-    override = None if accept_overdue is None else accept_overdue.as_dict()
-    resuming = run_id is not None
+def prepare(store: Store, request: CertifyRequest) -> Prepared:
+    """The one rehearsal of a certification, before anything is recorded or opened: a new run's bat
+    takes its measured hoop (rig.modal.link, before the rig is built: a simulated bat takes it as its
+    own), the rig config is built, the plan (a resumed run: what is left of it) is rehearsed against
+    checking fakes, and a new run's named calibration is loaded. Every problem: one ConfigError."""
+    run_id, bat = request.run_id, request.bat
     if run_id is not None:
         _running(store, run_id, "--resume")
-    # rehearse the plan (a resumed run: what is left of it) before anything is recorded or opened
+    else:
+        bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
+    config = request.config_for(bat)
     past = history(store, run_id) if run_id is not None else None
-    options = {"ball": ball} if ball is not None else {}
-    problems = rehearse(procedure, bat, config, plan, past, options=options).problems
-    if problems:
-        raise ConfigError("; ".join(problems), source="dry run")
+    rehearsal = rehearse(request.procedure, bat, config, request.plan, past, options=request.options)
+    if rehearsal.problems:
+        raise ConfigError("; ".join(rehearsal.problems), source="dry run")
+    if run_id is None:
+        run_calibration(request.procedure, config)  # a named calibration that will not load stops us here
+    return Prepared(request, bat, config, rehearsal)
+
+
+def run_prepared(store: Store, prepared: Prepared) -> Outcome:
+    """Record and run a rehearsed certification (with its `run_id`: resume it); returns its outcome.
+
+    The listeners first hear RigNamed: the rig, whether it is simulated, and what its signature will
+    be (`sign_simulated`: sign a simulated run even with a real rig's key, rig.keys.signing_for).
+    `rig_checked` records that the rig was checked (who, why): the re-shoot budget starts again.
+    `accept_overdue` (who, why) lets instruments past their calibration due date be used, recorded
+    with the instruments' identities (rig.instruments); without it such a run is refused. `on_open`
+    sees the open session before the plan starts: an operator console reads device status through it
+    on the run's thread while the run waits for the operator.
+    """
+    request, bat, config = prepared.request, prepared.bat, prepared.config
+    procedure, run_id = request.procedure, request.run_id
+    override = None if request.accept_overdue is None else request.accept_overdue.as_dict()
+    resuming = run_id is not None
     identity = config.identity_record(__version__)
     rig = (recorded_rig(store, run_id) if run_id else None) or str(identity["name"])
-    signing = signing_for(store, rig, simulated=config.simulated, sign_simulated=sign_simulated)
+    signing = signing_for(store, rig, simulated=config.simulated, sign_simulated=request.sign_simulated)
     if run_id is None:
-        run_calibration(procedure, config)  # a named calibration that will not load stops us here
         _checked(store)  # nothing is recorded into a damaged store (a resumed run: in drive)
-        bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
         refusal = ConfigError(
             f"bat {bat.id} is registered with other properties; give it a new id", source="bat file"
         )
@@ -220,42 +195,44 @@ def certify(
         identified = None  # identified under the lock, once its devices are open
 
     def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Driven, Callable[[], Any]]:
-        runner = Runner(
-            procedure,
-            bat,
-            config,
-            session.cannon,
-            session.gates,
-            session.clamp,
-            emit,
-            operator=operator,
-            history=past,
-            drain_traffic=_traffic_drain(session),
-            control=control,
-            confirm_fire=confirm_fire,
-            review_shots=review_shots,
-            rig_check=None if rig_checked is None else rig_checked.as_dict(),
-            plan=plan,
-            options=options,
-        )
-        return runner, lambda: runner.run(rehearse_first=False)  # rehearsed above, before the lock
+        executor = live_executor(session, prepared.context(past), emit, prepared.operator, request.control)
+        return executor, lambda: run_to_verdict(executor, request.plan)
 
     named = ev.RigNamed(name=rig, simulated=config.simulated, signing=signing.note)
     outcome = drive(
         store,
         run_id,
         config,
-        listeners,
+        list(request.subscribers),
         signing.signer,
         start,
         resuming=resuming,
-        on_open=on_open,
+        on_open=request.on_open,
         session=session,
         named=named,
         identified=identified,
         override=override,
     )
     return replace(outcome, signing=signing.note)
+
+
+def certify(store: Store, procedure: Procedure, bat: BatSpec, config: RigConfig, **options: Any) -> Outcome:
+    """Run (or with `run_id=`, resume) a certification: CertifyRequest(procedure, bat, config,
+    **options) prepared (rehearsed once) and run. The entry points build the request themselves."""
+    return run_prepared(store, prepare(store, CertifyRequest(procedure, bat, config, **options)))
+
+
+def live_executor(
+    session: RigSession,
+    ctx: PlanContext,
+    emit: Emit,
+    operator: Operator | None,
+    control: RunControl | None,
+    rig: Backend | None = None,
+) -> Executor:
+    """The executor of a plan on a session's devices (`rig`: a backend of its own over them)."""
+    backend = rig or LiveRig(session.cannon, session.gates, session.clamp)
+    return Executor(ctx, backend, emit, operator, control, _traffic_drain(session))
 
 
 Emit = Callable[[RunEvent], None]
@@ -455,7 +432,8 @@ def _drive(
                         run_id, message, resumable=not isinstance(failed, StoreGone)
                     ) from exc
                 return Outcome(run_id, "interrupted", None, reason, budget)
-            _seal(store, run_id, "finished", str(verdict["verdict"]), signer)  # sealed under the lock
+            word = verdict.get("verdict")  # a one-shot run has none (rig.one_shot)
+            _seal(store, run_id, "finished", None if word is None else str(word), signer)  # under the lock
     return Outcome(run_id, "finished", verdict)
 
 

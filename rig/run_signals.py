@@ -17,7 +17,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from types import FrameType
 
-from rig.protocols.runner import RunControl
+from rig.protocols.control import RunControl
 
 SIGNALS = (signal.SIGINT, signal.SIGTERM)
 

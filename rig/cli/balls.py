@@ -56,7 +56,7 @@ def cmd_test(args: argparse.Namespace) -> int:
     from rig.balls import recorded_test, rehearse_test, run_ball_test
     from rig.core import events as ev
     from rig.protocols.ball_procedure import BallProcedure
-    from rig.protocols.runner import RunControl, ScriptedOperator
+    from rig.protocols.control import RunControl, ScriptedOperator
     from rig.report.live import LiveConsole
     from rig.run_signals import stop_on_signals
 
@@ -81,11 +81,11 @@ def cmd_test(args: argparse.Namespace) -> int:
                 )
             lot, run_id = lots[args.lot], None
         config = _rig_config(args, procedure, sim_session(store))
-        past = ev.parse_log(store.entries(run_id)) if run_id is not None else None
-        rehearsal = rehearse_test(procedure, lot, config, past)
-        if rehearsal.problems:  # one line, every problem in it
-            raise ConfigError("; ".join(rehearsal.problems), source="dry run")
-        if args.dry_run:
+        if args.dry_run:  # the rehearsal alone; a real test is rehearsed once, by run_ball_test
+            past = ev.parse_log(store.entries(run_id)) if run_id is not None else None
+            rehearsal = rehearse_test(procedure, lot, config, past)
+            if rehearsal.problems:  # one line, every problem in it
+                raise ConfigError("; ".join(rehearsal.problems), source="dry run")
             print(f"dry run: the test fits this rig and this lot ({rehearsal.summary()})", file=sys.stderr)
             return 0
         live = LiveConsole(quiet=args.json)

@@ -78,14 +78,14 @@ def _end(args: argparse.Namespace) -> int:
 
 def cmd_certify(args: argparse.Namespace) -> int:
     """rig certify: run a certification procedure on a bat, live, recording everything."""
-    from rig.certification import RunNotRecorded, certify
+    from rig.certification import RunNotRecorded, prepare, run_prepared
     from rig.core.bat import BatSpec
     from rig.core.errors import StoreError
-    from rig.protocols.dryrun import rehearse
+    from rig.protocols.control import RunControl, ScriptedOperator
     from rig.protocols.procedure import Procedure
-    from rig.protocols.runner import RunControl, ScriptedOperator
     from rig.report.live import LiveConsole
     from rig.report.record import run_record
+    from rig.request import CertifyRequest, calibrated
     from rig.run_signals import stop_on_signals
 
     if args.end:
@@ -131,56 +131,40 @@ def cmd_certify(args: argparse.Namespace) -> int:
             if not args.procedure or not args.bat:
                 raise ConfigError("give --procedure and --bat (or --resume RUN)", source="command line")
             procedure, bat = Procedure.load(args.procedure), BatSpec.load(args.bat)
-            from rig.modal.link import with_measured_hoop
-
-            # before the rig is built, so that a simulated bat takes the measured hoop as its own
-            bat = with_measured_hoop(store, bat)
             run_id = None
             ball = _ball_terms(store, args, procedure)
-        config = rig_config(args, bat=bat, session=sim_session(store))
-        if args.calibration:
-            if args.resume and started:
-                raise ConfigError(
-                    "--calibration starts a run; a resumed run keeps the calibration it recorded",
-                    source="command line",
-                )
-            from rig.core.config import Model
-
-            named = str(Path(args.calibration).expanduser().resolve())
-            config = config.model_copy(update={"model": Model(calibration=named, named_by="command line")})
-        past = ev.parse_log(store.entries(run_id)) if run_id is not None else None
-        rehearsal = rehearse(procedure, bat, config, history=past)  # a resumed run: what is left of it
-        problems = rehearsal.problems
-        if args.dry_run and not args.resume:
-            from rig.protocols.evaluate import run_calibration
-
-            run_calibration(procedure, config)  # a named calibration that will not load is named here
-        if problems:  # one line, every problem in it
-            raise ConfigError("; ".join(problems), source="dry run")
-        if args.dry_run:
-            print(
-                f"dry run: the procedure fits this rig and this bat ({rehearsal.summary()})", file=sys.stderr
+        if args.calibration and args.resume and started:
+            raise ConfigError(
+                "--calibration starts a run; a resumed run keeps the calibration it recorded",
+                source="command line",
             )
+        live = LiveConsole(quiet=args.json)
+        request = CertifyRequest(
+            procedure,
+            bat,
+            # built once the bat has its measured hoop: a simulated bat takes it as its own
+            lambda measured: calibrated(
+                rig_config(args, bat=measured, session=sim_session(store)), args.calibration, "command line"
+            ),
+            run_id=run_id,
+            operator=ScriptedOperator(who="script (--sim or scripted run)"),
+            subscribers=(live,),
+            control=control,
+            rig_checked=rig_checked,
+            ball=ball,
+            sign_simulated=args.sign_simulated,
+            accept_overdue=accept_overdue,
+        )
+        prepared = prepare(store, request)  # the one rehearsal (a resumed run: what is left of it)
+        if args.dry_run:
+            summary = prepared.rehearsal.summary()
+            print(f"dry run: the procedure fits this rig and this bat ({summary})", file=sys.stderr)
             return 0
         if control.aborted:  # a signal before anything was recorded: nothing to resume
             print("rig: stopped by a signal before the run started; nothing recorded", file=sys.stderr)
             return 3
-        live = LiveConsole(quiet=args.json)
         try:
-            outcome = certify(
-                store,
-                procedure,
-                bat,
-                config,
-                run_id=run_id,
-                operator=ScriptedOperator(who="script (--sim or scripted run)"),
-                subscribers=[live],
-                control=control,
-                rig_checked=rig_checked,
-                ball=ball,
-                sign_simulated=args.sign_simulated,
-                accept_overdue=accept_overdue,
-            )
+            outcome = run_prepared(store, prepared)
         except RunNotRecorded as exc:  # the store failed the run: one line, and how to go on if it can
             hint = ""
             if exc.resumable:

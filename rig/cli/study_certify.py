@@ -147,8 +147,8 @@ def certify_population(args: argparse.Namespace) -> Tally:
 
     from rig.certification import certify
     from rig.core import events as ev
+    from rig.protocols.control import RunControl, ScriptedOperator
     from rig.protocols.procedure import Procedure
-    from rig.protocols.runner import RunControl, ScriptedOperator
     from rig.run_signals import stop_on_signals
     from rig.simulators.scene import Scene
     from rig.simulators.urlhandler import drop_world

@@ -1,20 +1,25 @@
-"""The blocking work behind the run screen: a certification run and the model's prediction.
+"""The blocking work behind the run screen: a run's one rehearsal, the run and the model's prediction.
 
-Both are called from thread workers only; neither touches the UI (results are returned).
+The set-up screen rehearses a new run (prepare_job) to show its problems on the form; the run and the
+prediction are called from thread workers only. None of them touches the UI (results are returned).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from rig.certification import Outcome, certify
+from rig.certification import Outcome, prepare, run_prepared
+from rig.core.bat import BatSpec
+from rig.core.config import RigConfig
 from rig.core.errors import RigError
 from rig.core.events import Subscriber
+from rig.protocols.control import RunControl
 from rig.protocols.evaluate import cross_check, run_calibration
-from rig.protocols.runner import RunControl
+from rig.protocols.procedure import Procedure
+from rig.request import CertifyRequest, ConfigFor, Prepared
 from rig.store import Store
 from rig.tui.operator import ConsoleOperator
-from rig.tui.rigs import ConsoleSettings, RunJob
+from rig.tui.rigs import ConsoleSettings, RigChoice, RunJob
 
 
 @dataclass(frozen=True)
@@ -24,6 +29,28 @@ class JobResult:
     outcome: Outcome | None
     failure: str
     run_id: str | None
+
+
+def console_request(
+    procedure: Procedure, bat: BatSpec, rig: RigConfig | ConfigFor, run_id: str | None = None
+) -> CertifyRequest:
+    """A run from the console: the operator confirms each shot and reviews each valid one."""
+    return CertifyRequest(procedure, bat, rig, run_id=run_id, confirm_fire=True, review_shots=True)
+
+
+def prepare_job(settings: ConsoleSettings, procedure: Procedure, bat: BatSpec, choice: RigChoice) -> RunJob:
+    """A new run's job, rehearsed (rig.certification.prepare: the bat's measured hoop, the rig, the
+    dry run); raises RigError naming every problem, so that the set-up form can show it."""
+    with Store.open(settings.db, clock=settings.clock) as store:
+        prepared = prepare(store, console_request(procedure, bat, choice.config))
+    return RunJob(procedure, prepared.bat, prepared.config, choice.label, rig=choice, prepared=prepared)
+
+
+def _prepared(store: Store, job: RunJob) -> Prepared:
+    """The job's rehearsal: the set-up's for the new run it was made for, else one made now (a resume)."""
+    if job.prepared is not None and job.prepared.request.run_id == job.run_id:
+        return job.prepared
+    return prepare(store, console_request(job.procedure, job.bat, job.config, job.run_id))
 
 
 def run_job(
@@ -39,19 +66,10 @@ def run_job(
         with settings.device_lock, Store.open(settings.db, clock=settings.clock) as store:
             before = {r.run_id for r in store.runs()}
             try:
-                outcome = certify(
-                    store,
-                    job.procedure,
-                    job.bat,
-                    job.config,
-                    run_id=job.run_id,
-                    operator=operator,
-                    subscribers=[on_event],
-                    control=control,
-                    confirm_fire=True,
-                    review_shots=True,
-                    on_open=operator.attach,
+                steered = _prepared(store, job).steered(
+                    operator=operator, control=control, subscribers=(on_event,), on_open=operator.attach
                 )
+                outcome = run_prepared(store, steered)
             finally:  # a run that failed is resumed by its id, even one that never started
                 run_id = next((r.run_id for r in store.runs() if r.run_id not in before), run_id)
     except RigError as exc:

@@ -16,13 +16,13 @@ from dataclasses import dataclass
 
 from rig.core.devices import CannonStatus, GateConfig
 from rig.core.errors import RigError
-from rig.protocols.runner import RunAborted
+from rig.protocols.control import RunAborted
 from rig.session import RigSession
 
 
 @dataclass(frozen=True)
 class PromptPending:
-    """The runner asks the operator something; `prompt_id` as in rig.protocols.runner."""
+    """The runner asks the operator something; `prompt_id` as in rig.protocols.steps."""
 
     prompt_id: str
     text: str

@@ -19,6 +19,7 @@ if TYPE_CHECKING:  # the session, the drivers and the procedures load when a rig
     from rig.core.config import RigConfig
     from rig.core.devices import CannonStatus, ClampStatus, Environment, GateConfig
     from rig.protocols.procedure import Procedure
+    from rig.request import Prepared
 
 SCENES = ("ideal", "lab", "faulty")
 T = TypeVar("T")
@@ -92,6 +93,7 @@ class RunJob:
     rig_label: str
     run_id: str | None = None
     rig: RigChoice | None = None  # the choice it runs on (a resume command names it)
+    prepared: Prepared | None = None  # the set-up's rehearsal of a new run (rig.tui.jobs.prepare_job)
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ from textual.worker import Worker
 from rig.certification import Outcome
 from rig.core import events as ev
 from rig.core.events import RunEvent
-from rig.protocols.runner import RunControl
+from rig.protocols.control import RunControl
 from rig.tui import render, situation
 from rig.tui.jobs import JobResult, predict, run_job
 from rig.tui.live import LiveRun

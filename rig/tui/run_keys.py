@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Any
 
 from textual.worker import Worker, WorkerCancelled, WorkerFailed
 
-from rig.protocols.runner import RunControl
+from rig.protocols.control import RunControl
 from rig.tui.messages import OpenHistory
 from rig.tui.modals import ConfirmScreen
 from rig.tui.operator import ConsoleOperator

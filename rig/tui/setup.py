@@ -248,19 +248,14 @@ class SetupScreen(Screen[None]):
         self.post_message(OpenHistory(self.rig))
 
     def build_job(self) -> RunJob:
-        """The run the form describes; raises RigError (with the field) when something is wrong."""
+        """The run the form describes, rehearsed; raises RigError (with the field) when something is wrong."""
         with LOADING:  # loaded at the first start (or by the warm-up), not before the first paint
             from rig.protocols.procedure import Procedure
-            from rig.protocols.runner import dry_run
+            from rig.tui.jobs import prepare_job
 
         bat = self.bat_from_form()
         procedure = Procedure.load(str(self.query_one("#procedure", Select).value))
-        choice = self.rig
-        config = choice.config(bat)
-        problems = dry_run(procedure, bat, config)
-        if problems:
-            raise ConfigError("; ".join(problems), source="dry run")
-        return RunJob(procedure, bat, config, choice.label, rig=choice)
+        return prepare_job(self.settings, procedure, bat, self.rig)
 
     def action_start(self) -> None:
         """Check the set-up (a dry run) and open the run screen."""
