@@ -10,30 +10,23 @@ built with that target clamped (rig.session.sim_config), a real rig is told by t
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
-from dataclasses import replace
 from typing import Any
 
 from rig.certification import (
     Emit,
+    NewRun,
     Outcome,
     Signoff,
-    _checked,
     _running,
-    create_run,
-    drive,
     history,
-    instruments_or_close,
     live_executor,
-    open_before_run,
-    register_item,
+    record_run,
 )
 from rig.core import events as ev
 from rig.core.ball import BALL_TESTS, BallLot
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RigError
 from rig.core.events import RunEvent, Subscriber
-from rig.core.version import __version__
-from rig.keys import recorded_rig, signing_for
 from rig.protocols.ball_eval import lot_result
 from rig.protocols.ball_procedure import BallProcedure
 from rig.protocols.ball_steps import BallContext, ball_test
@@ -80,7 +73,6 @@ def run_ball_test(
     are identified and their calibrations checked as a certification's are (`accept_overdue`).
     """
     override = None if accept_overdue is None else accept_overdue.as_dict()
-    resuming = run_id is not None
     if run_id is not None:
         _running(store, run_id, "--resume")
     registered = store.ball_lots().get(lot.id)
@@ -94,21 +86,10 @@ def run_ball_test(
     problems = rehearse_test(procedure, lot, config, past).problems
     if problems:
         raise ConfigError("; ".join(problems), source="dry run")
-    identity = config.identity_record(__version__)
-    rig = (recorded_rig(store, run_id) if run_id else None) or str(identity["name"])
-    signing = signing_for(store, rig, simulated=config.simulated)  # never a real rig's key for a simulation
-    if run_id is None:
-        _checked(store)  # nothing is recorded into a damaged store (a resumed run: in drive)
-        target = procedure.target
-        refusal = ConfigError(f"target {target.id} is registered with other properties", source="procedure")
-        register_item(store, target.id, target.spec(), refusal)
-        meta = {"procedure": procedure.name, "rig": identity, "lot": lot.id, "test": procedure.test}
-        session = open_before_run(config)  # a port that will not open: refused, no run created
-        identified = instruments_or_close(session, config, override)  # overdue, wrong serial: refused
-        run_id = create_run(store, session, procedure.test, target.id, meta)
-    else:
-        session = None  # a resumed test opens its devices under its lock
-        identified = None  # identified under the lock, once its devices are open
+    target = procedure.target
+    refusal = ConfigError(f"target {target.id} is registered with other properties", source="procedure")
+    meta = {"procedure": procedure.name, "lot": lot.id, "test": procedure.test}
+    new = NewRun(procedure.test, target.id, target.spec(), refusal, meta)
 
     def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Executor, Callable[[], Any]]:
         operator_ = operator or ScriptedOperator()
@@ -123,22 +104,10 @@ def run_ball_test(
         executor = live_executor(session, ctx, emit, operator_, control)
         return executor, lambda: executor.run(ball_test)
 
-    named = ev.RigNamed(name=rig, simulated=config.simulated, signing=signing.note)
-    outcome = drive(
-        store,
-        run_id,
-        config,
-        list(subscribers),
-        signing.signer,
-        start,
-        resuming=resuming,
-        what="ball test",
-        session=session,
-        named=named,
-        identified=identified,
-        override=override,
+    # never a real rig's key for a simulation (record_run: sign_simulated False)
+    return record_run(
+        store, config, run_id or new, list(subscribers), start, what="ball test", override=override
     )
-    return replace(outcome, signing=signing.note)
 
 
 def recomputed_problems(store: Store) -> list[str]:

@@ -14,7 +14,7 @@ import contextlib
 import logging
 import traceback
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -174,40 +174,81 @@ def run_prepared(store: Store, prepared: Prepared) -> Outcome:
     on the run's thread while the run waits for the operator.
     """
     request, bat, config = prepared.request, prepared.bat, prepared.config
-    procedure, run_id = request.procedure, request.run_id
-    override = None if request.accept_overdue is None else request.accept_overdue.as_dict()
-    resuming = run_id is not None
-    identity = config.identity_record(__version__)
-    rig = (recorded_rig(store, run_id) if run_id else None) or str(identity["name"])
-    signing = signing_for(store, rig, simulated=config.simulated, sign_simulated=request.sign_simulated)
-    if run_id is None:
-        _checked(store)  # nothing is recorded into a damaged store (a resumed run: in drive)
-        refusal = ConfigError(
-            f"bat {bat.id} is registered with other properties; give it a new id", source="bat file"
-        )
-        register_item(store, bat.id, bat.model_dump(mode="json"), refusal)
-        meta = {"procedure": procedure.name, "rig": identity}
-        session = open_before_run(config)  # a port that will not open: refused, no run created
-        identified = instruments_or_close(session, config, override)  # overdue, wrong serial: refused
-        run_id = create_run(store, session, procedure.standard.value, bat.id, meta)
-    else:
-        session = None  # a resumed run opens its devices under its lock (an error: its interruption)
-        identified = None  # identified under the lock, once its devices are open
+    refusal = ConfigError(
+        f"bat {bat.id} is registered with other properties; give it a new id", source="bat file"
+    )
+    p = request.procedure
+    new = NewRun(p.standard.value, bat.id, bat.model_dump(mode="json"), refusal, {"procedure": p.name})
 
     def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Driven, Callable[[], Any]]:
         executor = live_executor(session, prepared.context(past), emit, prepared.operator, request.control)
         return executor, lambda: run_to_verdict(executor, request.plan)
 
+    return record_run(
+        store,
+        config,
+        request.run_id or new,
+        list(request.subscribers),
+        start,
+        on_open=request.on_open,
+        override=None if request.accept_overdue is None else request.accept_overdue.as_dict(),
+        sign_simulated=request.sign_simulated,
+    )
+
+
+@dataclass(frozen=True)
+class NewRun:
+    """A run to create: its kind, what the clamp holds (registered once; `refusal` if the store holds
+    that id with other properties) and what RunCreated records besides the rig's identity."""
+
+    kind: str
+    item_id: str
+    item_spec: dict[str, Any]
+    refusal: ConfigError
+    meta: dict[str, Any] = field(default_factory=dict)
+
+
+def record_run(
+    store: Store,
+    config: RigConfig,
+    run: str | NewRun,
+    listeners: list[Subscriber],
+    start: Start,
+    *,
+    what: str = "run",
+    on_open: Callable[[RigSession], None] | None = None,
+    override: dict[str, str] | None = None,
+    sign_simulated: bool = False,
+) -> Outcome:
+    """Record and drive one run on the rig of `config`: `run` a run id to resume, or a NewRun,
+    created only once its devices are open and its instruments identified (overdue, a wrong serial:
+    refused, nothing recorded). The listeners first hear RigNamed: the rig, whether it is simulated,
+    and what its signature will be (`sign_simulated`: even with a real rig's key, rig.keys.signing_for);
+    the outcome carries that note. `start`, `on_open`, `override`: as drive takes them."""
+    identity = config.identity_record(__version__)
+    rig = (recorded_rig(store, run) if isinstance(run, str) else None) or str(identity["name"])
+    signing = signing_for(store, rig, simulated=config.simulated, sign_simulated=sign_simulated)
+    session: RigSession | None = None  # a resumed run opens its devices under its lock (drive)
+    identified: ev.InstrumentsIdentified | None = None  # ... and is identified there, once they are open
+    if isinstance(run, NewRun):
+        _checked(store)  # nothing is recorded into a damaged store (a resumed run: in drive)
+        register_item(store, run.item_id, run.item_spec, run.refusal)
+        session = open_before_run(config)  # a port that will not open: refused, no run created
+        identified = instruments_or_close(session, config, override)  # overdue, wrong serial: refused
+        run_id = create_run(store, session, run.kind, run.item_id, {**run.meta, "rig": identity})
+    else:
+        run_id = run
     named = ev.RigNamed(name=rig, simulated=config.simulated, signing=signing.note)
     outcome = drive(
         store,
         run_id,
         config,
-        list(request.subscribers),
+        listeners,
         signing.signer,
         start,
-        resuming=resuming,
-        on_open=request.on_open,
+        resuming=isinstance(run, str),
+        on_open=on_open,
+        what=what,
         session=session,
         named=named,
         identified=identified,
@@ -236,6 +277,7 @@ def live_executor(
 
 
 Emit = Callable[[RunEvent], None]
+Start = Callable[[RigSession, list[RunEvent], Emit], tuple["Driven", Callable[[], Any]]]
 
 
 class Driven(Protocol):
@@ -291,7 +333,7 @@ def drive(
     config: RigConfig,
     listeners: list[Subscriber],
     signer: Signer | None,
-    start: Callable[[RigSession, list[RunEvent], Emit], tuple[Driven, Callable[[], Any]]],
+    start: Start,
     *,
     resuming: bool,
     on_open: Callable[[RigSession], None] | None = None,
@@ -363,7 +405,7 @@ def _drive(
     config: RigConfig,
     emit: Emit,
     signer: Signer | None,
-    start: Callable[[RigSession, list[RunEvent], Emit], tuple[Driven, Callable[[], Any]]],
+    start: Start,
     resuming: bool,
     on_open: Callable[[RigSession], None] | None,
     what: str,
