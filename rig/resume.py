@@ -15,6 +15,7 @@ from typing import Any
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.errors import ConfigError
+from rig.protocols.one_shot import KIND as ONE_SHOT
 from rig.protocols.procedure import Procedure
 from rig.store import Store
 
@@ -31,6 +32,10 @@ class Recorded:
 def recorded_inputs(store: Store, run_id: str, procedure: Procedure | None = None) -> Recorded:
     """The procedure and bat to resume `run_id` with. `procedure`: given again for a run that never
     started (a lab's own file); for a started run the recorded one is used, whatever is given."""
+    if store.run(run_id).procedure == ONE_SHOT:
+        raise ConfigError(
+            f"run {run_id} is a one-shot run (rig shot): a shot is fired once, never resumed", "--resume"
+        )
     started = store.entries(run_id, kinds=[ev.RUN_STARTED])
     if started:
         payload = started[0].payload

@@ -278,10 +278,16 @@ def cmd_report(args: argparse.Namespace) -> int:
     output_file(args.output, "--output")
     output_dir(args.figures, "--figures")
     anchor = Anchor.parse(args.anchor) if args.anchor else None
+    from rig.protocols.one_shot import KIND as ONE_SHOT
     from rig.report.ball_lot import is_ball_test, lot_record
 
     with open_db(args, readonly=True) as store:
         run_id = resolve_run(store, args.run)
+        if args.format != "json" and store.run(run_id).procedure == ONE_SHOT:
+            raise ConfigError(
+                f"run {run_id} is a one-shot run (rig shot), not a certification: it has no certificate;"
+                " --format json gives its record"
+            )
         ball = is_ball_test(store, run_id)
         record = lot_record(store, run_id, anchor) if ball else run_record(store, run_id, anchor)
     if args.format == "json":

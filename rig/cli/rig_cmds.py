@@ -1,4 +1,4 @@
-"""`rig shot` and `rig sim serve`: one shot through the drivers, simulated devices out of process."""
+"""`rig shot` and `rig sim serve`: one recorded shot through the drivers, simulated devices out of process."""
 
 from __future__ import annotations
 
@@ -10,40 +10,38 @@ from typing import Any
 from rig.cli.common import (
     add_rig_options,
     emit,
+    open_db,
     rig_config,
 )
-from rig.core.errors import ConfigError, DeviceError
+from rig.core.dbpath import DB_HELP
+from rig.core.errors import ConfigError
 
 MAX_BASE_PORT = 65533  # the cannon's port; gates and clamp take the next two
 
 
 def cmd_shot(args: argparse.Namespace) -> int:
-    """rig shot: fire one shot through the drivers and print the raw and derived figures.
+    """rig shot: fire one shot through the drivers, recorded as a one-shot run, and print the raw
+    and derived figures.
 
-    A cannon an earlier shot left in FAULT (a misfire) is reset to SAFE first, and the user told.
+    The run (kind `shot` in `rig runs`; no verdict) records the intent before FIRE, the raw record
+    and the speeds, as a certification's shots are; `rig verify` checks it. A cannon an earlier shot
+    left in FAULT (a misfire) is reset to SAFE first, and the user told.
     """
-    from rig.protocols.shot import ShotFailed, fire_shot, prepare
-    from rig.session import RigSession
+    from rig.one_shot import OneShot, ShotNotMeasured, fire_one_shot, rehearse_shot
 
     config = rig_config(args)
-    if args.impact_from_pivot is not None:
-        config = config.model_copy(update={"impact_from_pivot_m": args.impact_from_pivot})
-    with RigSession.open(config) as session:
-        _clear_fault(session.cannon)
-        cfg = prepare(session.cannon, session.gates, session.clamp, config.impact_from_pivot_m)
-        try:
-            record = fire_shot(session.cannon, session.gates, session.clamp, config, args.speed, cfg)
-        except ShotFailed as exc:
-            if exc.record is not None and args.json:
-                json.dump({"error": str(exc), **exc.record.as_dict()}, sys.stderr, allow_nan=False)
-                sys.stderr.write("\n")
-            raise
-        except DeviceError as exc:
-            if _in_fault(session.cannon):
-                hint = "the cannon is left in FAULT (tank vented); the next `rig shot` resets it"
-                raise DeviceError("cannon", f"{str(exc).removeprefix('cannon: ')}; {hint}") from exc
-            raise
-    payload = record.as_dict()
+    at = config.impact_from_pivot_m if args.impact_from_pivot is None else args.impact_from_pivot
+    rehearsed = rehearse_shot(config, OneShot(speed_m_s=args.speed, impact_from_pivot_m=at))
+    args.create_db = True  # a shot the rig cannot give was refused above: no store made for it
+    with open_db(args) as store:
+        done = fire_one_shot(store, rehearsed, said=lambda text: print(f"rig: {text}", file=sys.stderr))
+    payload = {"run_id": done.run_id, **done.record}
+    if not done.measured:
+        reason = "; ".join(done.evaluation.get("reasons") or ["the speeds were not measured"])
+        if args.json:
+            json.dump({"error": reason, **payload}, sys.stderr, allow_nan=False)
+            sys.stderr.write("\n")
+        raise ShotNotMeasured(f"{reason} (recorded as run {done.run_id})")
     if args.json:
         json.dump(payload, sys.stdout, indent=2, allow_nan=False)
         sys.stdout.write("\n")
@@ -51,25 +49,10 @@ def cmd_shot(args: argparse.Namespace) -> int:
         shown = {k: v for k, v in payload.items() if k not in ("crossings", "extra_crossings")}
         shown["crossings"] = " ".join(f"G{c['gate']}@{c['tick']}" for c in payload["crossings"])
         args.json = False
-        emit(args, shown, f"Shot {record.shot_number}")
+        emit(args, shown, f"Shot {done.record['shot_number']}")
+    if done.signing.startswith("warning"):
+        print(done.signing, file=sys.stderr)
     return 0
-
-
-def _in_fault(cannon: Any) -> bool:
-    """True if the cannon says it is in FAULT (False if it cannot say)."""
-    from rig.core.devices import CannonState
-
-    try:
-        return cannon.status().state is CannonState.FAULT
-    except DeviceError:
-        return False
-
-
-def _clear_fault(cannon: Any) -> None:
-    """Reset a cannon an earlier session left in FAULT (a misfire vents the tank), as a run does."""
-    if _in_fault(cannon):
-        cannon.reset()
-        print("rig: the cannon was in FAULT (left by an earlier shot); reset it to SAFE", file=sys.stderr)
 
 
 def cmd_sim_serve(args: argparse.Namespace) -> int:
@@ -154,6 +137,7 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--clamp", metavar="URL", help="pivot-clamp port URL")
     p.add_argument("--speed", type=float, required=True, help="target inbound speed, m/s")
     p.add_argument("--impact-from-pivot", type=float, help="impact point from the pivot, m")
+    p.add_argument("--db", metavar="FILE", help=DB_HELP + " (the shot is recorded as a one-shot run)")
     p.add_argument("--json", action="store_true", help="print the shot record as JSON")
     p.set_defaults(handler=cmd_shot)
 

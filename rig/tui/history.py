@@ -13,11 +13,12 @@ from textual.widgets import DataTable, Footer, Header, Static
 
 from rig.certification import history
 from rig.core.errors import RigError
+from rig.protocols.one_shot import KIND as ONE_SHOT
 from rig.report.record import run_record
 from rig.resume import recorded_inputs
 from rig.store import RunSummary, Store, shown_status
 from rig.tui.messages import StartRun
-from rig.tui.report import record_summary
+from rig.tui.report import one_shot_summary, record_summary
 from rig.tui.rigs import LOADING, ConsoleSettings, RigChoice, RunJob
 
 
@@ -129,7 +130,8 @@ class HistoryScreen(Screen[None]):
         try:
             with Store.open(self.settings.db) as store:
                 record = run_record(store, run_id)
-            text = _certificate_md(record) or record_summary(record)
+                one_shot = store.run(run_id).procedure == ONE_SHOT
+            text = one_shot_summary(record) if one_shot else _certificate_md(record) or record_summary(record)
         except Exception as exc:  # an unreadable record is reported, not raised
             text = f"**Cannot build the report:** {exc}"
         self.app.call_from_thread(self._report, text)

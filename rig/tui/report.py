@@ -41,7 +41,24 @@ def record_summary(record: dict[str, Any]) -> str:
     if record.get("location"):
         lines.append(f"- location of maximum performance: {record['location']['from_barrel_end_in']:g} in")
     lines.append(f"- records: {record['entries']} entries; `rig verify` checks their chain")
-    lines += ["", "## Shots", "", "| # | purpose | at (in) | in (m/s) | out (m/s) | metric | u | status |"]
+    return "\n".join(lines + _shots(record)) + "\n"
+
+
+def one_shot_summary(record: dict[str, Any]) -> str:
+    """A one-shot run (rig shot): what was asked and its shot; it is no certification."""
+    asked = record.get("procedure") or {}
+    lines = [f"# Run {record['run_id'][:8]}: one shot ({record['status']})", ""]
+    lines.append("**Not a certification**: one shot fired by `rig shot`, no verdict.")
+    lines += ["", "## Set-up", ""]
+    speed, at = _num(asked.get("speed_m_s"), "g"), _num(asked.get("impact_from_pivot_m"), "g")
+    lines.append(f"- asked: {speed} m/s, the stage at {at} m from the pivot")
+    lines.append(f"- records: {record['entries']} entries; `rig verify` checks their chain")
+    return "\n".join(lines + _shots(record)) + "\n"
+
+
+def _shots(record: dict[str, Any]) -> list[str]:
+    """The shots table: one row per shot."""
+    lines = ["", "## Shots", "", "| # | purpose | at (in) | in (m/s) | out (m/s) | metric | u | status |"]
     lines.append("|---|---|---|---|---|---|---|---|")
     for s in record.get("shots", []):
         why = "; ".join(r.get("code", "") for r in s.get("reasons", []) if r.get("invalidates", True))
@@ -51,4 +68,4 @@ def record_summary(record: dict[str, Any]) -> str:
             f"| {_num(s.get('inbound_speed_m_s'), '.2f')} | {_num(s.get('rebound_speed_m_s'), '.2f')} "
             f"| {_num(s.get('metric'))} | {_num(s.get('u'))} | {status} |"
         )
-    return "\n".join(lines) + "\n"
+    return lines

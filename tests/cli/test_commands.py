@@ -92,7 +92,7 @@ def test_result_lines_hold_no_python_values(store_db: Path) -> None:
         ("model", "cor", "--speed", "60.8", "--hoop", "1276"),
         ("model", "cor", "--speed", "60.8", "--rigid"),
         ("model", "bat", "--speed", "60.8", "--hoop", "3600", "--moi", "0.2", "--impact-from-pivot", "0.6"),
-        ("shot", "--sim", "ideal", "--speed", "60.8"),
+        ("shot", "--sim", "ideal", "--speed", "60.8", "--db", str(store_db.with_name("shots.db"))),
         ("runs", "--db", str(store_db)),
         ("verify", "--db", str(store_db)),
     ]

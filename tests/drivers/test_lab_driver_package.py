@@ -65,7 +65,8 @@ def _rig(site: Path, *args: str) -> subprocess.CompletedProcess[str]:
 
 
 def _shot(site: Path, config: Path) -> list[dict[str, int]]:
-    done = _rig(site, "shot", "--config", str(config), "--speed", "60", "--json")
+    db = ["--db", str(config.with_suffix(".db"))]  # rig shot records its shot as a run
+    done = _rig(site, "shot", "--config", str(config), "--speed", "60", "--json", *db)
     assert done.returncode == 0, done.stderr[-2000:]
     return json.loads(done.stdout)["crossings"]
 
@@ -103,8 +104,9 @@ def test_a_rig_certifies_through_the_installed_driver_and_verifies(site: Path, t
 
 def test_without_the_package_the_name_is_unknown_in_one_line(tmp_path: Path) -> None:
     config = _config(tmp_path, "absent", driver="lab-gates")
+    db = ["--db", str(config.with_suffix(".db"))]
     done = subprocess.run(
-        [sys.executable, "-m", "rig.cli", "shot", "--config", str(config), "--speed", "60"],
+        [sys.executable, "-m", "rig.cli", "shot", "--config", str(config), "--speed", "60", *db],
         capture_output=True,
         text=True,
         timeout=300,

@@ -30,6 +30,13 @@ RIG = [sys.executable, "-m", "rig.cli"]
 SERVE = [*RIG, "sim", "serve"]
 
 
+@pytest.fixture(autouse=True)
+def _shots_recorded_here(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`rig shot` records each shot as a run: here in a store of the test's own (RIG_DB, which the
+    `rig` processes the tests start inherit), never in the working directory."""
+    monkeypatch.setenv("RIG_DB", str(tmp_path / "shots.db"))
+
+
 def test_cli_shot_in_ideal_scene_matches_the_model(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["shot", "--sim", "ideal", "--speed", "60.8", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)

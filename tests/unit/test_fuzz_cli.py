@@ -262,7 +262,7 @@ COMMANDS: list[tuple[list[str], list[str]]] = [
     ),
     (["model", "accuracy", "--quick", "--repeats", "1"], ["--repeats"]),
     (
-        ["shot", "--sim", "ideal", "--speed", "60", "--impact-from-pivot", "0.55"],
+        ["shot", "--sim", "ideal", "--speed", "60", "--impact-from-pivot", "0.55", "--db", "FILE"],
         ["--speed", "--impact-from-pivot"],
     ),
     (
