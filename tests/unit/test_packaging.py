@@ -100,6 +100,8 @@ def test_the_wheel_installs_rig_and_studies_and_their_data(tmp_path: Path) -> No
         (info,) = [t for t in top if t.endswith(".dist-info")]
         assert top == {"rig", "studies", info}, sorted(top)
         assert archive.read(f"{info}/top_level.txt").decode().split() == ["rig", "studies"]
+        scripts = archive.read(f"{info}/entry_points.txt").decode()
+        assert "rig = rig.cli:main" in scripts and "rig-study = studies.cli:main" in scripts, scripts
         for needed in (
             "rig/drivers/transport.py",
             "rig/drivers/cannon/codec.py",
