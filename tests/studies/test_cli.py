@@ -7,7 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from studies.cli import main
+from studies.cli import build_parser, main
+from tests.unit.test_cli import all_commands, has_help
 
 
 def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
@@ -41,3 +42,8 @@ def test_study_table_and_errors(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert code == 2 and "no bats" in err
     code, _, err = run(capsys, "population", "--db", str(tmp_path / "absent.db"))
     assert code == 2 and err.startswith("rig-study: ")
+
+
+@pytest.mark.parametrize("argv", all_commands(build_parser()), ids=lambda a: " ".join(a) or "rig-study")
+def test_every_command_has_help(capsys: pytest.CaptureFixture[str], argv: list[str]) -> None:
+    has_help(main, argv, capsys)
