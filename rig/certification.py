@@ -424,7 +424,8 @@ def _drive(
                 on_open(session)
             session.traffic.clear()  # opening chatter belongs to no shot
             driven, run = start(session, past, _then_after_start(emit, identified))
-            driven.control.settled = False  # one control may steer several runs (rig study --certify)
+            # one control may steer several runs (rig-study population --certify)
+            driven.control.settled = False
             try:
                 verdict = run()
                 driven.control.settled = True

@@ -9,8 +9,8 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from rig.population.study import PopulationStudy
 from rig.report.model_plots import figure_paths
+from studies.population.study import PopulationStudy
 
 MATERIAL_STYLE = {"aluminium": ("C0", "o"), "composite": ("C3", "s"), "wood": ("C5", "^")}
 METRIC_LABEL = {"besr": "BESR", "bbs": "BBS (m/s)", "bbcor": "BBCOR"}
