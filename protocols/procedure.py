@@ -22,10 +22,10 @@ from pydantic import (
 
 from rig.core.errors import ConfigError
 from rig.core.tomlfile import read_toml, table, validate
-from rig.measure.registry import Metric, metric
+from rig.measure.registry import BUILTIN_METRICS, Metric, metric
 
 BUILTIN_DIR = Path(__file__).parent
-BUILTIN = ("bbcor", "besr", "bbs")
+BUILTIN = BUILTIN_METRICS  # each built-in metric's procedure is protocols/<name>.toml
 M = TypeVar("M", bound=BaseModel)
 
 

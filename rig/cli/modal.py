@@ -165,7 +165,8 @@ def cmd_modal_simulate(args: argparse.Namespace) -> int:
 def cmd_study(args: argparse.Namespace) -> int:
     """rig study: the population study, hoop frequency against bending and performance (paper section 5)."""
     from rig.cli.study_certify import check_args
-    from rig.population import load_population, run_study
+    from rig.measure.registry import heading
+    from rig.population import METRICS, load_population, run_study
 
     check_args(args)
     output_dir(args.plot_dir, "--plot-dir")
@@ -217,7 +218,7 @@ def cmd_study(args: argparse.Namespace) -> int:
     console = out()
     tag = " (SYNTHETIC sample data)" if study.synthetic else ""
     table = new_table(title=f"Fig. 6: 50 Hz bins averaged over ±25 Hz, {len(study.bats)} bats{tag}")
-    for col in ("hoop Hz", "n", "BESR", "BBS (m/s)", "BBCOR"):
+    for col in ("hoop Hz", "n", *(heading(m) for m in METRICS)):
         table.add_column(col, justify="right")
     by_centre: dict[float, dict[str, Any]] = {}
     for name, bins in study.bins.items():
@@ -225,7 +226,7 @@ def cmd_study(args: argparse.Namespace) -> int:
             by_centre.setdefault(b.center_hz, {"n": b.n})[name] = b.mean
     for centre in sorted(by_centre):
         row = by_centre[centre]
-        cells = [f"{row[m]:.4g}" if m in row else "" for m in ("besr", "bbs", "bbcor")]
+        cells = [f"{row[m]:.4g}" if m in row else "" for m in METRICS]
         table.add_row(f"{centre:.0f}", str(row["n"]), *cells)
     console.print(table)
     for material, d in study.materials().items():

@@ -198,6 +198,11 @@ def unit(name: str | None) -> str:
     return q.unit if q is not None else ""
 
 
+def heading(name: str | None) -> str:
+    """A metric's label with its unit in parentheses, for axes and table columns: 'BBS (m/s)'."""
+    return f"{label(name)} ({unit(name)})" if unit(name) else label(name)
+
+
 def register(m: Metric) -> None:
     """Add a metric; ConfigError if its name is taken or its budget output is not the model's."""
     from rig.measure.model import OUTPUTS  # numpy: only when a metric is added

@@ -45,8 +45,7 @@ def metric_label(name: str | None) -> str:
 
 def axis_label(name: str | None) -> str:
     """A metric's name with its unit, for plot axes."""
-    unit = registry.unit(name)
-    return f"{metric_label(name)} ({unit})" if unit else metric_label(name)
+    return registry.heading(name)
 
 
 def unit_suffix(name: str | None) -> str:

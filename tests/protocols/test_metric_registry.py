@@ -25,6 +25,7 @@ from rig.measure import registry
 from rig.measure.metrics import compute_metrics
 from rig.measure.model import OUTPUTS, ShotInputs, outputs
 from rig.measure.registry import Metric, MetricTerms
+from rig.population.dataset import METRICS
 from rig.protocols.procedure import Procedure
 from rig.report.record import run_record
 
@@ -172,3 +173,10 @@ def test_a_registration_is_refused_when_the_budget_output_is_not_the_models() ->
     with pytest.raises(ConfigError, match="budget output 'toy'"):
         registry.register(Metric(**{**TOY.__dict__, **bad}))
     assert registry.find("toy") is None
+
+
+def test_the_population_file_has_a_column_for_each_cross_checked_metric() -> None:
+    """rig model calibrate fits a population column: a metric the cross-check supports needs one."""
+    assert set(METRICS) == set(registry.cross_checked())
+    with registry.registered(TOY):
+        assert "toy" not in registry.cross_checked()
