@@ -49,7 +49,9 @@ class Metric(Quantity):
     e_a_of: Callable[[float, MetricTerms], float] | None = None  # the inverse, where one exists
     u_scale: Callable[[MetricTerms], float] | None = None  # d(metric)/d(budget output); None: 1
     u_scale_text: str = ""  # u_scale in words, for the certificate
-    cross_check: bool = True  # rig model calibrate and the calibrated cross-check support it
+    # rig model calibrate and the calibrated cross-check support it (needs a population column,
+    # rig.population.dataset, and a metric affine in e_A); the uncalibrated prediction needs neither
+    cross_check: bool = False
     needs_length: bool = False  # depends on the bat's length (the swing model)
 
     def scale(self, terms: MetricTerms) -> float:
@@ -100,6 +102,7 @@ _QUANTITIES: dict[str, Quantity] = {
             limit_range=(0.0, 1.0),
             budget_output="bbcor",
             title="NCAA BBCOR",
+            cross_check=True,
         ),
         Metric(
             "besr",
@@ -111,6 +114,7 @@ _QUANTITIES: dict[str, Quantity] = {
             limit_range=(0.5, 1.5),  # e_A + 1/2 with e_A in (0, 1]
             budget_output="besr",
             title="NCAA BESR",
+            cross_check=True,
         ),
         Quantity(
             "besr_eq3",
@@ -134,6 +138,7 @@ _QUANTITIES: dict[str, Quantity] = {
             u_scale=lambda t: t.v_pitch + t.v_bat,
             u_scale_text="dBBS/de_A = V_pitch + V_bat",
             title="BBS (batted-ball speed)",
+            cross_check=True,
             needs_length=True,
         ),
         Quantity(

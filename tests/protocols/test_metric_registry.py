@@ -180,3 +180,19 @@ def test_the_population_file_has_a_column_for_each_cross_checked_metric() -> Non
     assert set(METRICS) == set(registry.cross_checked())
     with registry.registered(TOY):
         assert "toy" not in registry.cross_checked()
+
+
+def test_a_calibration_file_names_only_a_metric_the_cross_check_supports(tmp_path: Path) -> None:
+    """The file's metric is checked against the registry: a registered toy without the cross-check
+    is refused in one line naming the field, the example population's bbcor file loads."""
+    from rig.population import load_population
+    from rig.population.calfile import calibration_record, load_calibration, write_calibration
+    from rig.population.calibrate import calibrate
+
+    population = load_population(ROOT / "protocols" / "examples" / "population.csv")
+    record = calibration_record(calibrate(population, variants=("m2+c2",)), b"x", "pop.csv")
+    assert load_calibration(write_calibration(record, tmp_path / "cal.json")).metric == "bbcor"
+    with registry.registered(TOY), pytest.raises(ConfigError) as caught:
+        write_calibration({**record, "metric": "toy"}, tmp_path / "toy.json")
+    assert "\n" not in str(caught.value)
+    assert "metric: Value error, the model cross-check does not support 'toy'" in str(caught.value)
