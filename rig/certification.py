@@ -214,7 +214,7 @@ def certify(
         meta = {"procedure": procedure.name, "rig": identity}
         session = open_before_run(config)  # a port that will not open: refused, no run created
         identified = instruments_or_close(session, config, override)  # overdue, wrong serial: refused
-        run_id = create_run(store, session, procedure.standard.value, bat.id, meta)
+        run_id = create_run(store, session, procedure.standard, bat.id, meta)
     else:
         session = None  # a resumed run opens its devices under its lock (an error: its interruption)
         identified = None  # identified under the lock, once its devices are open

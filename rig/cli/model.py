@@ -221,6 +221,7 @@ def cmd_bat(args: argparse.Namespace) -> int:
 
 def _calibrated(args: argparse.Namespace, bat: Any) -> dict[str, Any]:
     """The calibrated model's prediction and interval for this bat (--calibration CAL.json)."""
+    from rig.measure.registry import metric
     from rig.population.calfile import load_calibration
     from rig.population.crosscheck import crosscheck_at
 
@@ -242,11 +243,13 @@ def _calibrated(args: argparse.Namespace, bat: Any) -> dict[str, Any]:
             f"--speed {args.speed:g}: the calibration predicts at {cal.speed_m_s:g} m/s",
             source="rig model bat",
         )
-    if cal.metric == "bbs" and args.length is None:
+    entry = metric(cal.metric)
+    if entry.needs_length and args.length is None:
         raise ConfigError(
-            "a BBS calibration needs --length (in): the swing model uses it", source="rig model bat"
+            f"a {entry.label} calibration needs --length (in): the swing model uses it",
+            source="rig model bat",
         )
-    length = 33.0 if args.length is None else args.length  # BBCOR and BESR do not depend on it
+    length = 33.0 if args.length is None else args.length  # a metric that needs no length ignores it
     check = crosscheck_at(
         cal,
         args.hoop,

@@ -59,8 +59,8 @@ class FitBat:
 
 def metric_line(metric: str, q: float, moi: float, length_m: float) -> tuple[float, float]:
     """alpha, beta with metric = alpha + beta e_A, from the rig's own metric code at e_A = 0 and 1."""
-    m0 = getattr(compute_metrics(SPEED_M_S, 0.0, q, moi, BALL_MASS_KG, length_m), metric)
-    m1 = getattr(compute_metrics(SPEED_M_S, SPEED_M_S, q, moi, BALL_MASS_KG, length_m), metric)
+    m0 = compute_metrics(SPEED_M_S, 0.0, q, moi, BALL_MASS_KG, length_m).value(metric)
+    m1 = compute_metrics(SPEED_M_S, SPEED_M_S, q, moi, BALL_MASS_KG, length_m).value(metric)
     return m0, m1 - m0
 
 

@@ -14,7 +14,8 @@ from rig.cli.common import console as out
 
 def cmd_study(args: argparse.Namespace) -> int:
     """rig-study population: hoop frequency against bending and performance (paper section 5)."""
-    from rig.population import load_population
+    from rig.measure.registry import heading
+    from rig.population import METRICS, load_population
     from studies.cli.certify import check_args
     from studies.population.study import run_study
 
@@ -70,7 +71,7 @@ def cmd_study(args: argparse.Namespace) -> int:
     console = out()
     tag = " (SYNTHETIC sample data)" if study.synthetic else ""
     table = new_table(title=f"Fig. 6: 50 Hz bins averaged over ±25 Hz, {len(study.bats)} bats{tag}")
-    for col in ("hoop Hz", "n", "BESR", "BBS (m/s)", "BBCOR"):
+    for col in ("hoop Hz", "n", *(heading(m) for m in METRICS)):
         table.add_column(col, justify="right")
     by_centre: dict[float, dict[str, Any]] = {}
     for name, bins in study.bins.items():
@@ -78,7 +79,7 @@ def cmd_study(args: argparse.Namespace) -> int:
             by_centre.setdefault(b.center_hz, {"n": b.n})[name] = b.mean
     for centre in sorted(by_centre):
         row = by_centre[centre]
-        cells = [f"{row[m]:.4g}" if m in row else "" for m in ("besr", "bbs", "bbcor")]
+        cells = [f"{row[m]:.4g}" if m in row else "" for m in METRICS]
         table.add_row(f"{centre:.0f}", str(row["n"]), *cells)
     console.print(table)
     for material, d in study.materials().items():
