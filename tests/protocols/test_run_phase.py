@@ -208,7 +208,7 @@ def test_a_damaged_log_folds_without_an_error() -> None:
 
 
 # -- real logs ----------------------------------------------------------------------------------
-def _steps(events: list[RunEvent]) -> list[tuple[str, str | None, str | None]]:
+def refusals(events: list[RunEvent]) -> list[tuple[str, str | None, str | None]]:
     """Each persisted event with the run table's and the shot table's refusal of it (None: taken)."""
     phase, out = RunPhase.NEW, []
     shots: dict[int, ShotStatus | None] = {}
@@ -227,7 +227,7 @@ def _steps(events: list[RunEvent]) -> list[tuple[str, str | None, str | None]]:
 def test_real_logs_never_meet_a_refusal_and_the_fold_agrees(logs: dict[str, list[RunEvent]]) -> None:
     seen: set[str] = set()
     for name, events in logs.items():
-        for kind, run_refusal, shot_refusal in _steps(events):
+        for kind, run_refusal, shot_refusal in refusals(events):
             assert run_refusal is None and shot_refusal is None, (name, kind, run_refusal, shot_refusal)
             seen.add(kind)
         state = fold(events)
@@ -260,7 +260,9 @@ def test_a_run_cut_anywhere_resumes_without_a_refusal(
     rehearsal = rehearse(Procedure.load("bbcor"), BAT, sim_config("ideal", bat=BAT), history=prefix)
     assert not rehearsal.problems, rehearsal.problems
     persisted = [e for e in rehearsal.events if e.persisted]
-    assert all(r is None and s is None for _, r, s in _steps(prefix + persisted)), _steps(prefix + persisted)
+    assert all(r is None and s is None for _, r, s in refusals(prefix + persisted)), refusals(
+        prefix + persisted
+    )
     if state.phase not in CLOSED:
         assert persisted and persisted[0].kind in (ev.RUN_STARTED, ev.RUN_RESUMED)
 
