@@ -8,7 +8,7 @@ console all say a run's status in their words.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from enum import StrEnum
 from typing import TypeVar
 
@@ -91,23 +91,27 @@ UNRESOLVED = frozenset({_Q, _FI})  # a shot awaiting its outcome: no other may b
 
 def refuse(kind: str, phase: RunPhase) -> str | None:
     """Why the run table refuses `kind` in `phase`, or None if it accepts it (or is live-only)."""
-    return _refusal(RUN_TABLE, kind, phase, "in a run")
+    accepted = RUN_TABLE.get(kind)
+    return (
+        None if accepted is None or phase in accepted else _why(kind, f"in a run that is {phase}", accepted)
+    )
 
 
-def _refusal(table: Mapping[str, Mapping[K, object]], kind: str, at: K, what: str) -> str | None:
-    accepted = table.get(kind)
-    if accepted is None or at in accepted:
-        return None
+def _why(kind: str, what: str, accepted: Iterable[object]) -> str:
     when = " or ".join(str(a or "not requested") for a in accepted)
-    return f"no {kind} {what} that is {at or 'not requested'} (only when {when})"
+    return f"no {kind} {what} (only when {when})"
 
 
 def fold_step(phase: RunPhase, kind: str) -> RunPhase:
     """The phase after `kind` in a recorded log, never raising (a live run refuses first: the executor
     asks `refuse`). A damaged log's refused event leaves a closed run closed, else takes the run where
     that kind always leads (RunFinished: finished), or leaves it where it was."""
-    if refuse(kind, phase) is None:
-        return RUN_TABLE.get(kind, {}).get(phase, phase)
+    accepted = RUN_TABLE.get(kind)
+    if accepted is None:  # live only
+        return phase
+    after = accepted.get(phase)
+    if after is not None:
+        return after
     return phase if phase in CLOSED else _LEADS_TO.get(kind, phase)
 
 
@@ -124,7 +128,10 @@ SHOWN = (RunPhase.RUNNING, RunPhase.INTERRUPTED, RunPhase.FINISHED, RunPhase.END
 
 def shot_refuse(kind: str, status: ShotStatus | None) -> str | None:
     """Why the shot table refuses `kind` for a shot in `status`, or None (not a shot kind: None)."""
-    return _refusal(SHOT_TABLE, kind, status, "for a shot")
+    accepted = SHOT_TABLE.get(kind)
+    if accepted is None or status in accepted:
+        return None
+    return _why(kind, f"for a shot that is {status or 'not requested'}", accepted)
 
 
 def shot_step(status: ShotStatus | None, kind: str) -> ShotStatus | None:
