@@ -72,6 +72,7 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, 
     - `stopped`: a device fault (the faulty scene), resumed into the re-shoot budget (a scattering
       cannon), resumed with a recorded rig check to its verdict, a shot overruled on review;
     - `portless`: created, its devices would not open (interrupted before it started), twice, then run;
+    - `unopened`: created, its devices would not open, and left so;
     - `aborted`: stopped by the operator, and left interrupted;
     - `ended`: stopped, then ended without a verdict;
     - `killed`: created, and its runner died without a word (stale lock, nothing recorded).
@@ -99,6 +100,8 @@ def recorded(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict[str, 
         for config in (unopenable, unopenable, ideal):
             last = certify(store, bbcor, BAT, config, run_id=ids["portless"])
         said["portless"] = last.status
+        ids["unopened"] = store.create_run("bbcor", BAT.id, {})
+        said["unopened"] = certify(store, bbcor, BAT, unopenable, run_id=ids["unopened"]).status
         for name in ("aborted", "ended"):
             ids[name], said[name] = _abort_after_the_first_shot(store, bbcor)
         said["ended"] = end_run(store, ids["ended"], Signoff("Q. Manager", "bat withdrawn")).status
@@ -244,7 +247,9 @@ def test_the_fold_ends_where_each_run_stands(logs: dict[str, list[RunEvent]]) ->
     phases = {name: fold(events).phase for name, events in logs.items()}
     assert phases["r:stopped"] == phases["r:portless"] == phases["log-v1:finished"] == "finished"
     assert phases["r:aborted"] == "interrupted" and phases["r:ended"] == phases["log-v1:ended"] == "ended"
-    assert phases["r:killed"] == "new"
+    assert phases["r:killed"] == "new" and phases["r:unopened"] == "interrupted"
+    portless = [e.kind for e in logs["r:portless"]][:3]  # interrupted twice before it started
+    assert portless == [ev.RUN_INTERRUPTED, ev.RUN_INTERRUPTED, ev.RUN_STARTED]
 
 
 @settings(max_examples=25, deadline=None)
@@ -329,7 +334,7 @@ def test_every_output_calls_a_run_the_same(
     rows = {r["run_id"]: r for r in json.loads(_cli("runs", "--db", str(db), "--json"))}
     table = _cli("runs", "--db", str(db))
     expected = {"stopped": "finished", "portless": "finished", "aborted": "interrupted"}
-    expected |= {"ended": "ended", "killed": "interrupted"}
+    expected |= {"ended": "ended", "killed": "interrupted", "unopened": "interrupted"}
     with Store.open(db) as store:
         for name, run_id in ids.items():
             word = expected[name]
