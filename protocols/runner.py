@@ -12,11 +12,13 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
+from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.devices import Cannon, Clamp, Gates
 from rig.core.errors import ConfigError
 from rig.core.events import RunEvent
+from rig.core.run_phase import RunPhase, refuse
 from rig.protocols.control import BudgetExceeded, Operator, RunAborted, RunControl, ScriptedOperator
 from rig.protocols.dryrun import dry_run, rehearse
 from rig.protocols.executor import Executor, LiveRig
@@ -99,9 +101,10 @@ class Runner:
         is armed (ConfigError listing them all). A caller that has just rehearsed the same plan from
         the same record (rig.certification, before it takes the run lock) passes False.
         """
-        if self.state.finished:
+        phase = self.state.phase
+        if phase is RunPhase.FINISHED:
             return dict(self.state.verdict or {})
-        if self.state.ended is not None:
+        if refuse(ev.RUN_STARTED, phase) and refuse(ev.RUN_RESUMED, phase):  # ended: nothing may follow
             raise ConfigError("the run was ended without a verdict; start a new one", source="resume")
         problems = (
             rehearse(
