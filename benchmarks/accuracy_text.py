@@ -4,17 +4,17 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from rig.physics.curve_cost import CurveTradeoffRow
 from rig.physics.fast import DEFAULT_RTOL
-from rig.physics.first_step import FirstStepRow
-from rig.physics.precision import (
+from studies.accuracy.curve_cost import CurveTradeoffRow
+from studies.accuracy.first_step import FirstStepRow
+from studies.accuracy.plots import case_label, format_time
+from studies.accuracy.precision import (
     IMPLICIT,
     KERNEL,
     PrecisionRow,
     PrecisionStudy,
     cost_to_reach,
 )
-from rig.report.precision_plots import case_label, format_time
 
 DECADES = (1e-4, 1e-6, 1e-8, 1e-10, 1e-12)
 TARGETS = (1e-4, 1e-6, 1e-8, 1e-10)

@@ -36,11 +36,22 @@ from benchmarks.accuracy_text import (
 )
 from benchmarks.timing import careful, load_average, machine, parallel_call_probe
 from rig.physics import fast
-from rig.physics.curve_cost import CurveTradeoffRow, curve_tradeoff
 from rig.physics.equations import Impact
-from rig.physics.first_step import FirstStepRow, first_step_effect
 from rig.physics.params import DEFAULT_PARAMS
-from rig.physics.precision import (
+from rig.progress import steps
+from studies.accuracy.curve_cost import CurveTradeoffRow, curve_tradeoff
+from studies.accuracy.first_step import FirstStepRow, first_step_effect
+from studies.accuracy.plots import (
+    case_label,
+    cost_markdown,
+    curve_markdown_table,
+    fits_markdown,
+    markdown_table,
+    plot_curve_tradeoff,
+    plot_work_precision,
+    references_markdown,
+)
+from studies.accuracy.precision import (
     EXPLICIT_RTOLS,
     IMPLICIT_RTOLS,
     KERNEL,
@@ -52,18 +63,7 @@ from rig.physics.precision import (
     ToleranceFit,
     work_precision,
 )
-from rig.progress import steps
-from rig.report.precision_plots import (
-    case_label,
-    cost_markdown,
-    curve_markdown_table,
-    fits_markdown,
-    markdown_table,
-    plot_curve_tradeoff,
-    plot_work_precision,
-    references_markdown,
-)
-from rig.studies import MIN_TIMED_S, stamped
+from studies.accuracy.stopwatch import MIN_TIMED_S, stamped
 
 SPEED = 60.8
 NEAR_RIGID_HZ = 1e6
@@ -257,7 +257,7 @@ def build_markdown(
         "```sh",
         ".venv/bin/python benchmarks/accuracy_doc.py   # this page, its figures and docs/accuracy.json",
         "make accuracy                                 # the work-precision table and figure only",
-        ".venv/bin/rig model accuracy --quick --json  # a smoke run",
+        ".venv/bin/rig-study accuracy --quick --json  # a smoke run",
         "```",
         "",
         "## Appendix: all rows",

@@ -28,7 +28,6 @@ from rig.balls import run_ball_test
 from rig.certification import Outcome, certify, history
 from rig.core.ball import BallLot, Conditioning
 from rig.core.bat import BatSpec
-from rig.population.simulate import simulated_population
 from rig.protocols.ball_procedure import BallProcedure
 from rig.protocols.ball_terms import terms_from_lot
 from rig.protocols.procedure import Procedure
@@ -37,6 +36,7 @@ from rig.session import air_starting_at, scene_with_bat, sim_config
 from rig.simulators.scene import Scene
 from rig.simulators.truth import true_metric
 from rig.store import Store
+from studies.population.simulated import simulated_population
 
 SCENE = "lab"
 

@@ -9,13 +9,13 @@ interval for each rate, and the time a calibration costs.
 
 Two tiers, both in one run:
 1. Certified (`--certified N`, default 40): N legal bats and 20 more (10 of them altered by
-   +0.025) certified on the simulated rig through the real drivers into stores (`rig study
-   --certify`), the calibration made from the store, and the 20 cross-checked: the pipeline a lab
-   runs. It also measures what the Monte Carlo needs: the certified means' scatter about the
+   +0.025) certified on the simulated rig through the real drivers into stores (`rig-study
+   population --certify`), the calibration made from the store, and the 20 cross-checked: the
+   pipeline a lab runs. It also measures what the Monte Carlo needs: the certified means' scatter about the
    simulated rig's own truth and the uncertainty the runs record.
 2. Monte Carlo (`--populations R`): each bat's measured value is the simulated rig's own collision
    at the location its scan would choose (the grid maximum) plus Gaussian noise of the size tier 1
-   measured (simulators/population.py); u_bbcor is the median u the runs recorded.
+   measured (studies/population/lab.py); u_bbcor is the median u the runs recorded.
 
 Goal (issue 10): altered +0.025 flagged >= 3 in 4, legal flagged <= 1 in 10, RMSE <= 0.007.
 
@@ -34,15 +34,15 @@ from pathlib import Path
 
 import numpy as np
 
-from rig.cli import main as rig_main
 from rig.population.calfile import CalibrationFile, calibration_record
 from rig.population.calibrate import CalibrationRefused, calibrate
 from rig.population.crosscheck import crosscheck_bats
-from rig.population.simulate import SimulatedBat, simulated_population
 from rig.population.store_source import bats_from_store
-from rig.simulators.population import best_scan_location, measured_population, true_metric
 from rig.simulators.scene import Scene
 from rig.store import Store
+from studies.cli import main as study_main
+from studies.population.lab import best_scan_location, measured_population, true_metric
+from studies.population.simulated import SimulatedBat, simulated_population
 
 ALTERATIONS = (0.01, 0.02, 0.025, 0.03)
 GOAL = {"detect_0.025": 0.75, "false_flag": 0.10, "rmse": 0.007}
@@ -78,11 +78,11 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple[float, float]:
 
 
 def certify_into(db: Path, n: int, seed: int, altered: int) -> dict[str, SimulatedBat]:
-    """`rig study --certify` n bats (of them `altered` +0.025) into db; the bats by id."""
+    """`rig-study population --certify` n bats (of them `altered` +0.025) into db; the bats by id."""
     flags = ["--certify", str(n), "--db", str(db), "--seed", str(seed), "--altered", str(altered)]
-    code = rig_main(["study", *flags, "--alteration", "0.025"])
+    code = study_main(["population", *flags, "--alteration", "0.025"])
     if code != 0:
-        raise SystemExit(f"rig study --certify failed with exit {code}")
+        raise SystemExit(f"rig-study population --certify failed with exit {code}")
     return {b.spec.id: b for b in simulated_population(n, seed, altered, 0.025)}
 
 

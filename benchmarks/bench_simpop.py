@@ -1,4 +1,4 @@
-"""Benchmark: a simulated population certified on the lab scene (`rig study --certify N`).
+"""Benchmark: a simulated population certified on the lab scene (`rig-study population --certify N`).
 
 Prints the wall time per certification and the scatter of each certified BBCOR about the scene's
 true model, solved independently with rig.physics: the rigid and the flexible barrel with the
@@ -18,13 +18,13 @@ import tempfile
 import time
 from pathlib import Path
 
-from rig.cli import main
 from rig.core.units import INCH
 from rig.physics import PivotedBat, predict_bat
-from rig.population.simulate import simulated_population
 from rig.simulators.effects.trampoline import TrampolineConfig, bat_offset_bbcor
 from rig.simulators.scene import Scene
 from rig.store import Store
+from studies.cli import main
+from studies.population.simulated import simulated_population
 
 SPEED = 60.8
 
@@ -54,7 +54,7 @@ def run(n: int, seed: int, altered: int) -> None:
         db = Path(tmp) / "pop.db"
         t0 = time.perf_counter()
         flags = ["--certify", str(n), "--db", str(db), "--seed", str(seed), "--altered", str(altered)]
-        code = main(["study", *flags])
+        code = main(["population", *flags])
         wall = time.perf_counter() - t0
         assert code == 0, code
         noise, total = [], []

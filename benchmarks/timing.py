@@ -1,8 +1,9 @@
 """The timing harness of the studies: careful timing and a description of the machine.
 
-The package's study harness times a solve (rig.studies: Stopwatch, time_per_call); this one adds
-what only a study needs: the garbage collector paused inside timed batches (as timeit does), the
-CPU model, the load average and numba's threading set-up, without which timings mean little.
+The studies' harness times a solve (studies.accuracy.stopwatch: Stopwatch, time_per_call); this
+one adds what only a study needs: the garbage collector paused inside timed batches (as timeit
+does), the CPU model, the load average and numba's threading set-up, without which timings mean
+little.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
-from rig.studies import MIN_TIMED_S, Stopwatch, best_batch, calls_per_batch, versions
+from studies.accuracy.stopwatch import MIN_TIMED_S, Stopwatch, best_batch, calls_per_batch, versions
 
 
 def paused_batch(solve: Callable[[], object], repeats: int, number: int) -> float:

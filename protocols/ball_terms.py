@@ -107,7 +107,7 @@ def ratio(params: CollisionParams, metric: str, speed: float, q: float, moi: flo
     def both(p: CollisionParams) -> tuple[float, float]:
         e_a = predict_bat(p, speed, None, PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q)).e_a
         m = compute_metrics(speed, e_a * speed, q, moi, p.m1, length_m)
-        return float(getattr(m, metric)), rigid_cor(p, PLATE_SPEED_M_S)
+        return m.value(metric), rigid_cor(p, PLATE_SPEED_M_S)
 
     m0, c0 = both(params)
     m1, c1 = both(params.model_copy(update={"c1": params.c1 * (1.0 + DAMPING_STEP)}))

@@ -117,7 +117,7 @@ class CheckingRig:
         loc = ctx.state.shots[-1].location_in if ctx.state.shots else mid
         metric = p.limit * (0.9 - 0.01 * (loc - mid) ** 2)
         return {
-            "metric_name": p.standard.value,
+            "metric_name": p.standard,
             "metric": metric,
             "u": 0.0,
             "valid": True,
@@ -135,7 +135,7 @@ class CheckingRig:
         p = ctx.procedure
         return {
             "verdict": ev.Verdict.PASS,
-            "metric": p.standard.value,
+            "metric": p.standard,
             "limit": p.limit,
             "dry_run": True,
             "reason": "dry run: nothing was measured",

@@ -13,25 +13,23 @@ from typing import Any
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.devices import Recoil
-from rig.measure.metrics import DEFAULT_SWING, compute_metrics
+from rig.measure.metrics import compute_metrics
 from rig.measure.model import ShotInputs, inbound_at_impact
+from rig.measure.registry import MetricTerms
 from rig.measure.speeds import ShotDataError, shot_speeds, split_passes
 from rig.measure.uncertainty import budget
 from rig.measure.validity import Invalidity, ValidityLimits, check_shot
 from rig.protocols.outcome import concluded, learned_aim, no_data
-from rig.protocols.procedure import Metric, Procedure
+from rig.protocols.procedure import Procedure
 from rig.protocols.run_inputs import NOMINAL_AIR, air_density, drag_inputs, uncertainty_model
 from rig.protocols.shot import ShotRecord
 from rig.protocols.state import RunState
 from rig.protocols.verdict import UNCALIBRATED, cross_check, drag_summary, run_calibration, verdict
 
 
-def _metric_u(p: Procedure, bud: dict[str, Any], v_pitch_plus_bat: float) -> float:
-    outs = bud["outputs"]
-    if p.standard is Metric.BBS:
-        # BBS = v_pitch e_A + v_bat (e_A + 1): dominated by e_A; the swing model is a definition.
-        return float(outs["e_a"]["u"]) * v_pitch_plus_bat
-    return float(outs[p.standard.value]["u"])
+def _metric_u(p: Procedure, bud: dict[str, Any], terms: MetricTerms) -> float:
+    """The u of the budget output the metric's registry entry names, carried to the metric."""
+    return float(bud["outputs"][p.metric.budget_output]["u"]) * p.metric.scale(terms)
 
 
 def shot(
@@ -50,7 +48,7 @@ def shot(
     moi = float(state.moi["moi_kgm2"]) if state.moi else float(bat.moi_kgm2 or 0.0)
     q = record.impact_from_pivot_m
     reasons: list[Invalidity] = []
-    out: dict[str, Any] = {"metric_name": p.standard.value, "metric": None, "u": None}
+    out: dict[str, Any] = {"metric_name": p.standard, "metric": None, "u": None}
     try:
         passes = split_passes(record.crossings, record.gate_config)
         speeds = shot_speeds(passes, record.gate_positions_m, record.gate_config)
@@ -97,11 +95,11 @@ def shot(
         m = compute_metrics(v_in_hit, v_out_hit, q, moi, p.ball.mass_kg, bat.length_m)
         out["inbound_at_impact_m_s"], out["rebound_at_impact_m_s"] = v_in_hit, v_out_hit
         bud = hit_budget.as_dict()
-        value = m.as_dict()[p.standard.value]
+        value = m.value(p.standard)
         out.update(
             metrics=m.as_dict(),
             metric=value,
-            u=_metric_u(p, bud, m.v_bat + DEFAULT_SWING.pitch_speed_m_s),
+            u=_metric_u(p, bud, m.terms),
             budget=bud,
             inputs={k: v for k, v in asdict(inputs).items()},
         )

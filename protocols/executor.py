@@ -28,6 +28,7 @@ from rig.core.devices import (
 )
 from rig.core.errors import ConfigError, DeviceError, DeviceGone, SafetyRefusal
 from rig.core.events import RunEvent
+from rig.core.run_phase import refuse, shot_refuse
 from rig.measure.realtime import InboundKnown, ReboundKnown, ShotTracker
 from rig.protocols import evaluate
 from rig.protocols.control import Operator, PlanError, RunAborted, RunControl, ScriptedOperator
@@ -217,7 +218,11 @@ class Executor:
 
     # -- persistence ------------------------------------------------------------------------
     def emit(self, event: RunEvent) -> None:
-        """Record a fact (persisted ones are committed first), then fold it into the state."""
+        """Record a fact (persisted ones are committed first, if the run table takes them in the run's
+        phase: PlanError if not), then fold it into the state."""
+        refused = refuse(event.kind, self.state.phase) if event.persisted else None
+        if refused is not None:
+            raise PlanError(f"{refused}: the run table (rig.core.run_phase) refuses it")
         self._emit(event)
         if event.persisted:
             self.state.apply(event)
@@ -328,7 +333,12 @@ class Executor:
     def _fire(self, msg: Fire) -> Fired | None:
         """Fire and record the raw data, or the loss; None if the shot was lost."""
         index, pending = msg.index, self.state.pending
-        if pending is None or pending.index != index or self._requested != index or pending.fired:
+        if (
+            pending is None
+            or pending.index != index
+            or self._requested != index
+            or shot_refuse(ev.SHOT_FIRED, pending.status) is not None
+        ):
             raise PlanError(
                 f"fire shot {index}: no intent recorded for it in this session "
                 "(record ShotRequested with its index and location first; a shot fires once)"

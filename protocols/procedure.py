@@ -6,11 +6,11 @@ built-in files (protocols/*.toml) with its status.
 
 from __future__ import annotations
 
-from enum import StrEnum
 from pathlib import Path
 from typing import Annotated, Literal, TypeVar
 
 from pydantic import (
+    AfterValidator,
     BaseModel,
     ConfigDict,
     Field,
@@ -20,10 +20,12 @@ from pydantic import (
     model_validator,
 )
 
+from rig.core.errors import ConfigError
 from rig.core.tomlfile import read_toml, table, validate
+from rig.measure.registry import BUILTIN_METRICS, Metric, metric
 
 BUILTIN_DIR = Path(__file__).parent
-BUILTIN = ("bbcor", "besr", "bbs")
+BUILTIN = BUILTIN_METRICS  # each built-in metric's procedure is protocols/<name>.toml
 M = TypeVar("M", bound=BaseModel)
 
 
@@ -38,15 +40,14 @@ def load_table(cls: type[M], name_or_path: str | Path, builtin: tuple[str, ...],
     return validate(cls, table(data, "procedure", str(path)), str(path), prefix="procedure."), path
 
 
-class Metric(StrEnum):
-    """Which performance metric decides the verdict."""
+def _registered(name: str) -> str:
+    try:
+        return metric(name).name
+    except ConfigError as exc:
+        raise ValueError(exc.reason) from None
 
-    BBCOR = "bbcor"
-    BESR = "besr"
-    BBS = "bbs"
 
-
-LIMIT_RANGE = {Metric.BBCOR: (0.0, 1.0), Metric.BESR: (0.5, 1.5), Metric.BBS: (0.0, 100.0)}
+MetricName = Annotated[str, AfterValidator(_registered)]  # a metric of rig.measure.registry
 
 
 class _Model(BaseModel):
@@ -149,7 +150,7 @@ class Procedure(_Model):
     """A certification procedure, pinned to the edition it follows."""
 
     name: str
-    standard: Metric
+    standard: MetricName  # which metric decides the verdict
     edition: str
     limit: float  # bounded by the metric in _limit_fits_metric
     limit_note: str = ""
@@ -171,15 +172,19 @@ class Procedure(_Model):
     @field_validator("limit")
     @classmethod
     def _limit_fits_metric(cls, v: float, info: ValidationInfo) -> float:
-        # BBCOR is a COR, (0, 1]; BESR = e_A + 1/2 lies in (0.5, 1.5]; BBS is a ball speed in m/s,
-        # (0, 100] (100 m/s is 224 mph, beyond any batted ball).
+        # each metric's range is its registry entry's (BBCOR a COR, (0, 1]; BBS in m/s, (0, 100])
         standard = info.data.get("standard")
         if standard is None:
             return v
-        low, high = LIMIT_RANGE[standard]
+        low, high = metric(standard).limit_range
         if not low < v <= high:
-            raise ValueError(f"{v:g} is outside ({low:g}, {high:g}] for {standard.value}")
+            raise ValueError(f"{v:g} is outside ({low:g}, {high:g}] for {standard}")
         return v
+
+    @property
+    def metric(self) -> Metric:
+        """The registry's entry for the metric the procedure certifies."""
+        return metric(self.standard)
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> Procedure:

@@ -260,7 +260,7 @@ def extension(ctx: PlanContext) -> tuple[float, str] | None:
         nxt = round(best + sign * p.scan.step_in, 6)
         if reach[0] <= nxt <= reach[1] and location_problem(ctx.bat, nxt) is None:
             return nxt, (
-                f"the highest mean {p.standard.value} so far ({means[best]:.4f}) is at {best:g} in, "
+                f"the highest mean {p.standard} so far ({means[best]:.4f}) is at {best:g} in, "
                 f"the scan's edge towards the {side}: the maximum is not bracketed yet"
             )
     return None  # bracketed, or the procedure and the bat allow no further step
@@ -275,7 +275,7 @@ def choose_location(ctx: PlanContext) -> Plan[None]:
     extra: dict[str, Any] = {"bracketed": bracketed}
     if not bracketed:
         text = (
-            f"The highest mean {p.standard.value} ({means[best]:.4f}) is at {best:g} in from the "
+            f"The highest mean {p.standard} ({means[best]:.4f}) is at {best:g} in from the "
             f"tip, the edge of the scan (extended as far as the procedure and the bat allow): the "
             f"maximum is not bracketed. Certify at {best:g} in anyway?"
         )
@@ -352,7 +352,7 @@ def ring_check(ctx: PlanContext, prompt_id: str, text: str, index: int) -> Plan[
         reason = f"ring check failed at shot {index}: barrel deformed"
         yield Record(
             ev.RunFinished(
-                verdict=ev.Verdict.FAIL, metric=p.standard.value, limit=p.limit, extra={"reason": reason}
+                verdict=ev.Verdict.FAIL, metric=p.standard, limit=p.limit, extra={"reason": reason}
             )
         )
         raise RunAborted(reason)
@@ -408,7 +408,7 @@ def shoot(ctx: PlanContext, loc_in: float, purpose: str) -> Plan[None]:
     yield Record(ev.event(kind, index=index, **result))
     shot = st.shots[-1]
     if shot.valid and ctx.review_shots:
-        metric = f"{p.standard.value} {shot.metric:.4f}"
+        metric = f"{p.standard} {shot.metric:.4f}"
         if not (yield Ask(f"review-{index}", f"Accept shot {index} ({metric})? n rejects it: re-shoot")):
             yield Record(
                 ev.ShotOverruled(index=index, reason="rejected by the operator on review", who=ctx.who)

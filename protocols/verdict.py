@@ -22,7 +22,7 @@ from rig.core.bat import Barrel, BatSpec
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RigError
 from rig.core.events import Verdict
-from rig.measure.metrics import DEFAULT_SWING, DEFINITIONS, compute_metrics
+from rig.measure.metrics import compute_metrics, recorded_terms
 from rig.measure.model import OUTPUTS, ShotInputs, outputs
 from rig.measure.tradeoff import tradeoff_table
 from rig.measure.uncertainty import budget, u_with_scatter
@@ -30,7 +30,7 @@ from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat, predict_bat
 from rig.population.calfile import CalibrationFile, read_calibration
 from rig.population.crosscheck import crosscheck_at
 from rig.protocols.ball_terms import BallAdjustment, BallTerms, adjust, hit_balls, law_params, ratio
-from rig.protocols.procedure import Metric, Procedure
+from rig.protocols.procedure import Procedure
 from rig.protocols.run_inputs import air_density, uncertainty_model
 from rig.protocols.state import RunState
 
@@ -59,16 +59,16 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> d
     model = uncertainty_model(p, config, state)
     per_bat = budget(inputs, model)
     per_hit = budget(inputs[0], model)
-    name = p.standard.value if p.standard is not Metric.BBS else "e_a"
+    name = p.metric.budget_output  # BBS's is e_A's, scaled below
     q = bat.impact_from_pivot_m(loc) if loc is not None else config.impact_from_pivot_m
     moi = float(state.moi["moi_kgm2"]) if state.moi else float(bat.moi_kgm2 or 0.0)
     ball = ball_part(p, bat, state, hits, q, moi)
     observed = [float(h.measured["metrics"][name]) for h in hits]
-    if ball is not None and name == p.standard.value:  # the scatter of what is averaged: corrected hits
+    if ball is not None and name == p.standard:  # the scatter of what is averaged: corrected hits
         observed = [v + c for v, c in zip(observed, ball.corrections, strict=True)]
     u = u_with_scatter(per_bat, observed, name) if n >= 2 else per_bat.u_of(name)
-    if p.standard is Metric.BBS:
-        u *= hits[0].measured["metrics"]["v_bat"] + DEFAULT_SWING.pitch_speed_m_s
+    if p.metric.u_scale is not None:  # its budget output is not the metric (BBS: e_A's)
+        u *= p.metric.u_scale(recorded_terms(hits[0].measured["metrics"]))
     u_measured = u
     if ball is not None:
         values = [v + c for v, c in zip(values, ball.corrections, strict=True)]
@@ -92,8 +92,8 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> d
     return {
         "verdict": Verdict.PASS if passed else Verdict.FAIL,
         "zone": zone,
-        "metric": p.standard.value,
-        "definition": DEFINITIONS.get(p.standard.value, ""),
+        "metric": p.standard,
+        "definition": p.metric.definition,
         "mean": mean,
         "u": u,
         "U": big_u,
@@ -160,10 +160,8 @@ def run_calibration(p: Procedure, config: RigConfig) -> dict[str, Any] | None:
         )
     by, path = next(iter(named.items()))
     cal, data = read_calibration(path)  # the bytes read once: recorded as they were checked
-    if cal.metric != p.standard.value:
-        raise ConfigError(
-            f"a {cal.metric} calibration; the procedure certifies {p.standard.value}", source=path
-        )
+    if cal.metric != p.standard:
+        raise ConfigError(f"a {cal.metric} calibration; the procedure certifies {p.standard}", source=path)
     if abs(cal.speed_m_s - p.target_speed_m_s) > p.speed_tolerance_m_s:
         raise ConfigError(
             f"calibrated at {cal.speed_m_s:g} m/s; the procedure shoots at {p.target_speed_m_s:g} m/s",
@@ -198,8 +196,7 @@ def _uncalibrated(
     params = CollisionParams.build(**{**DEFAULT_PARAMS.model_dump(), "m1": p.ball.mass_kg, **(law or {})})
     pred = predict_bat(params, v_in, hoop, PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q))
     m = compute_metrics(v_in, pred.e_a * v_in, q, moi, p.ball.mass_kg, bat.length_m)
-    predicted = m.as_dict()[p.standard.value]
-    assert predicted is not None  # bbcor, besr and bbs are always set (only besr_eq3 may be None)
+    predicted = m.value(p.standard)
     return {
         "calibrated": False,
         "predicted": predicted,
@@ -223,7 +220,7 @@ def ball_part(
     if recorded is None or moi <= 0.0:
         return None
     terms = BallTerms.model_validate(recorded)
-    g = ratio(law_params(terms, p.ball.mass_kg), p.standard.value, p.target_speed_m_s, q, moi, bat.length_m)
+    g = ratio(law_params(terms, p.ball.mass_kg), p.standard, p.target_speed_m_s, q, moi, bat.length_m)
     return adjust(terms, hit_balls(hits, state.environment, terms), g)
 
 

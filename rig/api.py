@@ -20,6 +20,7 @@ from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RigError
 from rig.core.events import Verdict  # the one verdict enum (a str, so == "PASS" holds)
 from rig.protocols.control import Operator, RunControl, ScriptedOperator
+from rig.core.run_phase import RunPhase  # the run table's phases (a str, so == "finished" holds)
 from rig.protocols.plan import PlanFactory
 from rig.protocols.procedure import Procedure
 from rig.store import Store
@@ -97,12 +98,13 @@ def from_config(path: str | Path) -> RigSpec:
 class Result:
     """How a `certify` call ended; the record of truth stays the store's log.
 
-    status: "finished" (a verdict) or "interrupted" (no verdict yet, resumable; `reason` says why).
-    shots: shots the run has asked the cannon to fire, over all its sessions.
+    status: "finished" (a verdict) or "interrupted" (no verdict yet, resumable; `reason` says why),
+    a RunPhase (rig.core.run_phase). shots: shots the run has asked the cannon to fire, over all its
+    sessions.
     """
 
     run_id: str
-    status: str
+    status: RunPhase
     verdict: Verdict | None = None
     mean: float | None = None
     expanded_uncertainty: float | None = None  # U = k u
@@ -118,7 +120,7 @@ class Result:
     @property
     def finished(self) -> bool:
         """Whether the run reached a verdict."""
-        return self.status == "finished"
+        return self.status == RunPhase.FINISHED
 
 
 def _procedure(procedure: str | Path | Procedure) -> Procedure:

@@ -23,6 +23,7 @@ from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RecordRefused, RigError, StoreError
 from rig.core.events import RunEvent, Subscriber
+from rig.core.run_phase import RunPhase
 from rig.core.version import __version__
 from rig.instruments import Identified, identify
 from rig.keys import Signer, recorded_rig, recorded_simulated, sign_run, signing_for
@@ -47,7 +48,7 @@ class Outcome:
     """How a certification run ended."""
 
     run_id: str
-    status: str  # finished | interrupted | ended
+    status: RunPhase  # finished | interrupted | ended: the run table's words (rig.core.run_phase)
     verdict: dict[str, Any] | None
     reason: str = ""
     budget_exceeded: bool = False  # resume only with a recorded rig check (Signoff), or end the run
@@ -128,7 +129,7 @@ def end_run(store: Store, run_id: str, signoff: Signoff) -> Outcome:
         store.append(run_id, ended.kind, ended.data)
         _seal(store, run_id, "aborted", None, signer)
     reason = f"ended without a verdict by {signoff.who}: {signoff.why}"
-    return Outcome(run_id, "ended", None, reason, signing=signing.note if signing else "")
+    return Outcome(run_id, RunPhase.ENDED, None, reason, signing=signing.note if signing else "")
 
 
 def _reason(exc: BaseException) -> str:
@@ -178,7 +179,7 @@ def run_prepared(store: Store, prepared: Prepared) -> Outcome:
         f"bat {bat.id} is registered with other properties; give it a new id", source="bat file"
     )
     p = request.procedure
-    new = NewRun(p.standard.value, bat.id, bat.model_dump(mode="json"), refusal, {"procedure": p.name})
+    new = NewRun(p.standard, bat.id, bat.model_dump(mode="json"), refusal, {"procedure": p.name})
 
     def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Driven, Callable[[], Any]]:
         executor = live_executor(session, prepared.context(past), emit, prepared.operator, request.control)
@@ -393,7 +394,7 @@ def drive(
     finally:
         if opened is not None:
             opened.close()
-    for event in verdicts if outcome.status == "finished" else []:
+    for event in verdicts if outcome.status is RunPhase.FINISHED else []:
         for listener in listeners:
             listener(event)
     return outcome
@@ -426,7 +427,7 @@ def _drive(
             except (RigError, OSError) as exc:  # an unplugged or busy port: nothing moved, resumable
                 reason = f"the devices could not be opened: {_reason(exc)}"
                 emit(ev.RunInterrupted(reason=reason, extra={"budget_exceeded": False}))
-                return Outcome(run_id, "interrupted", None, reason)
+                return Outcome(run_id, RunPhase.INTERRUPTED, None, reason)
         with session:
             if identified is None:
                 try:
@@ -436,14 +437,15 @@ def _drive(
                 if found.refusals:
                     reason = "; ".join(found.refusals)
                     emit(ev.RunInterrupted(reason=reason, extra={"budget_exceeded": False}))
-                    return Outcome(run_id, "interrupted", None, reason)
+                    return Outcome(run_id, RunPhase.INTERRUPTED, None, reason)
                 identified = found.event
             past = history(store, run_id) if resuming else []  # read under the lock
             if on_open is not None:
                 on_open(session)
             session.traffic.clear()  # opening chatter belongs to no shot
             driven, run = start(session, past, _then_after_start(emit, identified))
-            driven.control.settled = False  # one control may steer several runs (rig study --certify)
+            # one control may steer several runs (rig-study population --certify)
+            driven.control.settled = False
             try:
                 verdict = run()
                 driven.control.settled = True
@@ -452,9 +454,9 @@ def _drive(
                 if not isinstance(exc, Exception | KeyboardInterrupt):
                     raise  # SystemExit and the like: not an interruption of the run
                 ended = driven.state.verdict
-                if driven.state.finished and ended is not None:  # e.g. a failed ring check: FAIL
+                if driven.state.phase is RunPhase.FINISHED and ended is not None:  # a failed ring check
                     _seal(store, run_id, "finished", ended.get("verdict"), signer)
-                    return Outcome(run_id, "finished", ended, str(exc))
+                    return Outcome(run_id, RunPhase.FINISHED, ended, str(exc))
                 reason, budget = _reason(exc), isinstance(exc, BudgetExceeded)
                 detail: dict[str, Any] = {"reason": reason, "budget_exceeded": budget}
                 if not isinstance(exc, RigError | KeyboardInterrupt):  # a bug: say where, for the developers
@@ -473,10 +475,10 @@ def _drive(
                     raise RunNotRecorded(
                         run_id, message, resumable=not isinstance(failed, StoreGone)
                     ) from exc
-                return Outcome(run_id, "interrupted", None, reason, budget)
+                return Outcome(run_id, RunPhase.INTERRUPTED, None, reason, budget)
             word = verdict.get("verdict")  # a one-shot run has none (rig.one_shot)
             _seal(store, run_id, "finished", None if word is None else str(word), signer)  # under the lock
-    return Outcome(run_id, "finished", verdict)
+    return Outcome(run_id, RunPhase.FINISHED, verdict)
 
 
 def _then_after_start(emit: Emit, identified: RunEvent) -> Emit:

@@ -49,7 +49,7 @@ def recorded_inputs(store: Store, run_id: str, procedure: Procedure | None = Non
     if "test" in meta or not isinstance(standard, str) or not isinstance(name, str):
         raise ConfigError(f"run {run_id} never started and records no procedure to start it with", "--resume")
     chosen = procedure if procedure is not None else _builtin(standard)
-    if chosen is None or chosen.standard.value != standard or chosen.name != name:
+    if chosen is None or chosen.standard != standard or chosen.name != name:
         raise ConfigError(
             f"run {run_id} never started; it was created with the procedure {name!r} ({standard}): "
             "give that procedure again with --procedure to start it",

@@ -58,8 +58,11 @@ def _version() -> str:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the `rig` console script."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    return run_command(build_parser().parse_args(argv))
+
+
+def run_command(args: argparse.Namespace, prog: str = "rig") -> int:
+    """Run a parsed command's handler; an error is one line `PROG: message` on stderr, exit 2."""
     handler: Handler = args.handler
     error: Exception
     try:
@@ -72,7 +75,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
     except OSError as exc:
         message, error = f"{exc.strerror or exc}: {exc.filename or ''}".rstrip(": "), exc
-    print(f"rig: {message}", file=sys.stderr)
+    print(f"{prog}: {message}", file=sys.stderr)
     if getattr(args, "json", False):  # a program reading the JSON learns of the error too
         json.dump({"error": _error_object(message, error)}, sys.stdout)
         sys.stdout.write("\n")
@@ -89,4 +92,4 @@ def _error_object(message: str, error: Exception) -> dict[str, object]:
     return out
 
 
-__all__ = ["build_parser", "main"]
+__all__ = ["build_parser", "main", "run_command"]

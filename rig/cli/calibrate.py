@@ -11,6 +11,7 @@ from typing import Any
 from rig.cli.common import console as out
 from rig.cli.common import new_table, output_file
 from rig.core.errors import ConfigError
+from rig.measure.registry import cross_checked
 
 
 def gather(data: str | None, db: str | None, who: str) -> tuple[list[Any], bytes, str, list[str]]:
@@ -153,7 +154,7 @@ def add_parser(msub: Any) -> None:
     )
     p.add_argument("--data", metavar="POPULATION", help="population file (.csv or .toml)")
     p.add_argument("--db", metavar="STORE", help="also (or only) the certified bats of this record store")
-    p.add_argument("--metric", choices=("bbcor", "besr", "bbs"), default="bbcor", help="metric to fit")
+    p.add_argument("--metric", choices=cross_checked(), default="bbcor", help="metric to fit")
     p.add_argument("--output", required=True, metavar="CAL.json", help="where to write the calibration")
     p.add_argument(
         "--ball",

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from typing import Any
 
@@ -34,7 +33,6 @@ BOUNDS: Bounds = {
     "moi": ("moi_kgm2", 0.01, 1.0, "kg m^2"),
     "impact_from_pivot": ("impact_from_pivot_m", 0.05, 0.9144, "m"),
     "points": ("points", 2, 2000, "(2000 points resolve the optimum to 5 Hz)"),
-    "repeats": ("repeats", 1, 100, ""),
 }
 
 
@@ -223,6 +221,7 @@ def cmd_bat(args: argparse.Namespace) -> int:
 
 def _calibrated(args: argparse.Namespace, bat: Any) -> dict[str, Any]:
     """The calibrated model's prediction and interval for this bat (--calibration CAL.json)."""
+    from rig.measure.registry import metric
     from rig.population.calfile import load_calibration
     from rig.population.crosscheck import crosscheck_at
 
@@ -244,11 +243,13 @@ def _calibrated(args: argparse.Namespace, bat: Any) -> dict[str, Any]:
             f"--speed {args.speed:g}: the calibration predicts at {cal.speed_m_s:g} m/s",
             source="rig model bat",
         )
-    if cal.metric == "bbs" and args.length is None:
+    entry = metric(cal.metric)
+    if entry.needs_length and args.length is None:
         raise ConfigError(
-            "a BBS calibration needs --length (in): the swing model uses it", source="rig model bat"
+            f"a {entry.label} calibration needs --length (in): the swing model uses it",
+            source="rig model bat",
         )
-    length = 33.0 if args.length is None else args.length  # BBCOR and BESR do not depend on it
+    length = 33.0 if args.length is None else args.length  # a metric that needs no length ignores it
     check = crosscheck_at(
         cal,
         args.hoop,
@@ -290,41 +291,11 @@ def _print_calibrated(c: dict[str, Any]) -> None:
     )
 
 
-def cmd_accuracy(args: argparse.Namespace) -> int:
-    """rig model accuracy: the work-precision study of the collision solvers."""
-    from rig.physics.precision import work_precision
-    from rig.studies import stamped, stopwatch
-
-    check_flags(args, BOUNDS)
-    output_file(args.plot, "--plot")
-    from rig.progress import steps
-
-    with steps(None, "work-precision: solves timed") as bar:
-        timer = bar.counted(stopwatch(quick=args.quick, repeats=args.repeats))
-        study = stamped(lambda: work_precision(quick=args.quick, timer=timer))
-    if args.plot:
-        from rig.report.precision_plots import plot_work_precision
-
-        for path in plot_work_precision(study, args.plot):
-            print(f"wrote {path}", file=sys.stderr)
-    if args.json:
-        json.dump([row.as_dict() for row in study.rows], sys.stdout, indent=2, allow_nan=False)
-        sys.stdout.write("\n")
-    else:
-        from rig.report.precision_plots import precision_table
-
-        table = precision_table(study)
-        if not out().is_terminal:
-            table.box = new_table().box
-        out().print(table)
-    return 0
-
-
 MODEL_DOC = "The ball-barrel collision model (founding paper, Eqs. 1-2)."
 
 
 def add_parsers(sub: Any) -> None:
-    """`rig model cor|curve|bat|accuracy|calibrate|crosscheck|fit-ball`."""
+    """`rig model cor|curve|bat|calibrate|crosscheck|fit-ball`."""
     model = sub.add_parser(
         "model",
         help="the ball-barrel collision model",
@@ -369,13 +340,6 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--u-measured", type=float, help="its standard uncertainty, k = 1 (with --calibration)")
     p.add_argument("--length", type=float, help="bat length, in (with a BBS calibration)")
     p.set_defaults(handler=cmd_bat)
-
-    p = msub.add_parser("accuracy", help="work-precision study: error against cost of each solver")
-    p.add_argument("--plot", metavar="FILE", help="write the plots (PNG and SVG)")
-    p.add_argument("--json", action="store_true", help="print the rows as JSON")
-    p.add_argument("--quick", action="store_true", help="fewer tolerances and methods (a smoke run)")
-    p.add_argument("--repeats", type=positive_int, default=5, help="timed repeats (best of N, 1-100)")
-    p.set_defaults(handler=cmd_accuracy)
 
     calibrate.add_parser(msub)
     crosscheck.add_parser(msub)

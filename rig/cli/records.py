@@ -31,6 +31,7 @@ from rig.cli.common import console as out
 from rig.core import events as ev
 from rig.core.dbpath import DB_HELP
 from rig.core.events import Verdict
+from rig.measure.registry import BUILTIN_METRICS
 
 
 def _resume_command(store: Any, run_id: str, args: argparse.Namespace) -> str:
@@ -413,7 +414,7 @@ def _verify_json(report: Any) -> dict[str, Any]:
 def add_parsers(sub: Any) -> None:
     """`rig certify|runs|report|verify|tui`, in this order: the everyday tasks lead `rig --help`."""
     p = sub.add_parser("certify", help="certify a bat (BBCOR, BESR, BBS)", description=cmd_certify.__doc__)
-    p.add_argument("--procedure", help="bbcor, besr, bbs, or a procedure TOML file")
+    p.add_argument("--procedure", help=f"{', '.join(BUILTIN_METRICS)}, or a procedure TOML file")
     p.add_argument("--bat", metavar="BAT.toml", help="bat file (table [bat])")
     add_rig_options(p)
     p.add_argument("--db", metavar="FILE", help=DB_HELP)
@@ -509,5 +510,5 @@ def add_parsers(sub: Any) -> None:
     add_rig_options(p)
     p.add_argument("--db", metavar="FILE", help=DB_HELP)
     p.add_argument("--bat", metavar="BAT.toml", help="preselect this bat file")
-    p.add_argument("--procedure", help="preselect bbcor, besr, bbs or a procedure TOML file")
+    p.add_argument("--procedure", help=f"preselect {', '.join(BUILTIN_METRICS)} or a procedure TOML file")
     p.set_defaults(handler=cmd_tui)

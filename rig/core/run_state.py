@@ -13,6 +13,7 @@ from typing import Any
 
 from rig.core import events as ev
 from rig.core.events import RunEvent
+from rig.core.run_phase import UNRESOLVED, RunPhase, ShotStatus, fold_step
 
 
 @dataclass
@@ -35,13 +36,13 @@ class ShotEntry:
     lost_reason: str | None = None
 
     @property
-    def status(self) -> str:
-        """requested | fired | valid | invalid | lost."""
+    def status(self) -> ShotStatus:
+        """requested | fired | valid | invalid | lost (rig.core.run_phase.SHOT_TABLE)."""
         if self.lost:
-            return "lost"
+            return ShotStatus.LOST
         if self.valid is not None:
-            return "valid" if self.valid else "invalid"
-        return "fired" if self.fired else "requested"
+            return ShotStatus.VALID if self.valid else ShotStatus.INVALID
+        return ShotStatus.FIRED if self.fired else ShotStatus.REQUESTED
 
 
 @dataclass(frozen=True)
@@ -58,6 +59,7 @@ class Noted:
 class RunState:
     """Everything known about a run from its events."""
 
+    phase: RunPhase = RunPhase.NEW  # by the run table (rig.core.run_phase)
     started: bool = False
     setup: dict[str, Any] | None = None  # the RunStarted payload: procedure, bat, rig, software
     calibration: dict[str, Any] | None = None  # the model calibration RunStarted recorded
@@ -87,7 +89,7 @@ class RunState:
     def pending(self) -> ShotEntry | None:
         """A shot requested but never resolved: it may have been fired before a crash."""
         last = self.shots[-1] if self.shots else None
-        return last if last is not None and last.valid is None and not last.lost else None
+        return last if last is not None and last.status in UNRESOLVED else None
 
     def valid_shots(self, purpose: str, location_in: float | None = None) -> list[ShotEntry]:
         """Valid shots of a purpose (at a location)."""
@@ -119,6 +121,7 @@ class RunState:
 
     def apply(self, e: RunEvent, t_utc: str | None = None, seq: int | None = None) -> None:
         """Take one event (live-only ones change nothing)."""
+        self.phase = fold_step(self.phase, e.kind)
         d, kind = e.data, e.kind
         noted = Noted(kind, d, t_utc, seq)
         if kind == ev.RUN_STARTED:

@@ -2,39 +2,25 @@
 
 Sources: the founding paper (hoop-frequency paper, section 4.2, Eqs. 3-5), the WSU SSL glossary
 (e_A, BESR = e_A + 1/2, BBCOR), Nathan BRJ 2003 (original BESR kinematics) and Nathan AJP 2003
-(BBS). Every metric's formula and source is in DEFINITIONS, which each MetricSet carries.
+(BBS). Every metric's formula and source is declared once in rig.measure.registry (DEFINITIONS,
+which each MetricSet carries); a registered metric is computed with the built-in ones.
 """
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
+from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from rig.core.bat import PIVOT_FROM_KNOB_M
 from rig.core.errors import ParameterError
 from rig.core.units import INCH, MPH
+from rig.measure.registry import DEFINITIONS, MetricTerms, bbcor, bbs, besr, ea_from_bbcor, metric, metrics
 
 BESR_REFERENCE_SPEED_M_S = 136.0 * MPH  # 70 mph pitch + 66 mph bat = 60.8 m/s (docs/standards.md, section 1)
-
-DEFINITIONS: MappingProxyType[str, str] = MappingProxyType(
-    {
-        "e_a": "e_A = v_out / v_in, stationary bat (collision efficiency; WSU SSL glossary)",
-        "k": "k = m_ball Q^2 / I, Q pivot-to-impact, I MOI about the pivot (founding paper, Eq. 5)",
-        "bbcor": "BBCOR = e_A (1 + k) + k (founding paper, Eq. 5; WSU SSL glossary, stationary bat)",
-        "besr": "BESR = e_A + 1/2 (WSU SSL glossary; ASTM F2219; Falcon BESR sheet, rearranged)",
-        "besr_eq3": (
-            "BESR_Eq3 = (v_out - dv)/(v_in - dv) + 1/2, dv = 60.8 m/s - V_contact (founding paper, "
-            "Eq. 3, as printed); equals e_A + 1/2 only when dv = 0, i.e. V_contact = 60.8 m/s"
-        ),
-        "bbs": (
-            "BBS = V_pitch e_A + V_bat (e_A + 1) (founding paper, Eq. 4; Nathan AJP 2003), "
-            "V_bat from the SwingModel (original BESR kinematics, Nathan BRJ 2003)"
-        ),
-        "v_bat": "V_bat(Q) = V_ref r(Q) / r_ref: rigid rotation about the swing pivot (SwingModel)",
-    }
-)
 
 
 class SwingModel(BaseModel):
@@ -80,21 +66,6 @@ def recoil_factor(q_m: float, moi_kgm2: float, ball_mass_kg: float) -> float:
     return ball_mass_kg * q_m**2 / moi_kgm2
 
 
-def bbcor(e_a: float, k: float) -> float:
-    """BBCOR = e_A (1 + k) + k (founding paper, Eq. 5)."""
-    return e_a * (1.0 + k) + k
-
-
-def ea_from_bbcor(bbcor_value: float, k: float) -> float:
-    """Inverse of Eq. 5: e_A = (BBCOR - k) / (1 + k)."""
-    return (bbcor_value - k) / (1.0 + k)
-
-
-def besr(e_a: float) -> float:
-    """BESR = e_A + 1/2 (WSU SSL glossary; ASTM F2219)."""
-    return e_a + 0.5
-
-
 def besr_eq3(
     v_in: float, v_out: float, v_contact: float, reference_m_s: float = BESR_REFERENCE_SPEED_M_S
 ) -> float:
@@ -110,11 +81,6 @@ def besr_eq3(
     return (v_out - dv) / den + 0.5
 
 
-def bbs(e_a: float, v_pitch: float, v_bat: float) -> float:
-    """BBS = V_pitch e_A + V_bat (e_A + 1) (founding paper, Eq. 4)."""
-    return v_pitch * e_a + v_bat * (e_a + 1.0)
-
-
 @dataclass(frozen=True)
 class MetricSet:
     """One shot's metrics; `definitions` names each formula and its source."""
@@ -126,6 +92,8 @@ class MetricSet:
     k: float
     v_bat: float  # the SwingModel's bat speed at the impact point, m/s
     besr_eq3: float | None  # None where Eq. 3 is singular
+    terms: MetricTerms = field(repr=False, compare=False)  # what the metrics were computed from
+    added: MappingProxyType[str, float] = field(default_factory=lambda: MappingProxyType({}))  # registered
     definitions: MappingProxyType[str, str] = field(
         default_factory=lambda: DEFINITIONS, repr=False, compare=False
     )
@@ -140,7 +108,19 @@ class MetricSet:
             "bbs": self.bbs,
             "k": self.k,
             "v_bat": self.v_bat,
+            **self.added,
         }
+
+    def value(self, name: str) -> float:
+        """A metric's value by its registry name (ConfigError for a name the registry lacks)."""
+        values = {"bbcor": self.bbcor, "besr": self.besr, "bbs": self.bbs, **self.added}
+        return values[metric(name).name]
+
+
+def recorded_terms(metrics: Mapping[str, Any]) -> MetricTerms:
+    """A shot's MetricTerms from its recorded metrics: k, V_bat, and the default swing's pitch speed
+    (the one every shot's metrics are computed with)."""
+    return MetricTerms(k=metrics["k"], v_bat=metrics["v_bat"], v_pitch=DEFAULT_SWING.pitch_speed_m_s)
 
 
 class _ShotValues(BaseModel):
@@ -163,7 +143,8 @@ def compute_metrics(
     bat_length_m: float,
     swing: SwingModel = DEFAULT_SWING,
 ) -> MetricSet:
-    """All metrics of a stationary-bat shot (speeds m/s, Q m, I kg m^2, mass kg, length m)."""
+    """All metrics of a stationary-bat shot (speeds m/s, Q m, I kg m^2, mass kg, length m), each
+    registered metric by its registry formula."""
     try:
         _ShotValues(
             v_in=v_in,
@@ -182,12 +163,34 @@ def compute_metrics(
         eq3: float | None = besr_eq3(v_in, v_out, v_bat)
     except ParameterError:
         eq3 = None
+    terms = MetricTerms(k=k, v_bat=v_bat, v_pitch=swing.pitch_speed_m_s)
+    values = {m.name: m.value(e_a, terms) for m in metrics()}
     return MetricSet(
         e_a=e_a,
-        bbcor=bbcor(e_a, k),
-        besr=besr(e_a),
-        bbs=bbs(e_a, swing.pitch_speed_m_s, v_bat),
+        bbcor=values.pop("bbcor"),
+        besr=values.pop("besr"),
+        bbs=values.pop("bbs"),
         k=k,
         v_bat=v_bat,
         besr_eq3=eq3,
+        terms=terms,
+        added=MappingProxyType(values),
     )
+
+
+__all__ = [
+    "BESR_REFERENCE_SPEED_M_S",
+    "DEFAULT_SWING",
+    "DEFINITIONS",
+    "MetricSet",
+    "SwingModel",
+    "bbcor",
+    "bbs",
+    "besr",
+    "besr_eq3",
+    "collision_efficiency",
+    "compute_metrics",
+    "ea_from_bbcor",
+    "recoil_factor",
+    "recorded_terms",
+]

@@ -30,7 +30,8 @@ if TYPE_CHECKING:
         WeakHit,
     )
     from rig.modal.link import MODAL_RESULT_KIND, latest_modal_result, record_modal_result, with_measured_hoop
-    from rig.modal.recording import CSV_HEADER, Recording, read_csv, read_recording, write_csv
+    from rig.modal.read import read_recording
+    from rig.modal.recording import CSV_HEADER, Recording, read_csv, write_csv
 
 _WHERE = {
     "ModalResult": "analysis",
@@ -54,7 +55,7 @@ _WHERE = {
     "CSV_HEADER": "recording",
     "Recording": "recording",
     "read_csv": "recording",
-    "read_recording": "recording",
+    "read_recording": "read",
     "write_csv": "recording",
 }
 

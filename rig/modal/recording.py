@@ -348,13 +348,3 @@ def read_recording_bytes(path: str | Path) -> bytes:
         return read_bounded(path, MAX_BYTES, "a recording", binary=True)
     except ConfigError as exc:
         raise RecordingFormatError(str(exc)) from None
-
-
-def read_recording(path: str | Path) -> Recording:
-    """A recording from a .csv file or a Universal File (.uff, .unv: dataset 58 time records)."""
-    path = Path(path)
-    if path.suffix.lower() in (".uff", ".unv"):
-        from rig.modal.uff import read_uff
-
-        return read_uff(path)
-    return read_csv(path)

@@ -17,6 +17,7 @@ import numpy as np
 
 from rig.core.bat import HOOP_HZ
 from rig.core.errors import ParameterError
+from rig.measure.registry import metric
 from rig.physics import CollisionParams
 from rig.physics.ball_law import BALL_NAMES
 from rig.physics.params import check_physical
@@ -26,8 +27,6 @@ from rig.population.limits import MIN_BATS
 if TYPE_CHECKING:
     from rig.population.calfile import CalibrationFile
 
-# the width of each metric's scale (BBS in m/s): no scatter about a model can be wider
-METRIC_SPAN = {"bbcor": 1.0, "besr": 1.0, "bbs": 100.0}
 SPEED_RANGE = (1.0, 100.0)  # m/s, as every speed a user gives
 LOCATION_MAX_IN = 36.0  # an impact location is on the bat: at most 36 in from the tip, as a scan's
 REL_TOL = 1e-6  # an uncertainty against sqrt(variance), model constants against the parameters'
@@ -50,13 +49,20 @@ def check_calibration(cal: CalibrationFile) -> None:
     for name, value in cal.uncertainty.items():
         low, high = BOUNDS[name]
         _within(f"uncertainty.{name}", value, 0.0, high - low, UNITS[name])
-    span = METRIC_SPAN[cal.metric]
+    span = metric_span(cal.metric)
     _within("scatter", cal.scatter, 0.0, span, cal.metric)
     _within("loo_rmse", cal.loo_rmse, 0.0, span, cal.metric)
     _covariance(np.array(cal.covariance, dtype=float), cal.uncertainty)
     base = _ball(cal.ball)
     _model_params(cal.model_params, model_params(cal.parameters, base))
     _provenance(cal)
+
+
+def metric_span(name: str) -> float:
+    """The width of a metric's scale, its registry limit range (BBS's in m/s): no scatter about a
+    model can be wider."""
+    low, high = metric(name).limit_range
+    return high - low
 
 
 def _within(name: str, value: float, low: float, high: float, unit: str) -> None:

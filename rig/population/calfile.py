@@ -10,14 +10,15 @@ import hashlib
 import json
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, ValidationError, model_validator
+from pydantic import AfterValidator, BaseModel, ConfigDict, ValidationError, model_validator
 
 from rig.core.errors import ConfigError, ParameterError
 from rig.core.files import DATA_BYTES, read_json_file
 from rig.core.version import __version__
+from rig.measure.registry import cross_checked
 from rig.measure.selection import variant_rows
 from rig.physics import CollisionParams
 from rig.population.calcheck import check_calibration
@@ -38,6 +39,14 @@ SELECTION = (
     "leave-one-out prediction error; the simplest variant whose mean squared LOO error lies within one"
     " standard error of the best one's"
 )
+
+
+def _cross_checked(name: str) -> str:
+    if name not in cross_checked():
+        raise ValueError(
+            f"the model cross-check does not support {name!r}; it supports {', '.join(cross_checked())}"
+        )
+    return name
 
 
 class Provenance(BaseModel):
@@ -78,7 +87,7 @@ class CalibrationFile(BaseModel):
 
     kind: Literal["rig-model-calibration"]
     format: Literal[1]
-    metric: Literal["bbcor", "besr", "bbs"]
+    metric: Annotated[str, AfterValidator(_cross_checked)]  # a metric the registry lets it support
     speed_m_s: float
     default_location_in: float
     variant: str

@@ -57,10 +57,10 @@ class FitBat:
     measured: float
 
 
-def _metric_line(metric: str, q: float, moi: float, length_m: float) -> tuple[float, float]:
+def metric_line(metric: str, q: float, moi: float, length_m: float) -> tuple[float, float]:
     """alpha, beta with metric = alpha + beta e_A, from the rig's own metric code at e_A = 0 and 1."""
-    m0 = getattr(compute_metrics(SPEED_M_S, 0.0, q, moi, BALL_MASS_KG, length_m), metric)
-    m1 = getattr(compute_metrics(SPEED_M_S, SPEED_M_S, q, moi, BALL_MASS_KG, length_m), metric)
+    m0 = compute_metrics(SPEED_M_S, 0.0, q, moi, BALL_MASS_KG, length_m).value(metric)
+    m1 = compute_metrics(SPEED_M_S, SPEED_M_S, q, moi, BALL_MASS_KG, length_m).value(metric)
     return m0, m1 - m0
 
 
@@ -78,7 +78,7 @@ def fit_bats(bats: Sequence[PopulationBat], metric: str) -> list[FitBat]:
         q = (b.length_in - location) * INCH - PIVOT_FROM_KNOB_M
         if q <= 0.05:
             raise CalibrationRefused(f"bat {b.bat_id}: impact {location:g} in from the end is off the barrel")
-        alpha, beta = _metric_line(metric, q, b.moi_kgm2, b.length_in * INCH)
+        alpha, beta = metric_line(metric, q, b.moi_kgm2, b.length_in * INCH)
         value = b.metric(metric)
         assert value is not None
         out.append(

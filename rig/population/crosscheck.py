@@ -29,7 +29,7 @@ from rig.core.errors import ConfigError
 from rig.core.units import INCH
 from rig.physics import PivotedBat
 from rig.population.calfile import CalibrationFile, calibration_base, covariance_matrix
-from rig.population.calibrate import BOUNDS, FitBat, _metric_line, predict_many
+from rig.population.calibrate import BOUNDS, FitBat, metric_line, predict_many
 from rig.population.dataset import PopulationBat, missing_column
 from rig.population.model import SPEED_M_S
 
@@ -122,7 +122,7 @@ def _q(bat_id: str, length_in: float, location_in: float) -> float:
 def _row(cal: CalibrationFile, bat_id: str, hoop_hz: float, moi: float, q: float, length_in: float) -> FitBat:
     """The bat as the calibration's prediction code takes it (the same geometry as its fit)."""
     _check_calibration(cal)
-    alpha, beta = _metric_line(cal.metric, q, moi, length_in * INCH)
+    alpha, beta = metric_line(cal.metric, q, moi, length_in * INCH)
     pivoted = PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q)
     if pivoted.effective_mass <= cal.model_params.m2:
         raise CrossCheckRefused(

@@ -47,7 +47,7 @@ COLUMNS = (
     "u_bbcor",
     "source",
 )
-METRICS = ("besr", "bbs", "bbcor")
+METRICS = ("besr", "bbs", "bbcor")  # a column for each metric the registry lets the cross-check support
 U_COLUMNS = ("u_besr", "u_bbs", "u_bbcor")
 
 
@@ -59,6 +59,12 @@ def missing_column(bats: Sequence[PopulationBat], columns: Sequence[str]) -> str
             n = f"{len(lacking)} of {len(bats)}"
             return f"missing column {column}: no value for {n} bats (first {lacking[0]})"
     return None
+
+
+def _column(name: str) -> str:
+    if name not in METRICS:
+        raise KeyError(name)  # as the lookup it replaces
+    return name
 
 
 class PopulationBat(BaseModel):
@@ -87,12 +93,14 @@ class PopulationBat(BaseModel):
     source: str = ""
 
     def metric(self, name: str) -> float | None:
-        """besr, bbs or bbcor."""
-        return {"besr": self.besr, "bbs": self.bbs, "bbcor": self.bbcor}[name]
+        """The measured value of a metric in METRICS (besr, bbs or bbcor), when given."""
+        value: float | None = getattr(self, _column(name))
+        return value
 
     def u_metric(self, name: str) -> float | None:
-        """The standard uncertainty (k = 1) of besr, bbs or bbcor, when given."""
-        return {"besr": self.u_besr, "bbs": self.u_bbs, "bbcor": self.u_bbcor}[name]
+        """The standard uncertainty (k = 1) of a metric in METRICS, when given."""
+        value: float | None = getattr(self, f"u_{_column(name)}")
+        return value
 
     @property
     def synthetic(self) -> bool:

@@ -20,7 +20,7 @@ from rig.core.bat import PIVOT_FROM_KNOB_M
 from rig.core.units import INCH
 from rig.measure.metrics import compute_metrics
 from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat, predict_bat
-from rig.population.dataset import PopulationBat
+from rig.population.dataset import METRICS, PopulationBat
 
 SPEED_M_S = 60.8  # 136 mph: BESR/BBCOR relative speed
 BALL_MASS_KG = 0.145
@@ -67,7 +67,7 @@ def predict_metrics(
     m = compute_metrics(
         speed, e_a * speed, bat.impact_from_pivot_m, bat.moi_kgm2, BALL_MASS_KG, bat.length_in * INCH
     )
-    return {"e_a": e_a, "besr": m.besr, "bbs": m.bbs, "bbcor": m.bbcor}
+    return {"e_a": e_a, **{name: m.value(name) for name in METRICS}}
 
 
 def model_curves(
@@ -79,7 +79,7 @@ def model_curves(
     """predict_metrics over a grid of hoop frequencies."""
     rows = [predict_metrics(float(f), bat, speed, params) for f in hoop_hz]
     out: dict[str, list[float]] = {"hoop_hz": [float(f) for f in hoop_hz]}
-    for key in ("e_a", "besr", "bbs", "bbcor"):
+    for key in ("e_a", *METRICS):
         out[key] = [r[key] for r in rows]
     return out
 
@@ -109,7 +109,7 @@ def population_curves(
     ] or [fallback]
     curves = [model_curves(hoop_hz, ref, speed, params) for ref in refs]
     out: dict[str, list[float]] = {"hoop_hz": [float(f) for f in hoop_hz]}
-    for key in ("e_a", "besr", "bbs", "bbcor"):
+    for key in ("e_a", *METRICS):
         out[key] = [float(v) for v in np.mean([c[key] for c in curves], axis=0)]
     return out
 

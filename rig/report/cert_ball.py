@@ -13,7 +13,7 @@ from __future__ import annotations
 from typing import Any
 
 from rig.report.cert_doc import Block, Heading, Para, Table, kv
-from rig.report.cert_plots import certification_hits, metric_label
+from rig.report.cert_plots import certification_hits, metric_label, unit_suffix
 from rig.report.cert_sections import _num, _sig, ball_text
 
 NO_LOT = "no lot named: assumed defaults [U]"
@@ -223,7 +223,7 @@ def ball_blocks(record: dict[str, Any], decimals: int) -> list[Block]:
         no = "No verdict" if not v else "The verdict has no ball terms"
         out.append(Para(f"{no}: no hit is corrected for its ball and the ball is not in the budget."))
         return out
-    unit = " m/s" if v.get("metric") == "bbs" else ""
+    unit = unit_suffix(v.get("metric"))
     g_text = f"ratio g = d{name}/d(plate COR) = {_sig(vb.get('g'), 4)}{unit}" if "g" in vb else ""
     balls = ", ".join(str(b) for b in vb.get("balls") or []) or "—"
     corrections = [c for c in vb.get("corrections") or [] if _is_num(c)]
@@ -240,6 +240,8 @@ def ball_blocks(record: dict[str, Any], decimals: int) -> list[Block]:
         *notes,
         Table(headers, rows),
         Heading("The ball in the budget", 3),
-        Table(("term", "what", f"standard u ({name}{unit and ', m/s'})"), tuple(_budget_rows(terms, vb, v))),
+        Table(
+            ("term", "what", f"standard u ({name}{unit and ',' + unit})"), tuple(_budget_rows(terms, vb, v))
+        ),
     ]
     return out

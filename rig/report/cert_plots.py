@@ -16,15 +16,14 @@ import numpy as np
 
 from rig.core.errors import RigError
 from rig.core.units import INCH
-from rig.measure.metrics import compute_metrics
+from rig.measure import registry
+from rig.measure.metrics import compute_metrics, recorded_terms
 from rig.physics import DEFAULT_PARAMS, PivotedBat, fast
 from rig.physics.bat import impact_for
 
 HOOP_RANGE_HZ = (800.0, 8000.0)
 CURVE_POINTS = 60
 CURVE_RTOL = 1e-8  # far below the rig's resolution; keeps the 60-point batch well under a second
-LABELS = {"bbcor": "BBCOR", "besr": "BESR", "bbs": "BBS", "e_a": "e_A"}
-UNITS = {"bbs": "m/s"}
 _DPI = 110
 SVG_SALT = "rig-certificate"  # fixed ids in the SVG text: the same record gives the same document
 
@@ -40,23 +39,31 @@ def _pyplot() -> Any:
 
 
 def metric_label(name: str | None) -> str:
-    """How a metric is named in text and tables."""
-    return LABELS.get(name or "", (name or "metric").upper())
+    """How a metric is named in text and tables (its registry label)."""
+    return registry.label(name)
 
 
 def axis_label(name: str | None) -> str:
     """A metric's name with its unit, for plot axes."""
-    unit = UNITS.get(name or "")
-    return f"{metric_label(name)} ({unit})" if unit else metric_label(name)
+    return registry.heading(name)
 
 
-def bbs_per_e_a(record: dict[str, Any]) -> float | None:
-    """dBBS/de_A = V_pitch + V_bat of the averaged hits (BBS is linear in e_A), from their metrics."""
+def unit_suffix(name: str | None) -> str:
+    """' m/s' after a value of a metric with a unit, '' for a ratio."""
+    unit = registry.unit(name)
+    return f" {unit}" if unit else ""
+
+
+def budget_scale(record: dict[str, Any]) -> float | None:
+    """The factor from the recorded budget output's u to the verdict metric's (its registry u_scale,
+    e.g. BBS's V_pitch + V_bat) for the averaged hits, from their metrics; 1 when it is the metric."""
+    entry = registry.find((record.get("verdict") or {}).get("metric"))
+    if entry is None or entry.u_scale is None:
+        return 1.0
     for s in certification_hits(record):
         m = s.get("metrics") or {}
-        e_a, v_bat, bbs = m.get("e_a"), m.get("v_bat"), m.get("bbs")
-        if e_a and v_bat is not None and bbs is not None:
-            return (bbs - v_bat * (e_a + 1.0)) / e_a + v_bat
+        if m.get("k") is not None and m.get("v_bat") is not None:
+            return entry.u_scale(recorded_terms(m))
     return None
 
 

@@ -6,8 +6,9 @@ import re
 from typing import Any
 
 from rig.core import events as ev
+from rig.measure import registry
 from rig.report.cert_doc import Block, Figure, Heading, Para, Table
-from rig.report.cert_plots import bbs_per_e_a, certification_hits, metric_label
+from rig.report.cert_plots import budget_scale, certification_hits, metric_label, unit_suffix
 
 _PROMPT_SEQ = re.compile(r"-\d+$")  # ring-before-12 -> ring-before
 _INPUTS = {
@@ -266,14 +267,15 @@ def _share(share: float) -> str:
 def budget_blocks(record: dict[str, Any]) -> list[Block]:
     """The uncertainty budget of the bat's mean (top contributions) and the lab-time trade-off.
 
-    The record keeps BBS's budget as e_A's (BBS is linear in e_A); it is scaled here by
-    dBBS/de_A = V_pitch + V_bat so that every u shown is in the metric's own unit.
+    The record keeps the budget of the metric's registry output (BBS's is e_A's: BBS is linear in
+    e_A); it is scaled here by the registry's u_scale so that every u shown is in the metric's unit.
     """
     v = record.get("verdict") or {}
     budget = v.get("budget") or {}
     metric = v.get("metric")
-    scale = bbs_per_e_a(record) if metric == "bbs" else 1.0
-    out_b = (budget.get("outputs") or {}).get(("e_a" if metric == "bbs" else metric) or "")
+    entry = registry.find(metric)
+    scale = budget_scale(record)
+    out_b = (budget.get("outputs") or {}).get((entry.budget_output if entry else metric) or "")
     if not out_b or scale is None:
         return []
     name, inputs = metric_label(metric), budget.get("inputs") or {}
@@ -296,7 +298,10 @@ def budget_blocks(record: dict[str, Any]) -> list[Block]:
     sys_u = scale * out_b.get("systematic_variance", 0.0) ** 0.5
     rnd_u = scale * out_b.get("random_variance", 0.0) ** 0.5
     lead = f"{_input_name(top[0][0])}, {_share(top[0][1])} of u²" if top else "—"
-    note = f" (e_A's budget times dBBS/de_A = V_pitch + V_bat = {scale:.2f} m/s)" if metric == "bbs" else ""
+    note = ""
+    if entry is not None and entry.u_scale is not None:
+        by = f"{entry.u_scale_text} = {scale:.2f}{unit_suffix(metric)}"
+        note = f" ({metric_label(entry.budget_output)}'s budget times {by})"
     out: list[Block] = [
         Heading("Uncertainty budget of the mean"),
         Para(

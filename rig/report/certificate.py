@@ -27,7 +27,7 @@ from rig.report.cert_ball import ball_blocks
 from rig.report.cert_crosscheck import cross_check_blocks
 from rig.report.cert_doc import Banner, Block, Code, Figure, Heading, Para, Table, kv, to_html, to_markdown
 from rig.report.cert_instruments import instrument_blocks
-from rig.report.cert_plots import certification_hits, metric_label, svg_figures, write_figures
+from rig.report.cert_plots import certification_hits, metric_label, svg_figures, unit_suffix, write_figures
 from rig.report.cert_sections import budget_blocks, operator_blocks, shot_blocks
 
 FORMATS = ("md", "html")
@@ -215,7 +215,7 @@ def verdict_blocks(record: dict[str, Any]) -> list[Block]:
             Banner(f"{v.get('verdict')} — {v.get('reason', 'no metric measured')}", (f"limit {limit}",), tone)
         ]
     d = _decimals(record)
-    unit = " m/s" if v.get("metric") == "bbs" else ""
+    unit = unit_suffix(v.get("metric"))
     mean, big_u = v["mean"], v.get("U") or 0.0
     loc, q = v.get("location_in"), v.get("impact_from_pivot_m")
     lines = (

@@ -1,5 +1,6 @@
 """The status a person is shown for a run, one word in every output (`rig runs` and its --json, the
-report, the console): running, interrupted, finished or ended.
+report, the console): running, interrupted, finished or ended, the run table's words
+(rig.core.run_phase.shown).
 
 The store keeps its own words (`runs.status`: running, finished, aborted), which its schema, its
 views and old files use; only what is shown differs: an ended run (stored `aborted`) is `ended`, and
@@ -12,19 +13,28 @@ from datetime import UTC, datetime
 from typing import Any
 
 from rig.core import events as ev
+from rig.core.run_phase import SHOWN, RunPhase, shown
 from rig.store import _lock
 
-SHOWN_STATUSES = ("running", "interrupted", "finished", "ended")
-_SEALED = {"finished": "finished", "aborted": "ended"}
+SHOWN_STATUSES: tuple[str, ...] = SHOWN
+_SEALED = {"finished": RunPhase.FINISHED, "aborted": RunPhase.ENDED}
+
+
+def stored_phase(stored: str, last_kind: str | None = None) -> RunPhase | None:
+    """A run's phase as the store knows it without folding its log: sealed (finished or ended), or
+    open: interrupted if its last entry records the interruption, else running (a run that never
+    started too: its fold says new, which is shown the same). None: a word the store never writes."""
+    if stored != "running":
+        return _SEALED.get(stored)
+    return RunPhase.INTERRUPTED if last_kind == ev.RUN_INTERRUPTED else RunPhase.RUNNING
 
 
 def status_word(stored: str, last_kind: str | None = None, runner_alive: bool = False) -> str:
     """The shown word from the stored status; for an open run also its last entry's kind and whether
     a live runner holds its lock: interrupted when that entry records the interruption or no live
     runner holds it (killed, or stopped before it could record why), else running."""
-    if stored != "running":
-        return _SEALED.get(stored, stored)
-    return "running" if runner_alive and last_kind != ev.RUN_INTERRUPTED else "interrupted"
+    phase = stored_phase(stored, last_kind)
+    return stored if phase is None else shown(phase, runner_alive)
 
 
 def runner_alive(lock: _lock.RunLock | None) -> bool:

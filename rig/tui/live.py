@@ -123,7 +123,7 @@ class LiveRun:
 
     def set_procedure(self, p: Procedure) -> None:
         """Take the metric, the limit, the scan and the number of hits from the procedure."""
-        self.metric_name, self.limit = p.standard.value, p.limit
+        self.metric_name, self.limit = p.standard, p.limit
         self.scan_locations, self.hits_needed = p.scan.locations_in(), p.hits.valid_hits
 
     # -- the fold -----------------------------------------------------------------------------

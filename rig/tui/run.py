@@ -24,6 +24,7 @@ from textual.worker import Worker
 from rig.certification import Outcome
 from rig.core import events as ev
 from rig.core.events import RunEvent
+from rig.core.run_phase import CLOSED, RunPhase
 from rig.protocols.control import RunControl
 from rig.tui import render, situation
 from rig.tui.jobs import JobResult, predict, run_job
@@ -180,7 +181,7 @@ class RunScreen(RunKeys, Screen[None]):
         if outcome is None:
             self.live.note(f"stopped by a fault: {result.failure}")
             self.notify(result.failure, title="Device fault: run stopped", severity="error", timeout=10)
-        elif outcome.status == "finished":
+        elif outcome.status is RunPhase.FINISHED:
             if self.live.verdict is None and outcome.verdict:
                 self.live.verdict = dict(outcome.verdict)
             self.notify(f"verdict: {(outcome.verdict or {}).get('verdict')}", title="Run finished")
@@ -195,7 +196,7 @@ class RunScreen(RunKeys, Screen[None]):
         """The run as the console may leave it, and whether it is still open (resumable)."""
         outcome, run_id = self.outcome, self.job.run_id or ""
         reason = self.failure if outcome is None else outcome.reason
-        still_open = outcome is None or outcome.status not in ("finished", "ended")
+        still_open = outcome is None or outcome.status not in CLOSED
         return LeftOpen(run_id, reason, self.job.rig), still_open
 
     # -- the model's prediction -----------------------------------------------------------------
@@ -228,7 +229,7 @@ class RunScreen(RunKeys, Screen[None]):
             aborting=self.control.aborted,
             cannon=self.live.cannon,
             cannon_error=self.live.cannon_error,
-            ended=self.outcome.status if self.outcome else "",
+            ended=self.outcome.status if self.outcome else None,
             reason=self.outcome.reason if self.outcome else "",
             failure=self.failure,
             ring_check=self.job.procedure.ring_check,

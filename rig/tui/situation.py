@@ -7,6 +7,7 @@ from dataclasses import dataclass
 from rich.text import Text
 
 from rig.core.devices import CannonStatus
+from rig.core.run_phase import CLOSED, RunPhase
 from rig.tui.live import LiveRun
 from rig.tui.operator import PromptPending
 from rig.tui.render import verdict_text
@@ -22,7 +23,7 @@ class Situation:
     aborting: bool = False
     cannon: CannonStatus | None = None
     cannon_error: str = ""
-    ended: str = ""  # the outcome's status once the run has ended: finished | interrupted
+    ended: RunPhase | None = None  # the outcome's phase once the run has stopped: finished | interrupted
     reason: str = ""  # why it was interrupted
     failure: str = ""  # the error that stopped it (a device fault)
     ring_check: bool = False  # whether the procedure asks for ring checks
@@ -85,8 +86,8 @@ def allowed(s: Situation, action: str) -> bool | None:
         return s.running and s.paused
     if action == "abort":
         return s.running
-    if action == "resume":  # after an interruption or a fault
-        return not s.running and s.ended != "finished"
+    if action == "resume":  # after an interruption or a fault: a run still open
+        return not s.running and s.ended not in CLOSED
     if action == "back":
         return not s.running
     return True
@@ -131,7 +132,7 @@ def _idle(s: Situation) -> Text:
         return Text("Running...", style="bold")
     if s.failure:
         return Text("Stopped by a fault: fix the rig, then r resumes the run, b goes back", style="bold")
-    if s.ended and s.ended != "finished":
+    if s.ended is not None and s.ended not in CLOSED:
         return Text("Interrupted (resumable): r resumes the run, b back to set-up", style="bold")
     return Text("Run finished: b back to set-up, h history", style="bold")
 

@@ -13,9 +13,8 @@ from pathlib import Path
 import pytest
 
 from rig.ball.data import write_ccor_csv
-from rig.cli import main
 from tests.ball.synthetic import ccor_points
-from tests.unit.clirun import ROOT
+from tests.unit.clirun import ROOT, main
 
 POPULATION = str(ROOT / "protocols" / "examples" / "population.csv")
 
@@ -33,7 +32,7 @@ def inputs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, str]:
 # (argv with TARGET where the path goes; what the flag expects)
 FILE_FLAGS: list[tuple[str, ...]] = [
     ("model", "curve", "--speed", "60", "--hoop-min", "500", "--hoop-max", "3000", "--points", "3", "--plot"),
-    ("model", "accuracy", "--quick", "--repeats", "1", "--plot"),
+    ("rig-study", "accuracy", "--quick", "--repeats", "1", "--plot"),
     ("model", "calibrate", "--data", POPULATION, "--output"),
     ("model", "fit-ball", "--data", "CCOR", "--output"),
     ("model", "fit-ball", "--data", "CCOR", "--output", "OTHER/ball.json", "--plot"),
@@ -44,7 +43,7 @@ FILE_FLAGS: list[tuple[str, ...]] = [
     ("export", "--db", "STORE", "--view", "shots", "--output"),
 ]
 DIR_FLAGS: list[tuple[str, ...]] = [
-    ("study", "--data", POPULATION, "--plot-dir"),
+    ("rig-study", "population", "--data", POPULATION, "--plot-dir"),
     ("report", "last", "--db", "STORE", "--format", "md", "--output", "OTHER/c.md", "--figures"),
 ]
 

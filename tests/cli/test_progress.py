@@ -11,14 +11,14 @@ from pathlib import Path
 from tests.cli.conftest import rig, rig_env
 
 
-def _stderr_on_a_terminal(*args: str, cwd: Path) -> tuple[int, str, str]:
-    """`rig ARGS` with stderr on a pseudo-terminal, stdout to a file: exit status, stdout, what the
-    terminal got."""
+def _stderr_on_a_terminal(*args: str, cwd: Path, module: str = "rig.cli") -> tuple[int, str, str]:
+    """`rig ARGS` (or another command's `python -m MODULE ARGS`) with stderr on a pseudo-terminal,
+    stdout to a file: exit status, stdout, what the terminal got."""
     leader, follower = pty.openpty()
     out_file = cwd / "stdout.txt"
     with out_file.open("wb") as sink:
         proc = subprocess.Popen(
-            [sys.executable, "-m", "rig.cli", *args],
+            [sys.executable, "-m", module, *args],
             cwd=cwd,
             env=rig_env(TERM="xterm", COLUMNS="100"),
             stdout=sink,
@@ -52,5 +52,5 @@ def test_a_report_shows_a_bar_on_a_terminal_only(store_db: Path, tmp_path: Path)
 
 
 def test_the_accuracy_study_counts_its_solves_on_a_terminal(tmp_path: Path) -> None:
-    code, _, terminal = _stderr_on_a_terminal("model", "accuracy", "--quick", "--json", cwd=tmp_path)
+    code, _, terminal = _stderr_on_a_terminal("accuracy", "--quick", "--json", cwd=tmp_path, module="studies")
     assert code == 0 and "solves timed" in terminal

@@ -16,9 +16,11 @@ from pathlib import Path
 import pytest
 
 from rig.cli import main
+from rig.core import events as ev
 from rig.store import Store
 from tests.e2e.procs import SAMPLE_BAT, burners, certify_child, count, wait_count
 from tests.protocols.test_budget import WILD  # a cannon that scatters its speed by 5 %
+from tests.protocols.test_run_phase import refusals
 from tests.protocols.wire import check_fires
 
 
@@ -84,3 +86,6 @@ def test_a_run_interrupted_every_way_resumes_to_a_verdict(
     verdict = next(e.payload for e in entries if e.kind == "RunFinished")
     assert verdict["verdict"] in ("PASS", "FAIL") and verdict["n_hits"] == 6
     assert main(["verify", *args]) == 0
+    # the kill -9 resumed from a run that was still 'running': the run and shot tables take every entry
+    steps = refusals(ev.parse_log(entries))
+    assert not [step for step in steps if step[1:] != (None, None)], steps

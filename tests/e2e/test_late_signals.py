@@ -9,7 +9,7 @@ its signal handling is as it leaves it), says so on stderr and waits for the tes
 sent at that marker, whatever the machine's load (two CPU burners run beside each test), and the
 child released after it.
 
-Also: `rig study --certify` certifies several bats with one run control; a signal during a later
+Also: `rig-study population --certify` certifies several bats with one run control; a signal during a later
 bat's run was ignored (the first run had settled the control for good).
 """
 
@@ -130,8 +130,9 @@ def test_study_certify_stops_on_a_signal_during_a_later_bats_run(tmp_path: Path,
     db = tmp_path / "pop.db"
     env = {**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONPATH": str(ROOT)}
     env.pop("RIG_DB", None)
+    argv = ["population", "--certify", "2", "--scene", "ideal", "--db", str(db)]
     child = subprocess.Popen(
-        [sys.executable, "-m", "rig.cli", "study", "--certify", "2", "--scene", "ideal", "--db", str(db)],
+        [sys.executable, "-m", "studies", *argv],
         cwd=ROOT,
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,

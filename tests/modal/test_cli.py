@@ -1,4 +1,4 @@
-"""`rig modal analyze|simulate` and `rig study`: JSON shapes, files written, one-line errors."""
+"""`rig modal analyze|simulate`: JSON shapes, files written, one-line errors."""
 
 from __future__ import annotations
 
@@ -89,33 +89,6 @@ def test_analyze_refuses_db_without_bat_and_bad_settings(
     assert code == 2 and "min_coherence" in err
     code, _, err = run(capsys, "modal", "analyze", "no-such.csv")
     assert code == 2 and "no such file" in err
-
-
-def test_study_json_and_plots(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, err = run(capsys, "study", "--json", "--plot-dir", str(tmp_path))
-    assert code == 0 and "SYNTHETIC" in err
-    d = json.loads(out)
-    assert d["synthetic"] is True and d["n_bats"] == 48
-    assert {"aluminium", "composite"} == set(d["materials"])
-    assert len(d["fig5"]) == 48
-    assert d["fig6"]["bin_width_hz"] == 50.0 and d["fig6"]["half_width_hz"] == 25.0
-    for name in ("besr", "bbs", "bbcor"):
-        bins = d["fig6"]["metrics"][name]
-        assert all({"center_hz", "n", "mean", "std"} <= b.keys() for b in bins)
-        assert len(d["model"][name]) == len(d["model"]["hoop_hz"])
-    for name in ("fig5-hoop-vs-bending", "fig6-metrics-vs-hoop"):
-        assert (tmp_path / f"{name}.png").exists() and (tmp_path / f"{name}.svg").exists()
-
-
-def test_study_table_and_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code, out, _ = run(capsys, "study")
-    assert code == 0 and "SYNTHETIC" in out and "per 1000 Hz" in out
-    empty = tmp_path / "e.csv"
-    empty.write_text("bat_id,barrel,hoop_hz\n")
-    code, _, err = run(capsys, "study", "--data", str(empty))
-    assert code == 2 and "no bats" in err
-    code, _, err = run(capsys, "study", "--db", str(tmp_path / "absent.db"))
-    assert code == 2 and err.startswith("rig: ")
 
 
 def test_band_flags(csv_file: Path, capsys: pytest.CaptureFixture[str]) -> None:

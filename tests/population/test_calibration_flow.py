@@ -1,6 +1,6 @@
 """A lab's whole cross-check flow from the command line, on the simulated lab.
 
-Certify a population (rig study --certify), calibrate on the store (rig model calibrate --db),
+Certify a population (rig-study population --certify), calibrate on the store (rig model calibrate --db),
 certify a further bat with that calibration (rig certify --calibration): the record's cross-check
 is the calibrated one, its prediction the calibration's own (checked here by rig model bat), and
 the interval contains the measured value of a legal bat.
@@ -14,12 +14,13 @@ from pathlib import Path
 import pytest
 
 from rig.cli import main
+from studies.cli import main as study
 
 
 @pytest.fixture(scope="module")
 def calibrated(tmp_path_factory: pytest.TempPathFactory) -> Path:
     where = tmp_path_factory.mktemp("flow")
-    assert main(["study", "--certify", "10", "--db", str(where / "pop.db"), "--seed", "4"]) == 0
+    assert study(["population", "--certify", "10", "--db", str(where / "pop.db"), "--seed", "4"]) == 0
     cal = where / "cal.json"
     assert main(["model", "calibrate", "--db", str(where / "pop.db"), "--output", str(cal)]) == 0
     return where

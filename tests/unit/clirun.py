@@ -1,4 +1,5 @@
-"""Run the `rig` CLI in-process on input that may be extreme: exit code, stderr, runs left behind."""
+"""Run the `rig` CLI (or `rig-study`) in-process on input that may be extreme: exit code, stderr, runs
+left behind."""
 
 from __future__ import annotations
 
@@ -7,8 +8,9 @@ import io
 from dataclasses import dataclass
 from pathlib import Path
 
-from rig.cli import main
+from rig.cli import main as rig_main
 from rig.store import Store
+from studies.cli import main as study_main
 
 ROOT = Path(__file__).resolve().parents[2]
 QUICK_PROCEDURE = """\
@@ -36,6 +38,11 @@ barrel = "aluminium"
 hoop_hz = 3600.0
 balance_point_in = 22.0
 """
+
+
+def main(argv: list[str]) -> int:
+    """`rig ARGV`; for an argv that starts with "rig-study", `rig-study` with the rest."""
+    return study_main(argv[1:]) if argv[:1] == ["rig-study"] else rig_main(argv)
 
 
 @dataclass

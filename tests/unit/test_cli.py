@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 import sys
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -136,8 +138,8 @@ def test_bad_input_is_one_line_naming_the_parameter(
     assert needle in err
 
 
-def _all_commands() -> list[list[str]]:
-    parser = build_parser()
+def all_commands(parser: argparse.ArgumentParser) -> list[list[str]]:
+    """Every command and subcommand of a command line's parser (rig's, rig-study's), as argv."""
     found: list[list[str]] = [[]]
     for action in parser._subparsers._group_actions:  # type: ignore[union-attr]
         for name, sub in action.choices.items():
@@ -147,10 +149,15 @@ def _all_commands() -> list[list[str]]:
     return found
 
 
-@pytest.mark.parametrize("argv", _all_commands(), ids=lambda a: " ".join(a) or "rig")
+@pytest.mark.parametrize("argv", all_commands(build_parser()), ids=lambda a: " ".join(a) or "rig")
 def test_every_command_has_help(capsys: pytest.CaptureFixture[str], argv: list[str]) -> None:
+    has_help(main, argv, capsys)
+
+
+def has_help(entry: Callable[[list[str]], int], argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:
+    """`ARGV --help` exits 0 and prints a usage."""
     with pytest.raises(SystemExit) as exc:
-        main([*argv, "--help"])
+        entry([*argv, "--help"])
     assert exc.value.code == 0
     assert "usage:" in capsys.readouterr().out
 

@@ -147,7 +147,7 @@ def test_procedure_out_of_bounds(tmp_path: Path, old: str, new: str, needle: str
         ),
         (["model", "cor", "--speed", "60", "--rigid", "--set", "k1=1e300"], "k1"),
         (["model", "curve", "--speed", "60", "--hoop-min", "300", "--hoop-max", "1e300"], "hoop_max"),
-        (["model", "accuracy", "--repeats", "1000000"], "repeats"),
+        (["rig-study", "accuracy", "--repeats", "1000000"], "repeats"),
         (["modal", "simulate", "out.csv", "--hits", "100000000"], "hits"),
         (["modal", "simulate", "out.csv", "--interval", "1e300"], "interval"),
         (["modal", "simulate", "out.csv", "--hits", "3", "--double-hit", "5"], "double-hit"),
@@ -173,19 +173,19 @@ def test_curve_points_are_capped_at_once() -> None:
 def test_study_refuses_a_binary_file(tmp_path: Path) -> None:
     data = tmp_path / "pop.csv"
     data.write_bytes(bytes(range(256)) * 8)
-    refused(run_cli(["study", "--data", str(data)]), "pop.csv")
+    refused(run_cli(["rig-study", "population", "--data", str(data)]), "pop.csv")
 
 
 def test_study_refuses_nul_bytes_in_an_ascii_file(tmp_path: Path) -> None:
     data = tmp_path / "pop.csv"
     data.write_bytes(b"bat_id,barrel,hoop_hz\nA\x00,wood,1800\n")
-    refused(run_cli(["study", "--data", str(data)]), "pop.csv")
+    refused(run_cli(["rig-study", "population", "--data", str(data)]), "pop.csv")
 
 
 def test_study_refuses_a_hoop_frequency_no_bat_has(tmp_path: Path) -> None:
     data = tmp_path / "pop.csv"
     data.write_text("bat_id,barrel,hoop_hz\nA,aluminium,1800\nB,aluminium,1e300\n")
-    refused(run_cli(["study", "--data", str(data)]), "hoop_hz")
+    refused(run_cli(["rig-study", "population", "--data", str(data)]), "hoop_hz")
 
 
 # The bounds must not refuse a real bat or a real model question: their edges are accepted.

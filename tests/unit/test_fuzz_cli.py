@@ -203,7 +203,7 @@ def test_study_data_file(content: bytes) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "population.csv"
         path.write_bytes(content)
-        check(run_cli(["study", "--data", str(path), "--json"]))
+        check(run_cli(["rig-study", "population", "--data", str(path), "--json"]))
 
 
 @cache
@@ -260,7 +260,7 @@ COMMANDS: list[tuple[list[str], list[str]]] = [
         ["model", "bat", "--speed", "60", "--hoop", "1800", "--moi", "0.2", "--impact-from-pivot", "0.55"],
         ["--speed", "--hoop", "--moi", "--impact-from-pivot"],
     ),
-    (["model", "accuracy", "--quick", "--repeats", "1"], ["--repeats"]),
+    (["rig-study", "accuracy", "--quick", "--repeats", "1"], ["--repeats"]),
     (
         ["shot", "--sim", "ideal", "--speed", "60", "--impact-from-pivot", "0.55", "--db", "FILE"],
         ["--speed", "--impact-from-pivot"],

@@ -59,7 +59,7 @@ KINDS = [
     Kind("scene", ".toml", "toml", ("certify", "--db", "DB", "--sim", "FILE")),
     Kind("population CSV", ".csv", "csv", ("model", "calibrate", "--data", "FILE", "--output", "OUT")),
     Kind("population TOML", ".toml", "toml", ("model", "calibrate", "--data", "FILE", "--output", "OUT")),
-    Kind("study data", ".csv", "csv", ("study", "--data", "FILE")),
+    Kind("study data", ".csv", "csv", ("rig-study", "population", "--data", "FILE")),
     Kind("calibration", ".json", "json", (*MODEL_BAT, "--calibration", "FILE")),
     Kind("certification calibration", ".json", "json", ("certify", "--db", "DB", "--calibration", "FILE")),
     Kind("ball file", ".json", "json", ("model", "cor", "--speed", "60", "--hoop", "2000", "--ball", "FILE")),

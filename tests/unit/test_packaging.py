@@ -89,16 +89,19 @@ def _wheel(tmp_path: Path) -> Path:
     return dist / done.stdout.strip().splitlines()[-1]
 
 
-def test_the_wheel_installs_one_import_name_and_its_data(tmp_path: Path) -> None:
-    """Installed from the wheel, the project adds `rig` to the environment and nothing else: the
-    generic names drivers and simulators are other projects' on the package index."""
+def test_the_wheel_installs_rig_and_studies_and_their_data(tmp_path: Path) -> None:
+    """Installed from the wheel, the project adds `rig` and its studies (`studies`, the rig-study
+    command) to the environment and nothing else: the generic names drivers and simulators are
+    other projects' on the package index."""
     wheel = _wheel(tmp_path)
     with zipfile.ZipFile(wheel) as archive:
         names = archive.namelist()
         top = {name.split("/")[0] for name in names}
         (info,) = [t for t in top if t.endswith(".dist-info")]
-        assert top == {"rig", info}, sorted(top)
-        assert archive.read(f"{info}/top_level.txt").decode().split() == ["rig"]
+        assert top == {"rig", "studies", info}, sorted(top)
+        assert archive.read(f"{info}/top_level.txt").decode().split() == ["rig", "studies"]
+        scripts = archive.read(f"{info}/entry_points.txt").decode()
+        assert "rig = rig.cli:main" in scripts and "rig-study = studies.cli:main" in scripts, scripts
         for needed in (
             "rig/drivers/transport.py",
             "rig/drivers/cannon/codec.py",
@@ -107,6 +110,7 @@ def test_the_wheel_installs_one_import_name_and_its_data(tmp_path: Path) -> None
             "rig/simulators/urlhandler/protocol_sim.py",
             "rig/simulators/scenes/lab.toml",
             "rig/__init__.pyi",
+            "studies/cli/__init__.py",
         ):
             assert needed in names, needed
         archive.extractall(tmp_path / "site")
@@ -128,11 +132,11 @@ def test_the_wheel_installs_one_import_name_and_its_data(tmp_path: Path) -> None
     assert bare == "[]"
 
 
-def test_the_development_install_exposes_rig_only(tmp_path: Path) -> None:
-    """`make install` (an editable install) maps `rig` to the repository and nothing else; outside
-    the repository's root the bare folder names do not import."""
+def test_the_development_install_exposes_rig_and_studies_only(tmp_path: Path) -> None:
+    """`make install` (an editable install) maps `rig` and `studies` to the repository and nothing
+    else; outside the repository's root the bare folder names do not import."""
     probe = (
-        "import importlib.util, rig.drivers\n"
+        "import importlib.util, rig.drivers, studies.cli\n"
         "print([n for n in ('drivers', 'protocols', 'simulators') if importlib.util.find_spec(n)])\n"
     )
     done = subprocess.run(

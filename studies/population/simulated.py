@@ -1,13 +1,13 @@
 """A simulated bat population to certify on the simulated rig: bat files and their hidden truth.
 
-`rig study --certify N` certifies such bats one by one on a simulated lab. Each bat is drawn from
-the population's seed and its own index only, so the same (seed, index) is always the same bat:
-hoop frequency 1400-3000 Hz spread evenly (a golden-ratio sequence from a seeded start), length
-31-34 in with drop -3, MOI about the pivot 0.19 + 0.012 (length - 33 in) kg m^2 plus a 0.008 kg m^2
-spread (as a realistic BBCOR bat), balance point two thirds of the length. The bat file holds what a
-lab would know (id, length, weight, barrel, hoop, balance point); the true MOI (the rig measures
-it on the pivot) and an alteration are the simulated world's. Altered bats' ids start with ALT-
-and their file says so in a comment; the hoop frequency is the unaltered bat's.
+`rig-study population --certify N` certifies such bats one by one on a simulated lab. Each bat is
+drawn from the population's seed and its own index only, so the same (seed, index) is always the
+same bat: hoop frequency 1400-3000 Hz spread evenly (a golden-ratio sequence from a seeded start),
+length 31-34 in with drop -3, MOI about the pivot 0.19 + 0.012 (length - 33 in) kg m^2 plus a 0.008
+kg m^2 spread (as a realistic BBCOR bat), balance point two thirds of the length. The bat file
+holds what a lab would know (id, length, weight, barrel, hoop, balance point); the true MOI (the
+rig measures it on the pivot) and an alteration are the simulated world's. Altered bats' ids start
+with ALT- and their file says so in a comment; the hoop frequency is the unaltered bat's.
 """
 
 from __future__ import annotations
@@ -44,7 +44,8 @@ class SimulatedBat:
         """The bat file (TOML), with comments on where it comes from."""
         s = self.spec
         lines = [
-            f"# Simulated bat {self.index} of population seed {seed} (rig study --certify, scene {scene}).",
+            f"# Simulated bat {self.index} of population seed {seed}"
+            f" (rig-study population --certify, scene {scene}).",
             "# The [simulated] table holds the simulated bat's true properties: only the simulated rig",
             "# reads it; the controller measures the MOI on the pivot.",
         ]

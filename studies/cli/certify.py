@@ -1,4 +1,4 @@
-"""`rig study --certify N`: certify a simulated population of bats into a record store.
+"""`rig-study population --certify N`: certify a simulated population of bats into a record store.
 
 Each bat is certified in-process through the real drivers on its own simulated rig (as `rig
 certify --sim` does), its bat file written next to the store (STORE-bats/). One stop signal
@@ -22,7 +22,7 @@ from rig.cli.common import ConfigError, open_db
 from rig.cli.common import console as terminal
 from rig.core.events import Verdict
 from rig.core.files import CONFIG_BYTES, read_json_file, read_text
-from rig.population.simulate import SimulatedBat, simulated_population
+from studies.population.simulated import SimulatedBat, simulated_population
 
 MAX_BATS = 500
 MAX_ALTERATION = 0.2
@@ -162,7 +162,7 @@ def certify_population(args: argparse.Namespace) -> Tally:
     folder = write_bat_files(args, bats)
     tally, control = Tally(), RunControl()
     console = terminal(stderr=True)
-    console.print(f"rig: {len(bats)} simulated bats (scene {args.scene}); bat files in {folder}")
+    console.print(f"rig-study: {len(bats)} simulated bats (scene {args.scene}); bat files in {folder}")
     args.create_db = True
     columns = (
         TextColumn("{task.description}"),
@@ -203,7 +203,7 @@ def certify_population(args: argparse.Namespace) -> Tally:
                     bat.spec,
                     config,
                     run_id=run_id,
-                    operator=ScriptedOperator(who="script (rig study --certify)"),
+                    operator=ScriptedOperator(who="script (rig-study population --certify)"),
                     subscribers=[on_event],
                     control=control,
                 )

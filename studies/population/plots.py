@@ -9,11 +9,12 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 
-from rig.population.study import PopulationStudy
+from rig.population.dataset import METRICS
+from rig.report.cert_plots import axis_label
 from rig.report.model_plots import figure_paths
+from studies.population.study import PopulationStudy
 
 MATERIAL_STYLE = {"aluminium": ("C0", "o"), "composite": ("C3", "s"), "wood": ("C5", "^")}
-METRIC_LABEL = {"besr": "BESR", "bbs": "BBS (m/s)", "bbcor": "BBCOR"}
 
 
 def _save(fig: plt.Figure, path: Path) -> list[Path]:
@@ -54,7 +55,7 @@ def plot_hoop_vs_bending(study: PopulationStudy, path: str | Path) -> list[Path]
 def plot_metrics_vs_hoop(study: PopulationStudy, path: str | Path) -> list[Path]:
     """Fig. 6: each metric against hoop frequency, 50 Hz bins averaged over +-25 Hz, model overlaid."""
     fig, axes = plt.subplots(3, 1, figsize=(7, 9), sharex=True, constrained_layout=True)
-    for ax, name in zip(axes, ("besr", "bbs", "bbcor"), strict=True):
+    for ax, name in zip(axes, METRICS, strict=True):
         pts = [(b.hoop_hz, b.metric(name)) for b in study.bats if b.metric(name) is not None]
         ax.scatter([p[0] for p in pts], [p[1] for p in pts], s=10, color="0.75", label="bats")
         bins = study.bins.get(name, [])
@@ -88,7 +89,7 @@ def plot_metrics_vs_hoop(study: PopulationStudy, path: str | Path) -> list[Path]
                 ls="--",
                 label=f"calibrated model ({cal['variant']}, {cal['provenance']['n_bats']} bats){offset}",
             )
-        ax.set_ylabel(METRIC_LABEL[name])
+        ax.set_ylabel(axis_label(name))
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
     axes[0].set_title("Performance vs hoop frequency" + _tag(study), fontsize=10)

@@ -20,9 +20,9 @@ from rig.core.bat import Barrel
 from rig.core.units import INCH
 from rig.measure.metrics import compute_metrics
 from rig.population.dataset import PopulationBat
-from rig.population.simulate import SimulatedBat
 from rig.simulators.physics import Collision
 from rig.simulators.scene import Scene
+from studies.population.simulated import SimulatedBat
 
 SPEED_M_S = 60.8  # the BBCOR inbound speed the calibration predicts at
 # The BBCOR procedure's scan (protocols/bbcor.toml): 5.0-7.5 in by 0.5 in, extended by up to 1 in

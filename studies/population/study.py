@@ -2,7 +2,7 @@
 
 Fig. 5: first hoop against first bending frequency, by barrel material.
 Fig. 6: each metric (BESR, BBS, BBCOR) against hoop frequency, averaged in 50 Hz bins over
-+-25 Hz (binning.py), beside the model's prediction for the population (model.py).
++-25 Hz (binning.py), beside the model's prediction for the population (rig.population.model).
 The trend: a least-squares line through the bats' values (per 1000 Hz), the model's slope over the
 same range, and Pearson's r.
 """
@@ -15,9 +15,9 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from rig.population.binning import Bin, bin_by_hoop
 from rig.population.dataset import METRICS, PopulationBat
 from rig.population.model import SPEED_M_S, HoopGrid, ReferenceBat, grid_for, population_curves
+from studies.population.binning import Bin, bin_by_hoop
 
 if TYPE_CHECKING:
     from rig.population.calfile import CalibrationFile

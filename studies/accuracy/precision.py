@@ -4,9 +4,9 @@ For each solver and tolerance: the error in COR and contact time against a refer
 unrelated methods agree on (scipy DOP853 and Radau at rtol 1e-13) and the number of right-hand-side
 evaluations; both are machine-independent. A DETEST-style fit of error = C * rtol^p per method says
 how well each one honours its tolerance. The sweep is pure: the wall time per solve comes from an
-injected `Timer` (rig.studies.Stopwatch; benchmarks/timing.py has the careful one), and without one
-the times are NaN. The efficiency curve's trade-off is rig.physics.curve_cost; the first-step probe
-rig.physics.first_step.
+injected `Timer` (studies.accuracy.stopwatch; benchmarks/timing.py has the careful one), and
+without one the times are NaN. The efficiency curve's trade-off is studies.accuracy.curve_cost;
+the first-step probe studies.accuracy.first_step.
 """
 
 from __future__ import annotations
@@ -118,7 +118,7 @@ class PrecisionStudy:
     tolerance_fits: tuple[ToleranceFit, ...]
     environment: dict[str, Any] = field(default_factory=dict)
     repeats: int = 0  # timed batches per solve (0: not timed)
-    elapsed_s: float = math.nan  # wall time of the whole study (rig.studies.stamped)
+    elapsed_s: float = math.nan  # wall time of the whole study (studies.accuracy.stopwatch.stamped)
 
     def as_dict(self) -> dict[str, Any]:
         """A JSON-safe dict of the whole study."""
@@ -206,7 +206,7 @@ def work_precision(
 
     quick: one hoop case, three tolerances and five methods (a smoke run for tests).
     rtols / implicit_rtols override the sweeps of the explicit (and LSODA) and the implicit methods.
-    timer: how a solve is timed (rig.studies.stopwatch); None leaves the times NaN.
+    timer: how a solve is timed (studies.accuracy.stopwatch); None leaves the times NaN.
     """
     speed = check_speed(speed)
     if not hoops:

@@ -1,4 +1,5 @@
-"""`rig study --calibration CAL.json`: the calibrated model's curve beside the paper's (issue 10, 2)."""
+"""`rig-study population --calibration CAL.json`: the calibrated model's curve beside the paper's
+(issue 10, 2)."""
 
 from __future__ import annotations
 
@@ -7,12 +8,13 @@ from pathlib import Path
 
 import pytest
 
-from rig.cli import main
 from rig.physics import DEFAULT_PARAMS, PivotedBat, predict_bat
-from rig.population import run_study, write_population_csv
+from rig.population import write_population_csv
 from rig.population.calfile import CalibrationFile, calibration_record, load_calibration, write_calibration
 from rig.population.calibrate import calibrate, fit_bats, predict
 from rig.population.dataset import PopulationBat
+from studies.cli import main
+from studies.population.study import run_study
 from tests.population.test_calibrate import population
 
 INCH = 0.0254
@@ -93,7 +95,8 @@ def test_cli_json_and_figure_carry_the_calibrated_model(
     cal_files: dict[str, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     data, cal = cal_files["offset-data"], cal_files["offset"]
-    args = ["study", "--data", str(data), "--calibration", str(cal), "--json", "--plot-dir", str(tmp_path)]
+    args = ["population", "--data", str(data), "--calibration", str(cal), "--json"]
+    args += ["--plot-dir", str(tmp_path)]
     assert main(args) == 0
     out = json.loads(capsys.readouterr().out)
     model = out["calibrated_model"]
@@ -109,7 +112,7 @@ def test_cli_json_and_figure_carry_the_calibrated_model(
     svg = (tmp_path / "fig6-metrics-vs-hoop.svg").read_text()
     assert "calibrated model" in svg and "paper" in svg
     # without --calibration nothing changes
-    assert main(["study", "--data", str(data), "--json"]) == 0
+    assert main(["population", "--data", str(data), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["calibrated_model"] is None
 
 
@@ -118,6 +121,6 @@ def test_a_bad_calibration_file_is_refused_with_one_line(
 ) -> None:
     bad = tmp_path / "bad.json"
     bad.write_text("{}")
-    assert main(["study", "--data", str(cal_files["plain-data"]), "--calibration", str(bad)]) == 2
+    assert main(["population", "--data", str(cal_files["plain-data"]), "--calibration", str(bad)]) == 2
     err = capsys.readouterr().err
     assert "bad.json" in err and "Traceback" not in err

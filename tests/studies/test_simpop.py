@@ -1,4 +1,5 @@
-"""`rig study --certify N`: a simulated population certified into a store, then studied (issue 10, 2)."""
+"""`rig-study population --certify N`: a simulated population certified into a store, then studied
+(issue 10, 2)."""
 
 from __future__ import annotations
 
@@ -11,16 +12,16 @@ from pathlib import Path
 
 import pytest
 
-from rig.cli import main
 from rig.core.bat import BatSpec
 from rig.core.units import INCH
 from rig.physics import PivotedBat, predict_bat
-from rig.population.simulate import simulated_bat, simulated_population
 from rig.population.store_source import bats_from_store
 from rig.simulators.effects.trampoline import TrampolineConfig
 from rig.simulators.scene import Scene
 from rig.simulators.world import SimWorld
 from rig.store import Store
+from studies.cli import main
+from studies.population.simulated import simulated_bat, simulated_population
 from tests.e2e.procs import ROOT, burners, wait_count
 
 LAB = Scene.load("lab")
@@ -68,7 +69,7 @@ def test_certify_a_small_population_into_a_store_that_verifies_and_studies(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     db = tmp_path / "pop.db"
-    flags = ["study", "--certify", "3", "--db", str(db), "--seed", "1", "--altered", "1"]
+    flags = ["population", "--certify", "3", "--db", str(db), "--seed", "1", "--altered", "1"]
     assert main(flags) == 0
     err = capsys.readouterr().err
     assert "certified 3 bat(s)" in err and "time per certification" in err
@@ -115,7 +116,7 @@ def test_a_signal_keeps_the_finished_runs_and_a_rerun_resumes_without_duplicates
     flags = ["--certify", "3", "--db", str(db), "--seed", "2"]
     with burners():
         child = subprocess.Popen(
-            [sys.executable, "-m", "rig.cli", "study", *flags],
+            [sys.executable, "-m", "studies", "population", *flags],
             cwd=ROOT,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
@@ -136,7 +137,7 @@ def test_a_signal_keeps_the_finished_runs_and_a_rerun_resumes_without_duplicates
         assert store.verify().ok
     interrupted = [r for r in before.values() if r.status == "running"]
     assert len(interrupted) == 1 and len(before) < 3
-    assert main(["study", *flags]) == 0
+    assert main(["population", *flags]) == 0
     with Store.open(db) as store:
         after = store.runs()
         assert store.verify().ok
@@ -162,7 +163,7 @@ def test_bad_flags_are_refused_with_one_line(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], flags: list[str], cause: str
 ) -> None:
     db = str(tmp_path / "pop.db")
-    assert main(["study", *[f.replace("{db}", db) for f in flags]]) == 2
+    assert main(["population", *[f.replace("{db}", db) for f in flags]]) == 2
     err = capsys.readouterr().err
     assert cause in err and "Traceback" not in err
     assert not Path(db).exists() and not (tmp_path / "pop-bats").exists()
@@ -172,6 +173,6 @@ def test_other_flags_on_the_same_store_are_refused(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     db = str(tmp_path / "pop.db")
-    assert main(["study", "--certify", "1", "--db", db, "--seed", "3"]) == 0
-    assert main(["study", "--certify", "1", "--db", db, "--seed", "4"]) == 2
+    assert main(["population", "--certify", "1", "--db", db, "--seed", "3"]) == 0
+    assert main(["population", "--certify", "1", "--db", db, "--seed", "4"]) == 2
     assert "other flags (seed)" in capsys.readouterr().err

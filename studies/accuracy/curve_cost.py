@@ -1,7 +1,7 @@
 """What an efficiency curve costs and how accurate it is, by grid density and solver tolerance.
 
-Errors are machine-independent; the times come from an injected timer (rig.studies.stopwatch),
-as in the work-precision sweep (rig.physics.precision).
+Errors are machine-independent; the times come from an injected timer (studies.accuracy.stopwatch),
+as in the work-precision sweep (studies.accuracy.precision).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from rig.core.errors import SolverError
 from rig.physics import fast
 from rig.physics.curve import EfficiencyCurve, cor_grid, efficiency_curve, rigid_cor
 from rig.physics.params import DEFAULT_PARAMS, CollisionParams, check_speed, check_tolerance
-from rig.physics.precision import REFERENCE_RTOL, Timer, timed
+from studies.accuracy.precision import REFERENCE_RTOL, Timer, timed
 
 
 @dataclass(frozen=True)
@@ -53,7 +53,7 @@ def curve_tradeoff(
 
     eta errors are against cor_grid at rtol 1e-13 on the same grid; optimum errors against
     efficiency_curve on `reference_points` points at rtol 1e-12, refined. quick: 2 x 2 runs.
-    timer: how the curve and its grid are timed (rig.studies.stopwatch); None leaves the times NaN.
+    timer: how the curve and its grid are timed (studies.accuracy.stopwatch); None leaves the times NaN.
     """
     speed = check_speed(speed)
     if quick:

@@ -12,13 +12,13 @@ import matplotlib.pyplot as plt
 from matplotlib.ticker import NullFormatter
 from rich.table import Table
 
-from rig.physics.curve_cost import CurveTradeoffRow
-from rig.physics.precision import (
+from rig.report.model_plots import figure_paths
+from studies.accuracy.curve_cost import CurveTradeoffRow
+from studies.accuracy.precision import (
     PrecisionRow,
     PrecisionStudy,
     cost_to_reach,
 )
-from rig.report.model_plots import figure_paths
 
 ERROR_FLOOR = 1e-16  # exact agreement (error 0) is drawn here: log axes cannot show zero
 _STYLE = {  # fixed per method, so that every figure reads the same

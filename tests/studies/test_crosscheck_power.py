@@ -1,6 +1,6 @@
 """The cross-check's power on one simulated population, and the simulated truth it rests on.
 
-The simulated truth (rig.simulators.population.true_metric, the simulated rig's own collision) is
+The simulated truth (studies.population.lab.true_metric, the simulated rig's own collision) is
 checked against a separate solve of the collision model with the lab scene's true barrel written
 here from rig.physics; the power check runs the calibration and cross-check as a lab would.
 """
@@ -17,16 +17,16 @@ from rig.physics import PivotedBat, predict_bat
 from rig.population.calfile import CalibrationFile, calibration_record
 from rig.population.calibrate import calibrate
 from rig.population.crosscheck import crosscheck_bats
-from rig.population.simulate import simulated_bat, simulated_population
 from rig.simulators.effects.trampoline import TrampolineConfig, bat_offset_bbcor
-from rig.simulators.population import (
+from rig.simulators.scene import Scene
+from studies.population.lab import (
     SCAN_IN,
     best_scan_location,
     measured_population,
     scan_maximum,
     true_metric,
 )
-from rig.simulators.scene import Scene
+from studies.population.simulated import simulated_bat, simulated_population
 
 LAB = Scene.load("lab")
 TRAMP = next(e for e in LAB.effects if isinstance(e, TrampolineConfig))

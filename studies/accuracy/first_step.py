@@ -14,8 +14,8 @@ import numpy as np
 from rig.core.errors import SolverError
 from rig.physics import fast
 from rig.physics.equations import Impact
-from rig.physics.precision import REFERENCE_RTOL
 from rig.physics.reference import solve_reference
+from studies.accuracy.precision import REFERENCE_RTOL
 
 
 @dataclass(frozen=True)

@@ -10,12 +10,13 @@ import pytest
 
 from benchmarks.timing import best_time
 from rig.core.errors import ParameterError, SolverError
-from rig.physics import precision
-from rig.physics.curve_cost import CurveTradeoffRow, curve_tradeoff
 from rig.physics.equations import Impact
-from rig.physics.first_step import first_step_effect
 from rig.physics.params import DEFAULT_PARAMS
-from rig.physics.precision import (
+from rig.physics.reference import CollisionResult
+from studies.accuracy import precision
+from studies.accuracy.curve_cost import CurveTradeoffRow, curve_tradeoff
+from studies.accuracy.first_step import first_step_effect
+from studies.accuracy.precision import (
     REFERENCE_AGREEMENT,
     PrecisionRow,
     PrecisionStudy,
@@ -23,8 +24,7 @@ from rig.physics.precision import (
     tolerance_fit,
     work_precision,
 )
-from rig.physics.reference import CollisionResult
-from rig.studies import Stopwatch, stamped, stopwatch
+from studies.accuracy.stopwatch import Stopwatch, stamped, stopwatch
 
 ROW_KEYS = {"method", "rtol", "cor_error", "nfev", "time_s"}
 
@@ -167,7 +167,7 @@ def test_curve_tradeoff_rows(curve_rows: tuple[CurveTradeoffRow, ...]) -> None:
 def test_plots_write_png_and_svg(
     study: PrecisionStudy, curve_rows: tuple[CurveTradeoffRow, ...], tmp_path
 ) -> None:
-    from rig.report.precision_plots import plot_curve_tradeoff, plot_work_precision
+    from studies.accuracy.plots import plot_curve_tradeoff, plot_work_precision
 
     for paths in (
         plot_work_precision(study, tmp_path / "wp.png"),
@@ -181,7 +181,7 @@ def test_plots_write_png_and_svg(
 
 
 def test_tables(study: PrecisionStudy) -> None:
-    from rig.report.precision_plots import fits_markdown, markdown_table, precision_table
+    from studies.accuracy.plots import fits_markdown, markdown_table, precision_table
 
     assert precision_table(study).row_count == len(study.rows)
     md = markdown_table(study)
@@ -195,9 +195,9 @@ def test_tables(study: PrecisionStudy) -> None:
 
 
 def test_cli_accuracy_json(capsys: pytest.CaptureFixture[str]) -> None:
-    from rig.cli import main
+    from studies.cli import main
 
-    assert main(["model", "accuracy", "--quick", "--json"]) == 0
+    assert main(["accuracy", "--quick", "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)
     assert isinstance(rows, list) and rows
     for r in rows:

@@ -1,8 +1,8 @@
 """The measurement harness of the solver-accuracy study: how long a solve takes, on what.
 
-`rig model accuracy` and benchmarks/accuracy_* time the work-precision sweeps
-(rig.physics.precision, rig.physics.curve_cost) with a `Stopwatch` from here and stamp the study
-with the interpreter and library versions. Certification never imports this module (an
+`rig-study accuracy` and benchmarks/accuracy_* time the work-precision sweeps
+(studies.accuracy.precision, studies.accuracy.curve_cost) with a `Stopwatch` from here and stamp
+the study with the interpreter and library versions. Certification never imports this module (an
 import-linter contract says so): the sweeps themselves compute errors and function-evaluation
 counts, which do not depend on the machine; only the times come from here. The careful variant
 (collector paused, CPU model and load recorded) is benchmarks/timing.py.
@@ -22,7 +22,7 @@ from typing import Any, TypeVar
 import numpy as np
 
 from rig.core.errors import ParameterError
-from rig.physics.precision import PrecisionStudy
+from studies.accuracy.precision import PrecisionStudy
 
 MIN_TIMED_S = 0.01  # a timed batch of solves lasts at least this long (perf_counter resolution, jitter)
 QUICK_MIN_TIMED_S = 0.002

@@ -1,0 +1,1 @@
+"""The population study (founding paper, section 5) and the simulated populations it is tried on."""
