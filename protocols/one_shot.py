@@ -90,6 +90,9 @@ class OneShotContext(PlanContext):
         return {"metric_name": "e_a", "metric": 0.5, "valid": True, "reasons": [], "dry_run": True}
 
 
+ONE_SHOT_DONE = "one-shot run: the shot was fired and evaluated (no verdict)"
+
+
 def one_shot(ctx: PlanContext) -> Plan[dict[str, Any]]:
     """Start, put the stage where asked, record the intent, fire once, evaluate; returns the raw
     record and the evaluation. A lost shot stops the run (RunAborted, the loss recorded)."""
@@ -125,4 +128,6 @@ def one_shot(ctx: PlanContext) -> Plan[dict[str, Any]]:
     outcome = ev.ShotMeasured if result["valid"] else ev.ShotRejected
     rest = {k: v for k, v in result.items() if k not in ("metric", "valid")}
     yield Record(outcome(index=INDEX, metric=result["metric"], valid=result["valid"], extra=rest))
+    # a one-shot run has no verdict: it ends as the run table lets a run end without one
+    yield Record(ev.RunEnded(who=ctx.who, why=ONE_SHOT_DONE, shots_so_far=1))
     return {"record": fired.record.as_dict(), "evaluation": result}

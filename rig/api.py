@@ -19,8 +19,8 @@ from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RigError
 from rig.core.events import Verdict  # the one verdict enum (a str, so == "PASS" holds)
-from rig.protocols.control import Operator, RunControl, ScriptedOperator
 from rig.core.run_phase import RunPhase  # the run table's phases (a str, so == "finished" holds)
+from rig.protocols.control import Operator, RunControl, ScriptedOperator
 from rig.protocols.plan import PlanFactory
 from rig.protocols.procedure import Procedure
 from rig.store import Store

@@ -476,8 +476,10 @@ def _drive(
                         run_id, message, resumable=not isinstance(failed, StoreGone)
                     ) from exc
                 return Outcome(run_id, RunPhase.INTERRUPTED, None, reason, budget)
-            word = verdict.get("verdict")  # a one-shot run has none (rig.one_shot)
-            _seal(store, run_id, "finished", None if word is None else str(word), signer)  # under the lock
+            if driven.state.phase is RunPhase.ENDED:  # a plan that ends without a verdict (rig.one_shot)
+                _seal(store, run_id, "aborted", None, signer)  # under the lock
+                return Outcome(run_id, RunPhase.ENDED, verdict)
+            _seal(store, run_id, "finished", str(verdict["verdict"]), signer)  # sealed under the lock
     return Outcome(run_id, RunPhase.FINISHED, verdict)
 
 

@@ -18,6 +18,7 @@ from rig.core.config import RigConfig
 from rig.core.devices import CannonState
 from rig.core.errors import ConfigError, DeviceError, RigError
 from rig.core.events import RunEvent, Subscriber
+from rig.core.run_phase import RunPhase
 from rig.protocols.control import ScriptedOperator
 from rig.protocols.dryrun import Rehearsal, rehearse
 from rig.protocols.executor import LiveRig
@@ -124,7 +125,7 @@ def fire_one_shot(
     # never a real rig's key for a simulation (record_run: sign_simulated False)
     outcome = record_run(store, config, new, list(subscribers), start, what="one-shot run")
     run_id = outcome.run_id
-    if outcome.status != "finished" or outcome.verdict is None:
+    if outcome.status is not RunPhase.ENDED or outcome.verdict is None:  # ended by its plan, evaluated
         reason = " ".join(outcome.reason.split()) or "the shot was not completed"
         why = "".join(c if c.isprintable() else "?" for c in reason)[:500]  # as a Signoff takes it
         end_run(store, run_id, Signoff(WHO, why))

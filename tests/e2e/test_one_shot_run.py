@@ -10,7 +10,9 @@ from pathlib import Path
 
 import pytest
 
+from rig.certification import history
 from rig.cli import main
+from rig.core.run_state import fold
 from rig.report.record import run_record
 from rig.simulators.scene import Scene
 from rig.simulators.urlhandler import install_world, register, reset_worlds
@@ -52,7 +54,7 @@ def test_a_shot_is_a_run_with_its_intent_before_fire(
         assert (run.run_id, run.procedure, run.status, run.verdict) == (
             printed["run_id"],
             "shot",
-            "finished",
+            "aborted",  # the store's word for a run ended without a verdict
             None,
         )
         entries = store.entries(run.run_id)
@@ -74,13 +76,17 @@ def test_a_shot_is_a_run_with_its_intent_before_fire(
             printed["rebound_speed_m_s"] / printed["inbound_speed_m_s"]
         )
         assert not [e for e in entries if e.kind == "RunFinished"]  # no verdict: not a certification
+        (ended,) = [e for e in entries if e.kind == "RunEnded"]
+        assert ended.seq > measured.seq and "no verdict" in ended.payload["why"]
+        # the fold of its log and the shown status agree (one run state table)
+        assert fold(history(store, run.run_id)).phase == "ended"
         record = run_record(store, run.run_id)
     assert record["verdict"] is None and record["shots"][0]["status"] == "valid"
     summary = one_shot_summary(record)  # the console's history shows it so, not as a certificate
     assert "Not a certification" in summary and "0.55 m from the pivot" in summary
     code, out, _ = cli(capsys, "runs", "--json", "--db", db)
     (row,) = json.loads(out)
-    assert (row["procedure"], row["status"], row["verdict"]) == ("shot", "finished", None)
+    assert (row["procedure"], row["status"], row["verdict"]) == ("shot", "ended", None)
     assert cli(capsys, "verify", "--db", db)[0] == 0
     code, _, err = cli(capsys, "report", "last", "--db", db, "--format", "md")
     assert code == 2 and "is a one-shot run (rig shot), not a certification" in err
