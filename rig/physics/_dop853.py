@@ -7,10 +7,11 @@ scalar loops over a fixed 6-state system so that one solve costs tens of microse
 - contact ends where g = F/|d|^b falls through zero, located on the 7th-order dense output;
 - status codes instead of exceptions (the Python wrapper turns them into SolverError).
 
-Parameter vector P: m1, k1, c1, a, b, m2, k2, c2, inv_body, inv_base, rigid.
-States: x1, v1, x2, v2, x3, v3 (ball, barrel, body). For a rigid barrel x2, v2 is the base.
+The model it integrates (right-hand sides, g, the re-contact bounds, over the parameter vector P
+and the states x1, v1, x2, v2, x3, v3) is `_kernel_model`'s, compiled inline here; this module is
+the method. Loaded again as the interpreted kernel (`_interpreted`), it runs those same functions.
 
-Why one module of ~500 lines: it is one algorithm (step, dense output, end-of-contact location,
+Why one module of ~450 lines: it is one algorithm (step, dense output, end-of-contact location,
 re-contact search, driver loop) sharing the coefficient tables, the state layout and the status
 codes; split, each part would need all of them and be read without the others.
 """
@@ -30,7 +31,8 @@ os.environ.setdefault("OMP_WAIT_POLICY", "passive")
 
 import numpy as np
 
-from rig.physics._jit import numba_or_plain
+from rig.physics import _kernel_model as model
+from rig.physics._jit import check_digest, numba_or_plain
 
 nb = numba_or_plain(__name__)  # numba here; plain Python when loaded as the interpreted kernel
 
@@ -81,69 +83,23 @@ _MIN_FACTOR = 0.2
 _MAX_FACTOR = 10.0
 _EXPONENT = -1.0 / 8.0
 
+# The model (right-hand sides, g and its rate, the damping rate, the re-contact bounds): one
+# definition in _kernel_model, compiled here inline into the loops (no call overhead); in the
+# interpreted kernel `_inline` gives each function back unchanged.
+_inline = nb.njit(cache=True, inline="always")
+_rhs = _inline(model.rhs)
+_rhs_free = _inline(model.rhs_free)
+_gfun = _inline(model.gfun)
+_gdot = _inline(model.gdot)
+_damping_rate = _inline(model.damping_rate)
+g_cannot_rise = _inline(model.g_cannot_rise)
+_force_escape_time = _inline(model.force_escape_time)
 
-@nb.njit(cache=True, inline="always")
-def _rhs(y: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
-    d = y[0] - y[2]
-    dd = y[1] - y[3]
-    ad = abs(d)
-    f = p[1] * d * ad ** p[3] + p[2] * dd * ad ** p[4]
-    out[0] = y[1]
-    out[1] = -f / p[0]
-    out[2] = y[3]
-    if p[10] != 0.0:
-        acc = f * p[9]
-        out[3] = acc
-        out[4] = y[5]
-        out[5] = acc
-    else:
-        fs = p[6] * (y[2] - y[4]) + p[7] * (y[3] - y[5])
-        out[3] = (f - fs) / p[5]
-        out[4] = y[5]
-        out[5] = fs * p[8]
-
-
-@nb.njit(cache=True, inline="always")
-def _gfun(y: np.ndarray, p: np.ndarray) -> float:
-    d = y[0] - y[2]
-    ad = abs(d)
-    spring = 0.0
-    if ad > 0.0:
-        spring = p[1] * d * ad ** (p[3] - p[4])
-    return spring + p[2] * (y[1] - y[3])
-
-
-@nb.njit(cache=True, inline="always")
-def _gdot(y: np.ndarray, f: np.ndarray, p: np.ndarray) -> float:
-    """Time derivative of g along the solution (f = the state's derivative)."""
-    d = y[0] - y[2]
-    ad = abs(d)
-    dd = y[1] - y[3]
-    spring = 0.0
-    if ad > 0.0:
-        spring = p[1] * (1.0 + p[3] - p[4]) * ad ** (p[3] - p[4]) * dd
-    return spring + p[2] * (f[1] - f[3])
-
-
-@nb.njit(cache=True, inline="always")
-def _damping_rate(y: np.ndarray, p: np.ndarray) -> float:
-    """Decay rate of the relative motion under the ball's damping, c1 |d|^b / (reduced mass), where it
-    exceeds twice the contact's own rate (0 elsewhere).
-
-    With b = 0 it is c1 (1/m1 + 1/m2), ~1e5 /s for the paper's ball and barrel: longer steps are
-    stable and accurate at their ends, but the 7th-order dense output between the ends is not,
-    and the contact's end is located on it. So the step that holds the end is kept to h lam <= kappa,
-    kappa = (8! rtol)^(1/8), which bounds the interpolant's error ~ (h lam)^8 / 8! by rtol.
-    """
-    inv = 1.0 / p[0] + (p[9] if p[10] != 0.0 else 1.0 / p[5])
-    ad = abs(y[0] - y[2])
-    lam = p[2] * ad ** p[4] * inv
-    # only where that decay dominates the contact's own oscillation (rate^2 = k1 (1+a) d^a inv):
-    # with the paper's b = 0.52 it does not (rate / omega ~ 0.8 at contact's end) and the step's
-    # own error control suffices; with b = 0 it does (~10-30 times)
-    if lam * lam <= 4.0 * p[1] * (1.0 + p[3]) * ad ** p[3] * inv:
-        return 0.0
-    return lam
+# numba's cache of this module's functions is keyed on this file's text alone, not on the
+# _kernel_model they inline: that file's text is pinned here, so an edit there must change this
+# line too, which renews the cache (the kernel refuses to load until then).
+MODEL_DIGEST = "44101a39d134ba822e13765589e4555516f85d49a8fe59a2e13d405b91492faf"
+check_digest(model, MODEL_DIGEST, Path(__file__).name)
 
 
 @nb.njit(cache=True)
@@ -384,51 +340,6 @@ def solve_one(
             f[i] = fnew[i]
 
 
-@nb.njit(cache=True, inline="always")
-def _rhs_free(y: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
-    """Out of contact: ball in free flight, barrel (and body) ringing on their own."""
-    out[0] = y[1]
-    out[1] = 0.0
-    out[2] = y[3]
-    fs = p[6] * (y[2] - y[4]) + p[7] * (y[3] - y[5])
-    out[3] = -fs / p[5]
-    out[4] = y[5]
-    out[5] = fs * p[8]
-
-
-@nb.njit(cache=True, inline="always")
-def g_cannot_rise(d0: float, recede: float, amplitude: float, share: float, mu: float, p: np.ndarray) -> bool:
-    """True when, out of contact, g = k1 d|d|^(a-b) + c1 d' can never rise above zero while d > 0.
-
-    The barrel rings about its centre of mass with an amplitude that never grows (energy), so its
-    speed and acceleration relative to that centre are at most share w A and share (k2 + c2 w) A / mu
-    (w = sqrt(k2/mu)). The ball recedes from the centre at `recede`; if it is faster than the barrel's
-    largest speed by `margin`, d' <= -margin for ever, so contact needs k1 d^(1+a-b) > c1 margin,
-    i.e. d > d_crit, and d only falls. While d > d_crit, g' = k1 (1+a-b) d^(a-b) d' - c1 a2
-    <= -k1 (1+a-b) q margin + c1 a2max, q the least d^(a-b) there; if that is negative g only falls
-    where it could be positive, and it starts from 0 at the separation: no new contact. A cheap
-    closed-form proof (no integration) that settles the ordinary single-contact impact.
-    """
-    k1 = p[1]
-    c1 = p[2]
-    expo = 1.0 + p[3] - p[4]
-    if c1 <= 0.0 or expo <= 0.0:
-        return False
-    k2 = p[6]
-    w = math.sqrt(k2 / mu)
-    margin = recede - share * w * amplitude
-    if margin <= 0.0:
-        return False
-    if d0 <= 0.0:
-        return True
-    d_crit = (c1 * margin / k1) ** (1.0 / expo)
-    if d0 <= d_crit:
-        return True
-    q = d_crit ** (expo - 1.0) if expo >= 1.0 else d0 ** (expo - 1.0)
-    a2max = share * (k2 + p[7] * w) * amplitude / mu
-    return k1 * expo * q * margin > c1 * a2max
-
-
 @nb.njit(cache=True)
 def may_meet_again(y0: np.ndarray, p: np.ndarray) -> bool:
     """After a separation: False when no later contact is possible (the separation is final).
@@ -474,14 +385,10 @@ def may_meet_again(y0: np.ndarray, p: np.ndarray) -> bool:
     if g_cannot_rise(x1 - y0[2], speed_c - v1, amplitude, share, mu, p):
         return False
     t_escape = lead / (speed_c - v1)
-    if inv_body == 0.0 and p[2] > 0.0 and 1.0 + p[3] - p[4] > 0.0:
-        # g <= k1 (x1 + reach)^(1+a-b) - c1 (-v1 - w reach): no contact once that is < 0
-        margin = -v1 - math.sqrt(k2 / m2) * reach
-        if margin > 0.0:
-            x_safe = (p[2] * margin / p[1]) ** (1.0 / (1.0 + p[3] - p[4])) - reach
-            t_escape = min(t_escape, max(0.0, (x1 - x_safe) / -v1))
-            if t_escape == 0.0:
-                return False
+    if inv_body == 0.0:
+        t_escape = min(t_escape, _force_escape_time(x1, v1, reach, p))
+        if t_escape == 0.0:
+            return False
     period = 2.0 * math.pi * math.sqrt(mu / k2)
     dt = min(t_escape, period) / SCREEN_POINTS
     n = math.ceil(t_escape / dt)

@@ -5,7 +5,8 @@ interpreter costs 10-20 ms. So a process that asks for a few single solves (`rig
 certificate's cross-check) gets its answer before numba would have loaded; `fast` switches to the
 compiled kernel once enough solves have been asked for, and for every batch. The file is loaded a
 second time under another module name, as it is: its `nb` then comes from `_jit.numba_or_plain` as
-decorators that return each function unchanged and `range` for `prange`.
+decorators that return each function unchanged and `range` for `prange`; so the model it integrates
+is `_kernel_model`'s functions themselves, the very objects the compiled kernel compiles.
 """
 
 from __future__ import annotations

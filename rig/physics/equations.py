@@ -6,6 +6,11 @@ Bodies, all moving along the ball's line of flight (positive towards the bat):
 - base: clamped (the paper's model) or the rigid bat body on the pivot, effective mass I/Q^2.
 
 A rigid barrel (f_hoop -> infinity) is its own model: the barrel moves with its base.
+
+This is the reference formulation, kept apart from the kernel's (`_kernel_model`) on purpose: the
+scipy reference solves built on it are the yardstick the kernel is tested against, which they
+could not be if both ran one source. tests/physics/test_kernel_model.py holds the two to the same
+numbers over random constants and states (right-hand sides, g, damping rate, re-contact bounds).
 """
 
 from __future__ import annotations
@@ -251,7 +256,8 @@ def g_cannot_rise(imp: Impact, d0: float, recede: float, amplitude: float, share
     by `margin`, then d' <= -margin for ever: contact needs k1 d^(1+a-b) > c1 margin (d > d_crit)
     and d only falls. Where d > d_crit, g' = k1 (1+a-b) d^(a-b) d' - c1 a2 <= -k1 (1+a-b) q margin
     + c1 a2max (q the least d^(a-b) there); if that is negative, g only falls wherever it could be
-    positive, and it starts from zero at the separation. Same test as the kernel's g_cannot_rise.
+    positive, and it starts from zero at the separation. The kernel's `_kernel_model.g_cannot_rise`,
+    stated again here on purpose (see the module's docstring).
     """
     p = imp.params
     expo = 1.0 + p.a - p.b
@@ -278,7 +284,7 @@ def _force_escape_time(imp: Impact, x1: float, v1: float, reach: float) -> float
     The barrel's speed never exceeds w reach (w = sqrt(k2/m2), energy bound) and d <= x1 + reach.
     If the ball recedes faster (v1 + w reach < 0), g <= k1 (x1 + reach)^(1+a-b) - c1 (-v1 - w reach),
     whose first term only falls as the ball leaves: once it is below the second, no contact can
-    begin. inf when this bound says nothing.
+    begin. inf when this bound says nothing. The kernel's `_kernel_model.force_escape_time`, stated again.
     """
     p = imp.params
     margin = -v1 - math.sqrt(imp.k2 / p.m2) * reach

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from scipy.integrate._ivp import dop853_coefficients as scipy_tables
 
-from rig.physics import _dop853, _interpreted, fast
+from rig.physics import _dop853, _interpreted, _kernel_model, fast
 from rig.physics.equations import Impact
 from rig.physics.params import DEFAULT_PARAMS
 
@@ -66,14 +66,16 @@ def test_the_interpreted_kernel_is_the_compiled_kernels_file_unedited_and_needs_
         "import sys\n"
         "from rig.physics import _interpreted\n"
         "k = _interpreted.load()\n"
-        "print('numba' in sys.modules, k.__file__, k._rhs.__code__.co_filename)\n"
+        "print('numba' in sys.modules, k.__file__, k.solve_one.__code__.co_filename,"
+        " k._rhs.__code__.co_filename)\n"
     )
     out = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120
     )
-    numba_loaded, file, rhs_file = out.stdout.split()
+    numba_loaded, file, solve_file, rhs_file = out.stdout.split()
     assert numba_loaded == "False"
-    assert file == rhs_file == _dop853.__file__
+    assert file == solve_file == _dop853.__file__
+    assert rhs_file == _kernel_model.__file__  # the model's functions: their one definition
     kernel = _interpreted.load()
     for name in ("_rhs", "_gfun", "_gdot", "_damping_rate", "solve_one"):
         assert getattr(kernel, name).__code__.co_code == getattr(_dop853, name).py_func.__code__.co_code
