@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -24,8 +24,45 @@ from rig.physics.params import check_physical
 from rig.population.calibrate import BOUNDS, PAPER_BASE, UNITS, model_params
 from rig.population.limits import MIN_BATS
 
-if TYPE_CHECKING:
-    from rig.population.calfile import CalibrationFile
+
+class _Provenance(Protocol):
+    """What the check reads of a calibration's provenance."""
+
+    @property
+    def n_bats(self) -> int: ...
+    @property
+    def hoop_min_hz(self) -> float: ...
+    @property
+    def hoop_max_hz(self) -> float: ...
+
+
+class Calibration(Protocol):
+    """What the check reads of a calibration (rig.population.calfile.CalibrationFile has it): a
+    protocol, so that the file's model, which runs the check, is not imported back here."""
+
+    @property
+    def metric(self) -> str: ...
+    @property
+    def speed_m_s(self) -> float: ...
+    @property
+    def default_location_in(self) -> float: ...
+    @property
+    def parameters(self) -> dict[str, float]: ...
+    @property
+    def uncertainty(self) -> dict[str, float]: ...
+    @property
+    def covariance(self) -> list[list[float]]: ...
+    @property
+    def scatter(self) -> float: ...
+    @property
+    def loo_rmse(self) -> float: ...
+    @property
+    def model_params(self) -> CollisionParams: ...
+    @property
+    def ball(self) -> dict[str, Any] | None: ...
+    @property
+    def provenance(self) -> _Provenance: ...
+
 
 SPEED_RANGE = (1.0, 100.0)  # m/s, as every speed a user gives
 LOCATION_MAX_IN = 36.0  # an impact location is on the bat: at most 36 in from the tip, as a scan's
@@ -33,7 +70,7 @@ REL_TOL = 1e-6  # an uncertainty against sqrt(variance), model constants against
 PSD_TOL = 1e-9  # the correlation matrix's eigenvalues may fall this far below 0 (round-off)
 
 
-def check_calibration(cal: CalibrationFile) -> None:
+def check_calibration(cal: Calibration) -> None:
     """ParameterError naming the first field of `cal` that no calibration can have."""
     _within("speed_m_s", cal.speed_m_s, *SPEED_RANGE, "m/s")
     if not 0.0 < cal.default_location_in <= LOCATION_MAX_IN:
@@ -117,7 +154,7 @@ def _model_params(stated: CollisionParams, expected: CollisionParams) -> None:
             )
 
 
-def _provenance(cal: CalibrationFile) -> None:
+def _provenance(cal: Calibration) -> None:
     prov = cal.provenance
     least = max(MIN_BATS, len(cal.parameters) + 1)
     if prov.n_bats < least:
