@@ -3,8 +3,8 @@
 The run is rehearsed, created, identified, locked, recorded, sealed and signed as a certification
 is (rig.certification); its plan is rig.protocols.one_shot, its kind in the store `shot`. It obeys
 every interlock a certification does (an open one: no FIRE, the loss recorded). It has no verdict:
-a measured shot seals it finished with none; a shot not measured (refused, lost, a device fault)
-ends it with the reason (RunEnded), so that no one-shot run is left open to resume.
+its plan ends it after the evaluation (RunEnded, sealed as ended); a shot not measured (refused,
+lost, a device fault) ends it with the reason, so that no one-shot run is left open to resume.
 """
 
 from __future__ import annotations

@@ -24,7 +24,7 @@ class RunPhase(StrEnum):
     RUNNING = "running"  # started or resumed
     INTERRUPTED = "interrupted"  # stopped, the reason recorded; resumable
     FINISHED = "finished"  # a verdict recorded
-    ENDED = "ended"  # ended on the operator's word, no verdict
+    ENDED = "ended"  # ended without a verdict: on the operator's word, or by a one-shot run's plan
 
 
 class ShotStatus(StrEnum):
