@@ -4,8 +4,8 @@ Not a certification: no procedure, no bat, no verdict. The clamp holds what it h
 goes where the stage is put, `OneShot.impact_from_pivot_m` (so the shot's "location" is 0, the
 point asked, as a ball test's is the target's face). The plan records the start, puts the stage
 there, records the intent (ShotRequested) before FIRE; the executor records the raw record
-(ShotFired) or the loss; the plan records the evaluation (the speeds, e_A = rebound / inbound), then ends the run
-(RunEnded: a one-shot run has no verdict).
+(ShotFired) or the loss; the plan records the evaluation (the speeds, e_A = rebound / inbound),
+then ends the run (RunEnded: a one-shot run has no verdict).
 """
 
 from __future__ import annotations
