@@ -12,14 +12,13 @@ says, so a shot's "location" is 0 (the target's face) and `BallContext.q` gives 
 
 from __future__ import annotations
 
-import platform
 from dataclasses import dataclass
 from typing import Any
 
 from rig.core import events as ev
 from rig.core.ball import BallLot
 from rig.core.errors import ConfigError
-from rig.core.version import __version__
+from rig.core.version import software
 from rig.protocols import ball_eval, steps
 from rig.protocols.ball_procedure import BallProcedure, Slot
 from rig.protocols.control import RunAborted
@@ -132,7 +131,7 @@ def start(ctx: BallContext) -> Plan[None]:
                 bat=p.target.spec() | {"id": p.target.id},
                 rig=ctx.config.model_dump(mode="json"),
                 extra={
-                    "software": {"rig": __version__, "python": platform.python_version()},
+                    "software": software(),
                     "test": p.test,
                     "lot": ctx.lot_spec(),
                 },

@@ -10,12 +10,11 @@ then ends the run (RunEnded: a one-shot run has no verdict).
 
 from __future__ import annotations
 
-import platform
 from dataclasses import asdict, dataclass
 from typing import Any
 
 from rig.core import events as ev
-from rig.core.version import __version__
+from rig.core.version import software
 from rig.protocols.control import RunAborted
 from rig.protocols.plan import (
     Checkpoint,
@@ -104,7 +103,7 @@ def one_shot(ctx: PlanContext) -> Plan[dict[str, Any]]:
             procedure={"name": "one shot (rig shot)", **asked.as_dict()},
             bat={"id": ITEM_ID, **ITEM_SPEC},
             rig=ctx.config.model_dump(mode="json"),
-            extra={"software": {"rig": __version__, "python": platform.python_version()}, "one_shot": True},
+            extra={"software": software(), "one_shot": True},
         )
     )
     yield ClearFault()

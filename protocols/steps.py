@@ -7,7 +7,6 @@ ring checks and ball replacements each shot calls for. A lab composes its own fr
 
 from __future__ import annotations
 
-import platform
 from typing import Any
 
 from rig.core import events as ev
@@ -15,7 +14,7 @@ from rig.core.bat import PIVOT_FROM_KNOB_IN, BatSpec
 from rig.core.devices import STAGE_RANGE_MM
 from rig.core.errors import ConfigError
 from rig.core.units import INCH
-from rig.core.version import __version__
+from rig.core.version import software
 from rig.measure.moi import entered_budget, pendulum_moi
 from rig.protocols import evaluate
 from rig.protocols.ball_terms import BallTerms
@@ -89,7 +88,7 @@ def start(ctx: PlanContext) -> Plan[None]:
                 bat=ctx.bat.model_dump(mode="json"),
                 rig=ctx.config.model_dump(mode="json"),
                 extra={
-                    "software": {"rig": __version__, "python": platform.python_version()},
+                    "software": software(),
                     **({"calibration": calibration} if calibration else {}),
                     "ball": BallTerms.model_validate(ctx.options.get("ball") or {}).model_dump(mode="json"),
                     **({"plan": ctx.plan_name} if ctx.plan_name else {}),
