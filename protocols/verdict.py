@@ -67,8 +67,7 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> d
     if ball is not None and name == p.standard:  # the scatter of what is averaged: corrected hits
         observed = [v + c for v, c in zip(observed, ball.corrections, strict=True)]
     u = u_with_scatter(per_bat, observed, name) if n >= 2 else per_bat.u_of(name)
-    if p.metric.u_scale is not None:  # its budget output is not the metric (BBS: e_A's)
-        u *= p.metric.u_scale(recorded_terms(hits[0].measured["metrics"]))
+    u *= p.metric.scale(recorded_terms(hits[0].measured["metrics"]))  # 1 unless it is not the metric's
     u_measured = u
     if ball is not None:
         values = [v + c for v, c in zip(values, ball.corrections, strict=True)]
