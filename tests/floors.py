@@ -21,9 +21,14 @@ def group_of(module: str) -> str:
     return ".".join(parts[:2]) if len(parts) > 1 else "rig"
 
 
-def floors() -> dict[str, int]:
+def imports() -> grimp.ImportGraph:
+    """The import graph of our packages (grimp, as import-linter reads it)."""
+    return grimp.build_graph(*ROOTS, include_external_packages=False)
+
+
+def floors(graph: grimp.ImportGraph | None = None) -> dict[str, int]:
     """Each group's floor; a ValueError names groups that import each other (no floor exists)."""
-    graph = grimp.build_graph(*ROOTS, include_external_packages=False)
+    graph = graph or imports()
     deps: dict[str, set[str]] = {}
     for module in graph.modules:
         g = group_of(module)
@@ -52,10 +57,10 @@ def name(group: str, packages: set[str]) -> str:
 
 def table() -> str:
     """The floors as a Markdown table, top floor first."""
-    graph = grimp.build_graph(*ROOTS, include_external_packages=False)
+    graph = imports()
     packages = {group_of(m) for m in graph.modules if group_of(m) != m}
     by_floor: dict[int, list[str]] = {}
-    for g, f in floors().items():
+    for g, f in floors(graph).items():
         by_floor.setdefault(f, []).append(g)
     rows = ["| floor | groups (a floor imports only the floors below it) |", "|---|---|"]
     rows += [
