@@ -18,6 +18,7 @@ Prints each bat's mean of each, then their means and SDs over the bats: a part c
 from __future__ import annotations
 
 import argparse
+import math
 import random
 import statistics
 import sys
@@ -44,7 +45,7 @@ def decompose(n: int, seed: int) -> list[Parts]:
     scene = Scene.load(SCENE)
     rows = []
     for spec, done, state in certified_population(n, seed, terms, "bench-decomp-"):
-        if "ball" not in (state.verdict or {}):
+        if state.verdict is None or state.verdict.ball is None:
             print(f"  {spec.id}: no verdict ({done.reason})")
             continue
         parts = bat_parts(scene_with_bat(scene, spec), state, BallTerms.model_validate(terms))
@@ -68,7 +69,8 @@ def bat_parts(world: Scene, state: RunState, terms: BallTerms) -> Parts:
         return float(m.bbcor)
 
     chain, correction, speed = [], [], []
-    corrections = (state.verdict or {})["ball"]["corrections"]
+    assert state.verdict is not None and state.verdict.ball is not None, "a verdict with ball terms"
+    corrections = state.verdict.ball["corrections"]
     for hit, ball, corr in zip(hits, balls, corrections, strict=True):
         draw = random.Random(f"{world.seed}/{sim_bat.id}/ball/{ball.ball}")  # the world's own draw
         own = max(0.5, 1.0 + draw.gauss(0.0, world.lot.c1_spread_rel))
@@ -77,8 +79,9 @@ def bat_parts(world: Scene, state: RunState, terms: BallTerms) -> Parts:
         worn = 1.0 + wear.damping_per_hit * ball.hits
         as_fired = world.ball.model_copy(update={"c1": world.ball.c1 * own * at_air * worn})
         new = world.ball.model_copy(update={"c1": world.ball.c1 * own})
-        v_in = float(hit.measured["inbound_at_impact_m_s"])
-        chain.append(float(hit.measured["metric"]) - bbcor(as_fired, v_in))
+        assert hit.outcome is not None, "a valid hit is evaluated"
+        v_in = float(hit.outcome.inbound_at_impact_m_s or math.nan)
+        chain.append(float(hit.outcome.metric or math.nan) - bbcor(as_fired, v_in))
         correction.append(float(corr) - (bbcor(new, BBCOR_SPEED_M_S) - bbcor(as_fired, BBCOR_SPEED_M_S)))
         speed.append(bbcor(world.ball, v_in) - bbcor(world.ball, BBCOR_SPEED_M_S))
     return statistics.mean(chain), statistics.mean(correction), statistics.mean(speed)

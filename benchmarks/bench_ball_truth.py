@@ -88,14 +88,16 @@ def run(n: int, seed: int, with_ball: bool) -> list[tuple[str, float, float, flo
     terms = lot_terms() if with_ball else None
     out = []
     for spec, done, state in certified_population(n, seed, terms, "bench-ball-"):
-        verdict = state.verdict or {}
-        if "mean" not in verdict:  # the run stopped (e.g. its re-shoot budget): no value, not covered
+        verdict = state.verdict
+        if (
+            verdict is None or verdict.mean is None or verdict.U is None or verdict.u is None
+        ):  # the run stopped (e.g. its re-shoot budget): no value, not covered
             print(f"  {spec.id}: no verdict ({done.status}: {done.reason})")
             out.append((spec.id, math.nan, math.nan, math.nan, math.nan))
             continue
         scanned = tuple(sorted({s.location_in for s in state.shots if s.purpose == "scan"}))
         truth = true_metric(scene_with_bat(scene, spec), scanned)
-        out.append((spec.id, float(verdict["mean"]), truth.value, float(verdict["U"]), float(verdict["u"])))
+        out.append((spec.id, float(verdict.mean), truth.value, float(verdict.U), float(verdict.u)))
     return out
 
 

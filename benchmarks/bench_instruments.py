@@ -35,7 +35,7 @@ def _certify(db: Path, config: RigConfig) -> tuple[float, dict[str, Any]]:
     with Store.open(db) as store:
         out = certify(store, Procedure.load("bbcor"), bat, config)
     assert out.status == "finished" and out.verdict is not None, out.reason
-    return time.perf_counter() - t0, dict(out.verdict)
+    return time.perf_counter() - t0, out.verdict.to_payload()
 
 
 def through_twins(db: Path, scene: str) -> tuple[float, dict[str, Any]]:

@@ -25,7 +25,7 @@ AT_IN = 6.0  # inches from the tip
 def screening(ctx: plans.PlanContext) -> plans.Plan[dict[str, Any]]:
     """Valid hits at AT_IN only, the lab's air checked before each; then the standard verdict."""
     if ctx.state.finished:
-        return dict(ctx.state.verdict or {})
+        return ctx.state.verdict
     yield from plans.preflight(ctx)
     yield from plans.start(ctx)
     yield from plans.check_budget(ctx)
@@ -34,7 +34,7 @@ def screening(ctx: plans.PlanContext) -> plans.Plan[dict[str, Any]]:
     if ctx.state.moi is None:
         yield from plans.measure_moi(ctx)
     if ctx.state.best_location_in is None:
-        chosen = plans.events.LocationChosen(from_barrel_end_in=AT_IN, extra={"bracketed": False})
+        chosen = plans.events.LocationChosen(from_barrel_end_in=AT_IN, bracketed=False)
         yield plans.Record(chosen)
     while len(ctx.state.valid_shots("valid", AT_IN)) < ctx.procedure.hits.valid_hits:
         yield from plans.environment(ctx)

@@ -20,7 +20,8 @@ import numpy as np
 
 from rig.core.ball import BallLot, CcorPoint, LotResult, SpeedPoint
 from rig.core.config import RigConfig
-from rig.core.events import Verdict
+from rig.core.errors import RigError
+from rig.core.outcomes import RunVerdict, ShotOutcome, Verdict
 from rig.measure.model import ShotInputs, inbound_at_impact
 from rig.measure.speeds import ShotDataError, shot_speeds, split_passes
 from rig.measure.uncertainty import budget
@@ -41,16 +42,17 @@ def quantity(p: BallProcedure) -> str:
 
 def shot(
     record: ShotRecord, p: BallProcedure, state: RunState, failure: str, config: RigConfig
-) -> dict[str, Any]:
-    """Speeds at the impact point, COR (CCOR) with its u, and validity of one fired ball (JSON-ready)."""
-    requested = state.shots[-1].requested if state.shots else {}
-    target_speed = float(requested.get("target_speed_m_s", p.speeds_m_s[0]))
+) -> ShotOutcome:
+    """Speeds at the impact point, COR (CCOR) with its u, and validity of one fired ball."""
+    requested = state.shots[-1].requested if state.shots else None
+    asked = None if requested is None else requested.target_speed_m_s
+    target_speed = float(p.speeds_m_s[0] if asked is None else asked)
     out: dict[str, Any] = {
         "metric_name": quantity(p),
         "metric": None,
         "u": None,
-        "ball": requested.get("ball"),
-        "ball_hit": requested.get("ball_hit"),
+        "ball": None if requested is None else requested.ball,
+        "ball_hit": None if requested is None else requested.ball_hit,
         "target_speed_m_s": target_speed,
         "aim_factor": state.aim_factor,
     }
@@ -107,7 +109,8 @@ def _shots_at(state: RunState, target_speed: float) -> int:
     for s in reversed(state.shots[:-1]):
         if s.outcome is None:
             continue
-        if float((s.requested or {}).get("target_speed_m_s", -1.0)) != target_speed:
+        asked = None if s.requested is None else s.requested.target_speed_m_s
+        if float(-1.0 if asked is None else asked) != target_speed:
             break
         count += 1
     return count
@@ -117,20 +120,20 @@ def points(shots: Sequence[ShotEntry]) -> list[CcorPoint]:
     """The valid hits as points (speed at the impact point, COR, u, ball, the ball's hit count)."""
     found = []
     for s in shots:
-        if not s.valid or s.metric is None:
+        m, r = s.outcome, s.requested
+        if not s.valid or m is None or m.metric is None or r is None:
             continue
-        m, r = s.measured, s.requested
         found.append(
             CcorPoint(
-                speed_m_s=float(m["inbound_at_impact_m_s"]),
-                target_speed_m_s=float(r["target_speed_m_s"]),
-                cor=float(m["metric"]),
-                u=float(m["u"]),
-                ball_id=str(r["ball"]),
-                ball_hit=int(r["ball_hit"]),
+                speed_m_s=float(_known(m.inbound_at_impact_m_s)),
+                target_speed_m_s=float(_known(r.target_speed_m_s)),
+                cor=float(m.metric),
+                u=float(_known(m.u)),
+                ball_id=str(r.ball),
+                ball_hit=int(_known(r.ball_hit)),
                 shot=s.index,
-                temp_c=r.get("temperature_c"),
-                rh_pct=r.get("humidity_pct"),
+                temp_c=r.temperature_c,
+                rh_pct=r.humidity_pct,
             )
         )
     return found
@@ -230,7 +233,7 @@ def lot_result(p: BallProcedure, lot_id: str, state: RunState, run_id: str = "")
     hits = points(state.shots)
     if not hits:
         raise ValueError("no valid hits: nothing to derive the lot's result from")
-    u_sys = max(float(s.measured.get("u_systematic", 0.0)) for s in state.shots if s.valid)
+    u_sys = max(float(s.outcome.u_systematic or 0.0) for s in state.shots if s.valid and s.outcome)
     by_ball: dict[str, list[CcorPoint]] = defaultdict(list)
     for h in hits:
         by_ball[h.ball_id].append(h)
@@ -288,8 +291,15 @@ def lot_result(p: BallProcedure, lot_id: str, state: RunState, run_id: str = "")
     )
 
 
-def verdict(p: BallProcedure, lot: dict[str, Any], state: RunState) -> dict[str, Any]:
-    """The RunFinished payload of a ball test: the lot's result, and whether it meets its specification.
+def _known(value: float | None) -> float:
+    """A valid hit's recorded figure (a valid ball-test hit has them all: a record without is damaged)."""
+    if value is None:
+        raise RigError("a valid ball-test hit without its speed, u or hit count: a damaged record")
+    return value
+
+
+def verdict(p: BallProcedure, lot: dict[str, Any], state: RunState) -> RunVerdict:
+    """The verdict of a ball test: the lot's result, and whether it meets its specification.
 
     PASS unless the lot states a nominal value with a tolerance that the measured value, with its U,
     cannot meet (|mean - nominal| > tolerance + U): a ball test measures, it certifies nothing.
@@ -300,13 +310,13 @@ def verdict(p: BallProcedure, lot: dict[str, Any], state: RunState) -> dict[str,
     nominal = spec.nominal_ccor if p.test == "ccor" else spec.nominal_cor
     tolerance = spec.cor_tolerance if p.test == "ball-cor" else None
     meets = the_lot.meets(result.quantity, result.mean, result.U)
-    return {
-        "verdict": Verdict.FAIL if meets is False else Verdict.PASS,
-        "metric": result.quantity,
-        "limit": None,
-        "lot": lot["id"],
-        "meets_specification": meets,
-        "nominal": nominal,
-        "tolerance": tolerance,
-        "lot_result": result.model_dump(mode="json", exclude={"run_id"}),
-    }
+    return RunVerdict(
+        verdict=Verdict.FAIL if meets is False else Verdict.PASS,
+        metric=result.quantity,
+        limit=None,
+        lot=lot["id"],
+        meets_specification=meets,
+        nominal=nominal,
+        tolerance=tolerance,
+        lot_result=result.model_dump(mode="json", exclude={"run_id"}),
+    )

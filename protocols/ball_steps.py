@@ -18,6 +18,7 @@ from typing import Any
 from rig.core import events as ev
 from rig.core.ball import BallLot
 from rig.core.errors import ConfigError
+from rig.core.outcomes import RunVerdict, ShotOutcome, Verdict
 from rig.core.version import software
 from rig.protocols import ball_eval, steps
 from rig.protocols.ball_procedure import BallProcedure, Slot
@@ -72,38 +73,38 @@ class BallContext(PlanContext):
         return self.ball_procedure.schedule(BallLot.model_validate(self.lot_spec()))
 
     # -- what the executor's backends ask of the context (rig.protocols.executor, rig.protocols.dryrun) --
-    def evaluate_shot(self, fired: Fired) -> dict[str, Any]:
+    def evaluate_shot(self, fired: Fired) -> ShotOutcome:
         """The shot's measurement."""
         return ball_eval.shot(fired.record, self.ball_procedure, self.state, fired.failure, self.config)
 
-    def decide_run(self) -> dict[str, Any]:
+    def decide_run(self) -> RunVerdict:
         """The lot's result."""
         return ball_eval.verdict(self.ball_procedure, self.lot_spec(), self.state)
 
-    def rehearsed_shot(self) -> dict[str, Any]:
+    def rehearsed_shot(self) -> ShotOutcome:
         """A dry run's nominal valid hit."""
-        requested = self.state.shots[-1].requested if self.state.shots else {}
-        return {
-            "metric_name": ball_eval.quantity(self.ball_procedure),
-            "metric": 0.5,
-            "u": 0.0,
-            "valid": True,
-            "reasons": [],
-            "ball": requested.get("ball"),
-            "ball_hit": requested.get("ball_hit"),
-            "aim_factor": self.state.aim_factor,
-            "dry_run": True,
-        }
+        requested = self.state.shots[-1].requested if self.state.shots else None
+        return ShotOutcome(
+            metric_name=ball_eval.quantity(self.ball_procedure),
+            metric=0.5,
+            u=0.0,
+            valid=True,
+            reasons=[],
+            ball=None if requested is None else requested.ball,
+            ball_hit=None if requested is None else requested.ball_hit,
+            aim_factor=self.state.aim_factor,
+            dry_run=True,
+        )
 
-    def rehearsed_verdict(self) -> dict[str, Any]:
+    def rehearsed_verdict(self) -> RunVerdict:
         """A dry run decides nothing."""
-        return {
-            "verdict": ev.Verdict.PASS,
-            "metric": ball_eval.quantity(self.ball_procedure),
-            "limit": None,
-            "dry_run": True,
-            "reason": "dry run: nothing was measured",
-        }
+        return RunVerdict(
+            verdict=Verdict.PASS,
+            metric=ball_eval.quantity(self.ball_procedure),
+            limit=None,
+            dry_run=True,
+            reason="dry run: nothing was measured",
+        )
 
 
 def preflight(ctx: BallContext) -> Plan[None]:
@@ -130,11 +131,9 @@ def start(ctx: BallContext) -> Plan[None]:
                 procedure=p.model_dump(mode="json"),
                 bat=p.target.spec() | {"id": p.target.id},
                 rig=ctx.config.model_dump(mode="json"),
-                extra={
-                    "software": software(),
-                    "test": p.test,
-                    "lot": ctx.lot_spec(),
-                },
+                software=software(),
+                test=p.test,
+                lot=ctx.lot_spec(),
             )
         )
     else:
@@ -144,13 +143,17 @@ def start(ctx: BallContext) -> Plan[None]:
 
 def slot_done(ctx: BallContext, slot: Slot) -> bool:
     """True once the slot has its valid hit."""
-    return any(s.valid and s.requested.get("slot") == slot.number for s in ctx.state.shots)
+    return any(
+        s.valid and s.requested is not None and s.requested.slot == slot.number for s in ctx.state.shots
+    )
 
 
 def ball_hits(ctx: BallContext, ball_id: str) -> int:
     """The impacts the record gives ball `ball_id` so far (shots of it that the gates saw)."""
     return sum(
-        1 for s in ctx.state.shots if s.requested.get("ball") == ball_id and s.raw and s.raw.get("crossings")
+        1
+        for s in ctx.state.shots
+        if s.requested is not None and s.requested.ball == ball_id and s.raw is not None and s.raw.crossings
     )
 
 
@@ -169,7 +172,7 @@ def load(ctx: BallContext, slot: Slot) -> Plan[None]:
     text = f"Load ball {slot.ball_id} (ball {slot.ball_number} of the test) into the cannon. Done?"
     if not (yield Ask(f"load-{slot.ball_id}", text)):
         raise RunAborted(f"ball {slot.ball_id} not loaded")
-    yield Record(ev.BallReplaced(ball_number=slot.ball_number, extra={"ball": slot.ball_id}))
+    yield Record(ev.BallReplaced(ball_number=slot.ball_number, ball=slot.ball_id))
 
 
 def shoot(ctx: BallContext, slot: Slot) -> Plan[None]:
@@ -196,31 +199,28 @@ def shoot(ctx: BallContext, slot: Slot) -> Plan[None]:
             index=index,
             purpose=PURPOSE,
             location_in=TARGET_FACE,
-            extra={
-                "target_speed_m_s": slot.speed_m_s,
-                "aim_speed_m_s": aim_speed,
-                "ball": slot.ball_id,
-                "ball_hit": ball_hits(ctx, slot.ball_id) + 1,
-                "slot": slot.number,
-                "planned_hit": slot.planned_hit,
-                "temperature_c": env.temperature_c,
-                "humidity_pct": env.humidity_pct,
-            },
+            target_speed_m_s=slot.speed_m_s,
+            aim_speed_m_s=aim_speed,
+            ball=slot.ball_id,
+            ball_hit=ball_hits(ctx, slot.ball_id) + 1,
+            slot=slot.number,
+            planned_hit=slot.planned_hit,
+            temperature_c=env.temperature_c,
+            humidity_pct=env.humidity_pct,
         )
     )
     fired = yield Fire(index, TARGET_FACE, aim_speed, slot.ball_id)
     if fired is None:
         return
-    result = yield Evaluate(fired)
-    kind = ev.SHOT_MEASURED if result["valid"] else ev.SHOT_REJECTED
-    yield Record(ev.event(kind, index=index, **result))
+    outcome: ShotOutcome = yield Evaluate(fired)
+    yield Record(ev.ShotEvaluated(index=index, outcome=outcome))
 
 
-def ball_test(ctx: PlanContext) -> Plan[dict[str, Any]]:
+def ball_test(ctx: PlanContext) -> Plan[RunVerdict | None]:
     """The ball test (ccor or ball-cor; their procedures differ only in data)."""
     assert isinstance(ctx, BallContext), "a ball test runs with a BallContext"
     if ctx.state.finished:
-        return dict(ctx.state.verdict or {})
+        return ctx.state.verdict
     yield from preflight(ctx)
     yield from start(ctx)
     yield from steps.check_budget(ctx)
@@ -233,6 +233,6 @@ def ball_test(ctx: PlanContext) -> Plan[dict[str, Any]]:
         while not slot_done(ctx, slot):
             yield from shoot(ctx, slot)
     yield Checkpoint()
-    verdict: dict[str, Any] = yield Decide()
-    yield Record(ev.event(ev.RUN_FINISHED, **verdict))
+    verdict: RunVerdict = yield Decide()
+    yield Record(ev.RunFinished(result=verdict))
     return verdict

@@ -22,6 +22,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from rig.core.run_state import ShotEntry
 from rig.measure.metrics import compute_metrics
 from rig.physics import CollisionParams, PivotedBat, predict_bat, rigid_cor
 from rig.protocols.ball_air import fit_air, pooled_wear
@@ -150,18 +151,22 @@ def adjust(terms: BallTerms, hits: list[HitBall], g: float) -> BallAdjustment:
     return BallAdjustment(g, corrections, u_wear, u_cond, u_spread, u_ratio, balls)
 
 
-def hit_balls(hits: list[Any], environment: dict[str, Any] | None, terms: BallTerms) -> list[HitBall]:
+def hit_balls(hits: list[ShotEntry], environment: dict[str, Any] | None, terms: BallTerms) -> list[HitBall]:
     """Each valid hit's ball, its hits before, and the air at its shot (else at the run's check)."""
     env = environment or {}
     out = []
     for h in hits:
-        raw, asked = h.raw or {}, (h.requested or {})
+        raw, asked = h.raw, h.requested
+        ball = None if raw is None else raw.ball
+        number = 1 if raw is None or raw.ball_number is None else raw.ball_number
+        temp = None if asked is None else asked.temperature_c
+        rh = None if asked is None else asked.humidity_pct
         out.append(
             HitBall(
-                ball=str(raw.get("ball") or f"ball-{raw.get('ball_number', 1):02d}"),
-                hits=int(raw.get("ball_hits", 0)),
-                temp_c=float(asked.get("temperature_c", env.get("temperature_c", terms.temp_c))),
-                rh_pct=float(asked.get("humidity_pct", env.get("humidity_pct", terms.rh_pct))),
+                ball=str(ball or f"ball-{number:02d}"),
+                hits=int(0 if raw is None or raw.ball_hits is None else raw.ball_hits),
+                temp_c=float(temp if temp is not None else env.get("temperature_c", terms.temp_c)),
+                rh_pct=float(rh if rh is not None else env.get("humidity_pct", terms.rh_pct)),
             )
         )
     return out

@@ -19,6 +19,7 @@ from rig.core.config import RigConfig
 from rig.core.devices import STAGE_RANGE_MM, Environment, GateConfig, GateCrossing, PendulumPeriod
 from rig.core.errors import ConfigError, DeviceError, RigError
 from rig.core.events import RunEvent
+from rig.core.outcomes import RunVerdict, ShotOutcome, Verdict
 from rig.protocols.control import RunAborted, ScriptedOperator
 from rig.protocols.executor import Executor
 from rig.protocols.plan import Fired, Plan, PlanContext
@@ -105,41 +106,41 @@ class CheckingRig:
     def recover(self, exc: DeviceError) -> None:
         """Nothing fails in a dry run."""
 
-    def evaluate(self, ctx: PlanContext, fired: Fired) -> dict[str, Any]:
+    def evaluate(self, ctx: PlanContext, fired: Fired) -> ShotOutcome:
         """A valid shot whose metric peaks at the middle of the planned scan."""
         own = getattr(ctx, "rehearsed_shot", None)
         if own is not None:  # a context of its own kind (a ball test) says what its nominal shot is
-            nominal: dict[str, Any] = own()
+            nominal: ShotOutcome = own()
             return nominal
         p = ctx.procedure
         planned = p.scan.locations_in()
         mid = (planned[0] + planned[-1]) / 2
         loc = ctx.state.shots[-1].location_in if ctx.state.shots else mid
         metric = p.limit * (0.9 - 0.01 * (loc - mid) ** 2)
-        return {
-            "metric_name": p.standard,
-            "metric": metric,
-            "u": 0.0,
-            "valid": True,
-            "reasons": [],
-            "aim_factor": ctx.state.aim_factor,
-            "dry_run": True,
-        }
+        return ShotOutcome(
+            metric_name=p.standard,
+            metric=metric,
+            u=0.0,
+            valid=True,
+            reasons=[],
+            aim_factor=ctx.state.aim_factor,
+            dry_run=True,
+        )
 
-    def decide(self, ctx: PlanContext) -> dict[str, Any]:
+    def decide(self, ctx: PlanContext) -> RunVerdict:
         """No verdict: a dry run decides nothing."""
         own = getattr(ctx, "rehearsed_verdict", None)
         if own is not None:
-            rehearsed: dict[str, Any] = own()
+            rehearsed: RunVerdict = own()
             return rehearsed
         p = ctx.procedure
-        return {
-            "verdict": ev.Verdict.PASS,
-            "metric": p.standard,
-            "limit": p.limit,
-            "dry_run": True,
-            "reason": "dry run: nothing was measured",
-        }
+        return RunVerdict(
+            verdict=Verdict.PASS,
+            metric=p.standard,
+            limit=p.limit,
+            dry_run=True,
+            reason="dry run: nothing was measured",
+        )
 
 
 @dataclass(frozen=True)
@@ -157,7 +158,7 @@ class Rehearsal:
         asked = [e for e in self.events if isinstance(e, ev.ShotRequested)]
         purposes = {p: [e.location_in for e in asked if e.purpose == p] for p in ("scan", "valid")}
         prompts = sum(1 for e in self.events if isinstance(e, ev.OperatorPrompted))
-        timed = sum(1 for e in self.events if isinstance(e, ev.MoiMeasured) and "periods_s" in e.extra)
+        timed = sum(1 for e in self.events if isinstance(e, ev.MoiMeasured) and e.result.timed)
         parts = [f"{len(asked)} shots at least"]
         if purposes["scan"]:
             scan = purposes["scan"]

@@ -13,6 +13,7 @@ from typing import Any
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.devices import Recoil
+from rig.core.outcomes import ShotOutcome
 from rig.measure.metrics import compute_metrics
 from rig.measure.model import ShotInputs, inbound_at_impact
 from rig.measure.registry import MetricTerms
@@ -39,13 +40,13 @@ def shot(
     state: RunState,
     failure: str,
     config: RigConfig | None = None,
-) -> dict[str, Any]:
-    """Speeds, metrics, uncertainty and validity of one fired shot (JSON-ready).
+) -> ShotOutcome:
+    """Speeds, metrics, uncertainty and validity of one fired shot.
 
     With `config` the gate speeds are corrected for air drag to the impact point (the rig's Cd,
     the lab air's density) before the metrics; without it they are used as measured.
     """
-    moi = float(state.moi["moi_kgm2"]) if state.moi else float(bat.moi_kgm2 or 0.0)
+    moi = float(state.moi.moi_kgm2) if state.moi else float(bat.moi_kgm2 or 0.0)
     q = record.impact_from_pivot_m
     reasons: list[Invalidity] = []
     out: dict[str, Any] = {"metric_name": p.standard, "metric": None, "u": None}

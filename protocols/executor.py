@@ -28,6 +28,7 @@ from rig.core.devices import (
 )
 from rig.core.errors import ConfigError, DeviceError, DeviceGone, SafetyRefusal
 from rig.core.events import RunEvent
+from rig.core.outcomes import RunVerdict, ShotOutcome
 from rig.core.run_phase import refuse, shot_refuse
 from rig.measure.realtime import InboundKnown, ReboundKnown, ShotTracker
 from rig.protocols import evaluate
@@ -74,8 +75,8 @@ class Backend(Protocol):
         ball: str | None = None,
     ) -> Fired: ...
     def recover(self, exc: DeviceError) -> None: ...
-    def evaluate(self, ctx: PlanContext, fired: Fired) -> dict[str, Any]: ...
-    def decide(self, ctx: PlanContext) -> dict[str, Any]: ...
+    def evaluate(self, ctx: PlanContext, fired: Fired) -> ShotOutcome: ...
+    def decide(self, ctx: PlanContext) -> RunVerdict: ...
     def problem(self, text: str) -> None: ...
 
 
@@ -141,19 +142,19 @@ class LiveRig:
         except DeviceError as again:
             raise RunAborted(f"device failure: {exc}; then {again}") from exc
 
-    def evaluate(self, ctx: PlanContext, fired: Fired) -> dict[str, Any]:
+    def evaluate(self, ctx: PlanContext, fired: Fired) -> ShotOutcome:
         """The shot's measurement (rig.protocols.evaluate; a context of its own kind measures its own)."""
         own = getattr(ctx, "evaluate_shot", None)
         if own is not None:
-            measured: dict[str, Any] = own(fired)
+            measured: ShotOutcome = own(fired)
             return measured
         return evaluate.shot(fired.record, ctx.procedure, ctx.bat, ctx.state, fired.failure, ctx.config)
 
-    def decide(self, ctx: PlanContext) -> dict[str, Any]:
+    def decide(self, ctx: PlanContext) -> RunVerdict:
         """The verdict (rig.protocols.evaluate; a context of its own kind decides its own)."""
         own = getattr(ctx, "decide_run", None)
         if own is not None:
-            decided: dict[str, Any] = own()
+            decided: RunVerdict = own()
             return decided
         return evaluate.verdict(ctx.procedure, ctx.bat, ctx.state, ctx.config)
 
@@ -371,10 +372,10 @@ class Executor:
         return fired
 
     def _record_fired(self, index: int, fired: Fired | None, ball: str | None) -> None:
-        raw = fired.record.as_dict() if fired is not None else {"crossings": []}
+        raw = fired.record.raw_dict() if fired is not None else {"crossings": []}
         st = self.state
-        named = {"ball": ball, "ball_hits": st.ball_hits} if ball is not None else {}
-        self.emit(ev.event(ev.SHOT_FIRED, index=index, ball_number=st.ball_number, **named, **raw))
+        hits = st.ball_hits if ball is not None else None
+        self.emit(ev.ShotFired(index=index, ball_number=st.ball_number, ball=ball, ball_hits=hits, **raw))
         self.emit(ev.Traffic(index=index, chunks=self.drain_traffic()))
 
     def _live(self, index: int) -> Callable[[GateCrossing], None]:

@@ -14,6 +14,7 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 from rig.core import events as ev
+from rig.core.outcomes import ShotOutcome
 from rig.core.version import software
 from rig.protocols.control import RunAborted
 from rig.protocols.plan import (
@@ -49,19 +50,21 @@ class OneShot:
         return asdict(self)
 
 
-def evaluation(record: ShotRecord, failure: str = "") -> dict[str, Any]:
-    """The shot's speeds and e_A (rebound / inbound); invalid, with the reason, if not measured."""
+def evaluation(record: ShotRecord, failure: str = "") -> ShotOutcome:
+    """The shot's speeds (each gate pair's too) and e_A (rebound / inbound); invalid, with the reason,
+    if not measured."""
     v_in, v_out = record.inbound_speed_m_s, record.rebound_speed_m_s
-    return {
-        "metric_name": "e_a",
-        "metric": v_out / v_in if v_in and v_out is not None else None,
-        "valid": not failure,
-        "reasons": [failure] if failure else [],
-        "target_speed_m_s": record.target_speed_m_s,
-        "inbound_speed_m_s": v_in,
-        "rebound_speed_m_s": v_out,
-        "impact_from_pivot_m": record.impact_from_pivot_m,
-    }
+    return ShotOutcome(
+        metric_name="e_a",
+        metric=v_out / v_in if v_in and v_out is not None else None,
+        valid=not failure,
+        reasons=[failure] if failure else [],
+        target_speed_m_s=record.target_speed_m_s,
+        inbound_speed_m_s=v_in,
+        rebound_speed_m_s=v_out,
+        pair_speeds_m_s=dict(record.pair_speeds_m_s) or None,
+        impact_from_pivot_m=record.impact_from_pivot_m,
+    )
 
 
 @dataclass
@@ -81,13 +84,13 @@ class OneShotContext(PlanContext):
         return self.asked.impact_from_pivot_m
 
     # -- what the executor's backends ask of the context (rig.protocols.executor, rig.protocols.dryrun) --
-    def evaluate_shot(self, fired: Fired) -> dict[str, Any]:
+    def evaluate_shot(self, fired: Fired) -> ShotOutcome:
         """The shot's evaluation."""
         return evaluation(fired.record, fired.failure)
 
-    def rehearsed_shot(self) -> dict[str, Any]:
+    def rehearsed_shot(self) -> ShotOutcome:
         """A dry run's nominal shot."""
-        return {"metric_name": "e_a", "metric": 0.5, "valid": True, "reasons": [], "dry_run": True}
+        return ShotOutcome(metric_name="e_a", metric=0.5, valid=True, reasons=[], dry_run=True)
 
 
 ONE_SHOT_DONE = "one-shot run: the shot was fired and evaluated (no verdict)"
@@ -103,7 +106,8 @@ def one_shot(ctx: PlanContext) -> Plan[dict[str, Any]]:
             procedure={"name": "one shot (rig shot)", **asked.as_dict()},
             bat={"id": ITEM_ID, **ITEM_SPEC},
             rig=ctx.config.model_dump(mode="json"),
-            extra={"software": software(), "one_shot": True},
+            software=software(),
+            one_shot=True,
         )
     )
     yield ClearFault()
@@ -114,20 +118,16 @@ def one_shot(ctx: PlanContext) -> Plan[dict[str, Any]]:
             index=INDEX,
             purpose=PURPOSE,
             location_in=SHOT_POINT,
-            extra={
-                "target_speed_m_s": asked.speed_m_s,
-                "aim_speed_m_s": asked.speed_m_s,
-                "impact_from_pivot_m": ctx.q(SHOT_POINT),
-            },
+            target_speed_m_s=asked.speed_m_s,
+            aim_speed_m_s=asked.speed_m_s,
+            impact_from_pivot_m=ctx.q(SHOT_POINT),
         )
     )
     fired = yield Fire(INDEX, SHOT_POINT, asked.speed_m_s)
     if fired is None:
         raise RunAborted(ctx.state.shots[-1].lost_reason or "the shot was lost")
-    result: dict[str, Any] = yield Evaluate(fired)
-    outcome = ev.ShotMeasured if result["valid"] else ev.ShotRejected
-    rest = {k: v for k, v in result.items() if k not in ("metric", "valid")}
-    yield Record(outcome(index=INDEX, metric=result["metric"], valid=result["valid"], extra=rest))
+    outcome: ShotOutcome = yield Evaluate(fired)
+    yield Record(ev.ShotEvaluated(index=INDEX, outcome=outcome))
     # a one-shot run has no verdict: it ends as the run table lets a run end without one
     yield Record(ev.RunEnded(who=ctx.who, why=ONE_SHOT_DONE, shots_so_far=1))
-    return {"record": fired.record.as_dict(), "evaluation": result}
+    return {"record": fired.record.as_dict(), "evaluation": outcome}

@@ -4,17 +4,20 @@ from __future__ import annotations
 
 from typing import Any
 
+from rig.core.outcomes import ShotOutcome
 from rig.measure.validity import Invalidity, is_valid
 
 
-def no_data(out: dict[str, Any], exc: Exception, **after: Any) -> dict[str, Any]:
+def no_data(out: dict[str, Any], exc: Exception, **after: Any) -> ShotOutcome:
     """The outcome of a shot whose beam breaks gave no speeds: invalid, naming why."""
-    return {
-        **out,
-        "valid": False,
-        "reasons": [{"code": "NO_DATA", "message": str(exc), "invalidates": True}],
-        **after,
-    }
+    return ShotOutcome(
+        **{
+            **out,
+            "valid": False,
+            "reasons": [{"code": "NO_DATA", "message": str(exc), "invalidates": True}],
+            **after,
+        }
+    )
 
 
 AIM_GAIN_MIN = 0.2  # the aim keeps following a drifting cannon, averaging about 9 shots' scatter
@@ -33,8 +36,9 @@ def learned_aim(aim_factor: float, target_speed: float, at_impact: float, taught
     return (1.0 - gain) * aim_factor + gain * (at_impact / aimed)
 
 
-def concluded(out: dict[str, Any], reasons: list[Invalidity], failure: str) -> dict[str, Any]:
-    """`out` with its validity reasons (and the device's failure, if any) and whether it is valid."""
+def concluded(out: dict[str, Any], reasons: list[Invalidity], failure: str) -> ShotOutcome:
+    """The outcome: `out`, the fields evaluated so far, with its validity reasons (and the device's
+    failure, if any) and whether it is valid. A field ShotOutcome does not have is a TypeError here."""
     out["reasons"] = [
         {
             "code": r.code.value,
@@ -48,4 +52,4 @@ def concluded(out: dict[str, Any], reasons: list[Invalidity], failure: str) -> d
     if failure:
         out["reasons"].append({"code": "SHOT_FAILED", "message": failure, "invalidates": True})
     out["valid"] = is_valid(reasons) and not failure and out["metric"] is not None
-    return out
+    return ShotOutcome(**out)

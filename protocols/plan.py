@@ -21,6 +21,7 @@ from typing import Any, TypeVar
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.events import RunEvent
+from rig.core.outcomes import RunVerdict
 from rig.core.run_state import RunState
 from rig.protocols.procedure import Procedure
 from rig.protocols.shot import ShotRecord
@@ -117,14 +118,14 @@ class Fired:
 
 @dataclass(frozen=True)
 class Evaluate(Msg):
-    """Speeds, metric, uncertainty and validity of a fired shot. -> dict (the outcome payload)"""
+    """Speeds, metric, uncertainty and validity of a fired shot. -> ShotOutcome"""
 
     fired: Fired
 
 
 @dataclass(frozen=True)
 class Decide(Msg):
-    """The verdict from the valid hits at the chosen location. -> dict (the RunFinished payload)"""
+    """The verdict from the valid hits at the chosen location. -> RunVerdict"""
 
 
 @dataclass
@@ -164,5 +165,5 @@ class PlanContext:
         return self.bat.impact_from_pivot_m(location_in)
 
 
-PlanFactory = Callable[[PlanContext], "Plan[dict[str, Any]]"]
+PlanFactory = Callable[[PlanContext], "Plan[RunVerdict | None]"]
 """A procedure: builds the plan for a context; its result is the RunFinished payload."""

@@ -35,8 +35,8 @@ def uncertainty_model(
     """The input distributions: the MOI's derived u (its MoiMeasured record), the rig's gates and air."""
     kw: dict[str, Any] = {"coverage_k": p.decision.coverage_k}
     moi = state.moi if state is not None else None
-    if moi and moi.get("u_kgm2") and moi.get("moi_kgm2"):
-        kw["moi_relative"] = Spread(width=float(moi["u_kgm2"]) / float(moi["moi_kgm2"]))
+    if moi is not None and moi.u_kgm2 and moi.moi_kgm2:
+        kw["moi_relative"] = Spread(width=float(moi.u_kgm2) / float(moi.moi_kgm2))
     if config is not None:
         a = config.air
         kw["gate_position"] = Spread(width=config.gates.position_uncertainty_m, shape="rectangular")

@@ -10,10 +10,9 @@ application layer (rig.certification.prepare) before anything is recorded or ope
 
 from __future__ import annotations
 
-from typing import Any
-
 from rig.core import events as ev
 from rig.core.errors import ConfigError
+from rig.core.outcomes import RunVerdict
 from rig.core.run_phase import RunPhase, refuse
 from rig.protocols.control import BudgetExceeded, Operator, RunAborted, RunControl, ScriptedOperator
 from rig.protocols.dryrun import dry_run
@@ -33,13 +32,13 @@ __all__ = [
 ]
 
 
-def run_to_verdict(executor: Executor, plan: PlanFactory) -> dict[str, Any]:
-    """Run (or resume) `plan` to the verdict; returns the RunFinished payload. A finished run
-    answers its recorded verdict; a run ended without one is refused (ConfigError)."""
+def run_to_verdict(executor: Executor, plan: PlanFactory) -> RunVerdict | None:
+    """Run (or resume) `plan` to the verdict and return it. A finished run answers its recorded
+    verdict; a run ended without one is refused (ConfigError)."""
     state = executor.state
     phase = state.phase
     if phase is RunPhase.FINISHED:
-        return dict(state.verdict or {})
+        return state.verdict
     if refuse(ev.RUN_STARTED, phase) and refuse(ev.RUN_RESUMED, phase):  # ended: nothing may follow
         raise ConfigError("the run was ended without a verdict; start a new one", source="resume")
     return executor.run(plan)

@@ -40,8 +40,22 @@ class ShotRecord:
     extra_crossings: tuple[GateCrossing, ...] = ()
     notes: tuple[str, ...] = ()
 
+    def raw_dict(self) -> dict[str, Any]:
+        """The raw part, JSON-ready, as ShotFired records it: nothing derived from the gate events."""
+        return {
+            "shot_number": self.shot_number,
+            "target_speed_m_s": self.target_speed_m_s,
+            "pressure_kpa": self.pressure_kpa,
+            "impact_from_pivot_m": self.impact_from_pivot_m,
+            "gate_positions_m": list(self.gate_positions_m),
+            "gate_config": asdict(self.gate_config),
+            "crossings": [asdict(c) for c in self.crossings],
+            "recoil_rad_s": self.recoil_rad_s,
+            "notes": list(self.notes),
+        }
+
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready view, raw timestamps included."""
+        """JSON-ready view, raw timestamps included, with the speeds derived from them."""
         out = asdict(self)
         out["gate_config"] = asdict(self.gate_config)
         out["crossings"] = [asdict(c) for c in self.crossings]

@@ -11,8 +11,9 @@ from typing import Any
 
 from rig.core import events as ev
 from rig.core.bat import PIVOT_FROM_KNOB_IN, BatSpec
-from rig.core.devices import STAGE_RANGE_MM
+from rig.core.devices import STAGE_RANGE_MM, Environment
 from rig.core.errors import ConfigError
+from rig.core.outcomes import MoiResult, RunVerdict, ShotOutcome, Verdict
 from rig.core.units import INCH
 from rig.core.version import software
 from rig.measure.moi import entered_budget, pendulum_moi
@@ -87,12 +88,10 @@ def start(ctx: PlanContext) -> Plan[None]:
                 procedure=ctx.procedure.model_dump(mode="json"),
                 bat=ctx.bat.model_dump(mode="json"),
                 rig=ctx.config.model_dump(mode="json"),
-                extra={
-                    "software": software(),
-                    **({"calibration": calibration} if calibration else {}),
-                    "ball": BallTerms.model_validate(ctx.options.get("ball") or {}).model_dump(mode="json"),
-                    **({"plan": ctx.plan_name} if ctx.plan_name else {}),
-                },
+                software=software(),
+                calibration=calibration or None,
+                ball=BallTerms.model_validate(ctx.options.get("ball") or {}).model_dump(mode="json"),
+                plan=ctx.plan_name or None,
             )
         )
     else:
@@ -190,7 +189,8 @@ def measure_moi(ctx: PlanContext) -> Plan[None]:
         if bat.moi_u_kgm2 is None:
             yield Problem("an entered MOI needs its standard uncertainty: add moi_u_kgm2 to the bat file")
             return
-        yield Record(ev.MoiMeasured(**_moi_fields(entered_budget(bat.moi_kgm2, bat.moi_u_kgm2).as_dict())))
+        entered: dict[str, Any] = entered_budget(bat.moi_kgm2, bat.moi_u_kgm2).as_dict()
+        yield Record(ev.MoiMeasured(result=MoiResult(**entered)))
         return
     if bat.balance_point_in is None:
         yield Problem("the pendulum MOI needs balance_point_in in the bat file")
@@ -199,25 +199,19 @@ def measure_moi(ctx: PlanContext) -> Plan[None]:
     for _ in range(p.moi.repeats):
         timings.append((yield TimePendulum(p.moi.cycles)))
     reading, found = pendulum_moi(timings, bat.mass_kg, bat.balance_point_in * INCH, ctx.config.pendulum)
+    timed: dict[str, Any] = found.as_dict()
     yield Record(
         ev.MoiMeasured(
-            **_moi_fields(
-                {
-                    **found.as_dict(),
-                    "period_s": sum(reading.periods_s) / len(reading.periods_s),
-                    "periods_s": list(reading.periods_s),
-                    **({"periods_host_u_s": list(reading.host_u_s)} if reading.host_u_s else {}),
-                    "amplitude_deg": reading.amplitude_deg,
-                    "cycles": reading.cycles,
-                }
+            result=MoiResult(
+                **timed,
+                period_s=sum(reading.periods_s) / len(reading.periods_s),
+                periods_s=list(reading.periods_s),
+                periods_host_u_s=list(reading.host_u_s) if reading.host_u_s else None,
+                amplitude_deg=reading.amplitude_deg,
+                cycles=reading.cycles,
             )
         )
     )
-
-
-def _moi_fields(payload: dict[str, Any]) -> dict[str, Any]:
-    rest = {k: v for k, v in payload.items() if k not in ("moi_kgm2", "u_kgm2")}
-    return {"moi_kgm2": payload["moi_kgm2"], "u_kgm2": payload.get("u_kgm2"), "extra": rest}
 
 
 def scan_means(ctx: PlanContext) -> dict[float, float]:
@@ -271,7 +265,7 @@ def choose_location(ctx: PlanContext) -> Plan[None]:
     means = scan_means(ctx)
     best = max(means, key=lambda k: means[k])
     bracketed = any(x < best for x in means) and any(x > best for x in means)
-    extra: dict[str, Any] = {"bracketed": bracketed}
+    accepted_by = None
     if not bracketed:
         text = (
             f"The highest mean {p.standard} ({means[best]:.4f}) is at {best:g} in from the "
@@ -283,13 +277,14 @@ def choose_location(ctx: PlanContext) -> Plan[None]:
                 f"the location of maximum performance is not bracketed (highest mean at {best:g} in, "
                 "the scan's edge): widen the procedure's scan or scan.extend_in"
             )
-        extra["accepted_by"] = ctx.who
+        accepted_by = ctx.who
     yield Record(
         ev.LocationChosen(
             from_barrel_end_in=best,
             mean_metric=means[best],
             scan={str(k): v for k, v in means.items()},
-            extra=extra,
+            bracketed=bracketed,
+            accepted_by=accepted_by,
         )
     )
 
@@ -302,10 +297,10 @@ def valid_hits(ctx: PlanContext) -> Plan[None]:
         yield from shoot(ctx, best, "valid")
 
 
-def decide(ctx: PlanContext) -> Plan[dict[str, Any]]:
-    """Decide the verdict from the valid hits and record it; returns the RunFinished payload."""
-    verdict: dict[str, Any] = yield Decide()
-    yield Record(ev.event(ev.RUN_FINISHED, **verdict))
+def decide(ctx: PlanContext) -> Plan[RunVerdict]:
+    """Decide the verdict from the valid hits and record it; returns it."""
+    verdict: RunVerdict = yield Decide()
+    yield Record(ev.RunFinished(result=verdict))
     return verdict
 
 
@@ -351,7 +346,7 @@ def ring_check(ctx: PlanContext, prompt_id: str, text: str, index: int) -> Plan[
         reason = f"ring check failed at shot {index}: barrel deformed"
         yield Record(
             ev.RunFinished(
-                verdict=ev.Verdict.FAIL, metric=p.standard, limit=p.limit, extra={"reason": reason}
+                result=RunVerdict(verdict=Verdict.FAIL, metric=p.standard, limit=p.limit, reason=reason)
             )
         )
         raise RunAborted(reason)
@@ -385,26 +380,27 @@ def shoot(ctx: PlanContext, loc_in: float, purpose: str) -> Plan[None]:
     ):
         raise RunAborted(f"the operator declined to fire shot {index}")
     yield Checkpoint()
-    air: dict[str, float] = {}
+    air: Environment | None = None
     lot = ctx.recorded_ball()
     if lot.get("lot"):  # a named lot: the air at each shot, for its terms and its conditioning window
-        env = yield ReadEnvironment()
-        air = {"temperature_c": env.temperature_c, "humidity_pct": env.humidity_pct}
-        outside_window(p, lot, env.temperature_c, env.humidity_pct)
+        air = yield ReadEnvironment()
+        outside_window(p, lot, air.temperature_c, air.humidity_pct)
     yield Record(
         ev.ShotRequested(
             index=index,
             purpose=purpose,
             location_in=loc_in,
-            extra={"target_speed_m_s": p.target_speed_m_s, "aim_speed_m_s": aim_speed, **air},
+            target_speed_m_s=p.target_speed_m_s,
+            aim_speed_m_s=aim_speed,
+            temperature_c=None if air is None else air.temperature_c,
+            humidity_pct=None if air is None else air.humidity_pct,
         )
     )
     fired = yield Fire(index, loc_in, aim_speed, ctx.ball_id())
     if fired is None:
         return  # lost: recorded by the executor, never fired again
-    result = yield Evaluate(fired)
-    kind = ev.SHOT_MEASURED if result["valid"] else ev.SHOT_REJECTED
-    yield Record(ev.event(kind, index=index, **result))
+    outcome: ShotOutcome = yield Evaluate(fired)
+    yield Record(ev.ShotEvaluated(index=index, outcome=outcome))
     shot = st.shots[-1]
     if shot.valid and ctx.review_shots:
         metric = f"{p.standard} {shot.metric:.4f}"
@@ -418,10 +414,10 @@ def shoot(ctx: PlanContext, loc_in: float, purpose: str) -> Plan[None]:
 
 
 # -- the standard procedure --------------------------------------------------------------------
-def certification(ctx: PlanContext) -> Plan[dict[str, Any]]:
+def certification(ctx: PlanContext) -> Plan[RunVerdict | None]:
     """The certification procedure of NCAA BESR, BBCOR and BBS (their Procedure data differ)."""
     if ctx.state.finished:
-        return dict(ctx.state.verdict or {})
+        return ctx.state.verdict
     yield from preflight(ctx)
     yield from start(ctx)
     yield from check_budget(ctx)

@@ -21,7 +21,7 @@ from typing import Any
 from rig.core.bat import Barrel, BatSpec
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RigError
-from rig.core.events import Verdict
+from rig.core.outcomes import RunVerdict, ShotOutcome, Verdict
 from rig.measure.metrics import compute_metrics, recorded_terms
 from rig.measure.model import OUTPUTS, ShotInputs, outputs
 from rig.measure.tradeoff import tradeoff_table
@@ -32,7 +32,7 @@ from rig.population.crosscheck import crosscheck_at
 from rig.protocols.ball_terms import BallAdjustment, BallTerms, adjust, hit_balls, law_params, ratio
 from rig.protocols.procedure import Procedure
 from rig.protocols.run_inputs import air_density, uncertainty_model
-from rig.protocols.state import RunState
+from rig.protocols.state import RunState, ShotEntry
 
 UNCALIBRATED = (
     "uncalibrated: the model's absolute value is not validated (the paper validates only normalized"
@@ -40,34 +40,29 @@ UNCALIBRATED = (
 )
 
 
-def _shot_inputs(recorded: dict[str, Any]) -> ShotInputs:
-    """A hit's ShotInputs from its record (JSON gives lists where the dataclass has tuples)."""
-    fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in recorded.items()}
-    return ShotInputs(**fields)
-
-
-def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> dict[str, Any]:
+def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> RunVerdict:
     """Mean of the valid hits at the chosen location, its uncertainty, the decision, the cross-check."""
     loc = state.best_location_in
     hits = state.valid_shots("valid", loc)
-    values = [float(h.metric) for h in hits if h.metric is not None]
-    if not values:
+    measured = [h.outcome for h in hits if h.outcome is not None and h.outcome.metric is not None]
+    if not measured:
         raise RigError("no valid hits to decide on")
+    values = [float(m.metric) for m in measured if m.metric is not None]
     n = len(values)
     mean = sum(values) / n
-    inputs = [_shot_inputs(h.measured["inputs"]) for h in hits]
+    inputs = [ShotInputs.recorded(m.inputs) for m in measured]
     model = uncertainty_model(p, config, state)
     per_bat = budget(inputs, model)
     per_hit = budget(inputs[0], model)
     name = p.metric.budget_output  # BBS's is e_A's, scaled below
     q = bat.impact_from_pivot_m(loc) if loc is not None else config.impact_from_pivot_m
-    moi = float(state.moi["moi_kgm2"]) if state.moi else float(bat.moi_kgm2 or 0.0)
+    moi = float(state.moi.moi_kgm2) if state.moi else float(bat.moi_kgm2 or 0.0)
     ball = ball_part(p, bat, state, hits, q, moi)
-    observed = [float(h.measured["metrics"][name]) for h in hits]
+    observed = [float(recorded_metrics(m)[name]) for m in measured]
     if ball is not None and name == p.standard:  # the scatter of what is averaged: corrected hits
         observed = [v + c for v, c in zip(observed, ball.corrections, strict=True)]
     u = u_with_scatter(per_bat, observed, name) if n >= 2 else per_bat.u_of(name)
-    u *= p.metric.scale(recorded_terms(hits[0].measured["metrics"]))  # 1 unless it is not the metric's
+    u *= p.metric.scale(recorded_terms(recorded_metrics(measured[0])))  # 1 unless it is not the metric's
     u_measured = u
     if ball is not None:
         values = [v + c for v, c in zip(values, ball.corrections, strict=True)]
@@ -85,34 +80,51 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> d
         "pass" if passed else ("fail: within the guard band" if mean <= p.limit else "fail: above the limit")
     )
     law = ((state.setup or {}).get("ball") or {}).get("law")  # the run's ball law, if it named one
-    v_in_mean = (
-        sum(h.measured.get("inbound_at_impact_m_s", h.measured["inbound_speed_m_s"]) for h in hits) / n
-    )
-    return {
-        "verdict": Verdict.PASS if passed else Verdict.FAIL,
-        "zone": zone,
-        "metric": p.standard,
-        "definition": p.metric.definition,
-        "mean": mean,
-        "u": u,
-        "U": big_u,
-        "coverage_k": k,
-        "limit": p.limit,
-        "decision_rule": rule,
-        "n_hits": n,
-        "hits": values,
-        "location_in": loc,
-        "impact_from_pivot_m": q,
-        "moi_kgm2": moi,
-        "edition": p.edition,
-        "budget": per_bat.as_dict(),
-        **({"ball": {**ball.as_dict(), "u_measurement": u_measured}} if ball is not None else {}),
-        "drag": drag_summary(config, state, inputs, name, per_bat.value(name)),
-        "cross_check": cross_check(p, bat, v_in_mean, q, moi, mean, u, state.calibration, law),
-        "tradeoff": [
+    v_in_mean = sum(_inbound(m) for m in measured) / n
+    return RunVerdict(
+        verdict=Verdict.PASS if passed else Verdict.FAIL,
+        zone=zone,
+        metric=p.standard,
+        definition=p.metric.definition,
+        mean=mean,
+        u=u,
+        U=big_u,
+        coverage_k=k,
+        limit=p.limit,
+        decision_rule=rule,
+        n_hits=n,
+        hits=values,
+        location_in=loc,
+        impact_from_pivot_m=q,
+        moi_kgm2=moi,
+        edition=p.edition,
+        budget=per_bat.as_dict(),
+        ball={**ball.as_dict(), "u_measurement": u_measured} if ball is not None else None,
+        drag=drag_summary(config, state, inputs, name, per_bat.value(name)),
+        cross_check=cross_check(p, bat, v_in_mean, q, moi, mean, u, state.calibration, law),
+        tradeoff=[
             r.as_dict() for r in tradeoff_table(per_hit, name, max_hits=12, cycle_s=config.cannon_cycle_s)
         ],
-    }
+    )
+
+
+def recorded_metrics(outcome: ShotOutcome) -> dict[str, float]:
+    """A valid hit's metrics (a valid certification hit has them: a record without is damaged)."""
+    if outcome.metrics is None:
+        raise RigError("a valid hit without its metrics: a damaged record")
+    return outcome.metrics
+
+
+def _inbound(outcome: ShotOutcome) -> float:
+    """A hit's inbound speed at the impact point (as measured at the gates in runs before drag)."""
+    v = (
+        outcome.inbound_at_impact_m_s
+        if outcome.inbound_at_impact_m_s is not None
+        else outcome.inbound_speed_m_s
+    )
+    if v is None:
+        raise RigError("a valid hit without its inbound speed: a damaged record")
+    return float(v)
 
 
 def drag_summary(
@@ -212,7 +224,7 @@ def _uncalibrated(
 
 
 def ball_part(
-    p: Procedure, bat: BatSpec, state: RunState, hits: list[Any], q: float, moi: float
+    p: Procedure, bat: BatSpec, state: RunState, hits: list[ShotEntry], q: float, moi: float
 ) -> BallAdjustment | None:
     """The ball's corrections and budget terms, for a run that recorded its ball terms (else None)."""
     recorded = (state.setup or {}).get("ball")

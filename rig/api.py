@@ -19,6 +19,7 @@ from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RigError
 from rig.core.events import Verdict  # the one verdict enum (a str, so == "PASS" holds)
+from rig.core.outcomes import RunVerdict
 from rig.core.run_phase import RunPhase  # the run table's phases (a str, so == "finished" holds)
 from rig.protocols.control import Operator, RunControl, ScriptedOperator
 from rig.protocols.plan import PlanFactory
@@ -210,24 +211,23 @@ def certify(
 
 
 def _result(store: Store, outcome: Any) -> Result:
-    verdict = dict(outcome.verdict or {})
+    v: RunVerdict | None = outcome.verdict
     shots = len(store.entries(outcome.run_id, kinds=[ev.ShotRequested.kind]))
-    word = verdict.get("verdict")
-    cross = verdict.get("cross_check")
+    cross = None if v is None else v.cross_check
     return Result(
         run_id=outcome.run_id,
         status=outcome.status,
-        verdict=None if word is None else Verdict(word),
-        mean=verdict.get("mean"),
-        expanded_uncertainty=verdict.get("U"),
-        k=verdict.get("coverage_k"),
-        limit=verdict.get("limit"),
-        location_in=verdict.get("location_in"),
+        verdict=None if v is None else v.verdict,
+        mean=None if v is None else v.mean,
+        expanded_uncertainty=None if v is None else v.U,
+        k=None if v is None else v.coverage_k,
+        limit=None if v is None else v.limit,
+        location_in=None if v is None else v.location_in,
         cross_check=None if cross is None else MappingProxyType(dict(cross)),
         shots=shots,
         reason=outcome.reason,
         budget_exceeded=outcome.budget_exceeded,
-        details=MappingProxyType(verdict),
+        details=MappingProxyType({} if v is None else v.to_payload()),
     )
 
 

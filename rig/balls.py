@@ -122,7 +122,7 @@ def recomputed_problems(store: Store) -> list[str]:
             continue
         events = ev.parse_log(store.entries(run.run_id))
         state = fold(events)
-        recorded = (state.verdict or {}).get("lot_result")
+        recorded = None if state.verdict is None else state.verdict.lot_result
         if recorded is None:
             continue
         try:

@@ -23,6 +23,7 @@ from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RecordRefused, RigError, StoreError
 from rig.core.events import RunEvent, Subscriber
+from rig.core.outcomes import RunVerdict
 from rig.core.run_phase import RunPhase
 from rig.core.version import __version__
 from rig.instruments import Identified, identify
@@ -49,10 +50,11 @@ class Outcome:
 
     run_id: str
     status: RunPhase  # finished | interrupted | ended: the run table's words (rig.core.run_phase)
-    verdict: dict[str, Any] | None
+    verdict: RunVerdict | None
     reason: str = ""
     budget_exceeded: bool = False  # resume only with a recorded rig check (Signoff), or end the run
     signing: str = ""  # what the operator should know of the run's signature (rig.keys.Signing)
+    result: Any = None  # what a plan that ends without a verdict returned (a one-shot run's shot)
 
 
 def history(store: Store, run_id: str) -> list[RunEvent]:
@@ -426,7 +428,7 @@ def _drive(
                 session = RigSession.open(config)
             except (RigError, OSError) as exc:  # an unplugged or busy port: nothing moved, resumable
                 reason = f"the devices could not be opened: {_reason(exc)}"
-                emit(ev.RunInterrupted(reason=reason, extra={"budget_exceeded": False}))
+                emit(ev.RunInterrupted(reason=reason, budget_exceeded=False))
                 return Outcome(run_id, RunPhase.INTERRUPTED, None, reason)
         with session:
             if identified is None:
@@ -436,7 +438,7 @@ def _drive(
                     found = Identified(ev.InstrumentsIdentified(devices={}, equipment=[]), (_reason(exc),))
                 if found.refusals:
                     reason = "; ".join(found.refusals)
-                    emit(ev.RunInterrupted(reason=reason, extra={"budget_exceeded": False}))
+                    emit(ev.RunInterrupted(reason=reason, budget_exceeded=False))
                     return Outcome(run_id, RunPhase.INTERRUPTED, None, reason)
                 identified = found.event
             past = history(store, run_id) if resuming else []  # read under the lock
@@ -455,17 +457,17 @@ def _drive(
                     raise  # SystemExit and the like: not an interruption of the run
                 ended = driven.state.verdict
                 if driven.state.phase is RunPhase.FINISHED and ended is not None:  # a failed ring check
-                    _seal(store, run_id, "finished", ended.get("verdict"), signer)
+                    _seal(store, run_id, "finished", ended.verdict, signer)
                     return Outcome(run_id, RunPhase.FINISHED, ended, str(exc))
                 reason, budget = _reason(exc), isinstance(exc, BudgetExceeded)
-                detail: dict[str, Any] = {"reason": reason, "budget_exceeded": budget}
+                where = None
                 if not isinstance(exc, RigError | KeyboardInterrupt):  # a bug: say where, for the developers
-                    detail["where"] = _where(exc)
+                    where = _where(exc)
                     log.debug("%s %s interrupted by an unexpected error", what, run_id, exc_info=exc)
                 try:
                     with contextlib.suppress(Exception):
                         driven.flush_traffic()
-                    emit(ev.event(ev.RUN_INTERRUPTED, **detail))
+                    emit(ev.RunInterrupted(reason=reason, budget_exceeded=budget, where=where))
                 except KeyboardInterrupt:  # forced while recording: the record stays whole, resumable
                     pass
                 except StoreError as failed:  # the store that failed the run refuses its interruption too
@@ -478,8 +480,10 @@ def _drive(
                 return Outcome(run_id, RunPhase.INTERRUPTED, None, reason, budget)
             if driven.state.phase is RunPhase.ENDED:  # a plan that ends without a verdict (rig.one_shot)
                 _seal(store, run_id, "aborted", None, signer)  # under the lock
-                return Outcome(run_id, RunPhase.ENDED, verdict)
-            _seal(store, run_id, "finished", str(verdict["verdict"]), signer)  # sealed under the lock
+                return Outcome(run_id, RunPhase.ENDED, None, result=verdict)
+            if not isinstance(verdict, RunVerdict):
+                raise TypeError(f"the plan finished run {run_id} and returned no verdict: {verdict!r}")
+            _seal(store, run_id, "finished", verdict.verdict, signer)  # sealed under the lock
     return Outcome(run_id, RunPhase.FINISHED, verdict)
 
 

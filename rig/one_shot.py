@@ -18,6 +18,7 @@ from rig.core.config import RigConfig
 from rig.core.devices import CannonState
 from rig.core.errors import ConfigError, DeviceError, RigError
 from rig.core.events import RunEvent, Subscriber
+from rig.core.outcomes import ShotOutcome
 from rig.core.run_phase import RunPhase
 from rig.protocols.control import ScriptedOperator
 from rig.protocols.dryrun import Rehearsal, rehearse
@@ -39,17 +40,18 @@ class ShotNotMeasured(RigError):
 
 @dataclass(frozen=True)
 class ShotRun:
-    """A one-shot run that fired: its id, the raw record (as ShotFired holds it) and the evaluation."""
+    """A one-shot run that fired: its id, the shot's record (the raw part as ShotFired holds it, and
+    the speeds derived from it) and the evaluation (as ShotEvaluated holds it)."""
 
     run_id: str
     record: dict[str, Any]
-    evaluation: dict[str, Any]
+    evaluation: ShotOutcome
     signing: str = ""
 
     @property
     def measured(self) -> bool:
         """Whether the shot's speeds were measured (else `evaluation` says why not)."""
-        return bool(self.evaluation.get("valid"))
+        return self.evaluation.valid
 
 
 def _in_fault(cannon: Any) -> bool:
@@ -125,10 +127,10 @@ def fire_one_shot(
     # never a real rig's key for a simulation (record_run: sign_simulated False)
     outcome = record_run(store, config, new, list(subscribers), start, what="one-shot run")
     run_id = outcome.run_id
-    if outcome.status is not RunPhase.ENDED or outcome.verdict is None:  # ended by its plan, evaluated
+    if outcome.status is not RunPhase.ENDED or outcome.result is None:  # ended by its plan, evaluated
         reason = " ".join(outcome.reason.split()) or "the shot was not completed"
         why = "".join(c if c.isprintable() else "?" for c in reason)[:500]  # as a Signoff takes it
         end_run(store, run_id, Signoff(WHO, why))
         raise ShotNotMeasured(reason)
-    done = outcome.verdict
+    done = outcome.result
     return ShotRun(run_id, done["record"], done["evaluation"], outcome.signing)

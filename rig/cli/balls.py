@@ -112,11 +112,10 @@ def cmd_test(args: argparse.Namespace) -> int:
             f"rig: run {outcome.run_id} interrupted: {outcome.reason}; resume with: {resume}", file=sys.stderr
         )
         return 3
-    result = outcome.verdict["lot_result"] if outcome.verdict else {}
+    result = (outcome.verdict.lot_result if outcome.verdict else None) or {}
     if args.json:
-        json.dump(
-            {"run_id": outcome.run_id, **(outcome.verdict or {})}, sys.stdout, indent=2, allow_nan=False
-        )
+        verdict = outcome.verdict.to_payload() if outcome.verdict else {}
+        json.dump({"run_id": outcome.run_id, **verdict}, sys.stdout, indent=2, allow_nan=False)
         sys.stdout.write("\n")
     else:
         print(_result_line(lot.id, outcome.run_id, result))

@@ -182,7 +182,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
             live.summary(outcome)
     if outcome.status != "finished":
         return _interrupted(outcome, args, resume)
-    return 0 if outcome.verdict and outcome.verdict.get("verdict") == Verdict.PASS else 1
+    return 0 if outcome.verdict and outcome.verdict.verdict == Verdict.PASS else 1
 
 
 def _ball_terms(store: Any, args: argparse.Namespace, procedure: Any) -> dict[str, Any] | None:

@@ -37,7 +37,7 @@ def cmd_shot(args: argparse.Namespace) -> int:
         done = fire_one_shot(store, rehearsed, said=lambda text: print(f"rig: {text}", file=sys.stderr))
     payload = {"run_id": done.run_id, **done.record}
     if not done.measured:
-        reason = "; ".join(done.evaluation.get("reasons") or ["the speeds were not measured"])
+        reason = "; ".join(str(r) for r in done.evaluation.reasons) or "the speeds were not measured"
         if args.json:
             json.dump({"error": reason, **payload}, sys.stderr, allow_nan=False)
             sys.stderr.write("\n")

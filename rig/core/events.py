@@ -1,16 +1,20 @@
 """Session events: past-tense facts that flow upwards to the store, the UI and reports.
 
-Every event is a frozen dataclass with its `kind` as a class constant. Persisted kinds are
-written to the record store (in order, each committed before the run goes on); the others are
-for live display only and can be recomputed from persisted ones.
+Every event is a frozen dataclass with its `kind` as a class constant (an evaluated shot's kind
+says its validity: ShotMeasured or ShotRejected). Persisted kinds are written to the record store
+(in order, each committed before the run goes on); the others are for live display only and can be
+recomputed from persisted ones.
 
-The log's JSON payload of an event is its typed fields plus `extra`, the payload keys the class
-does not type (open-ended documents such as a verdict's budget, or keys only some runs write).
-`to_payload` and `from_payload` are the only translation between the two, so a payload read
-from the log and written back is the same JSON: LOG_FORMAT 1 is the format these payloads have
-had from the start. Dataclasses, not pydantic models: an event is built on every gate crossing
-(the 1 ms path from the last gate to the metric) and the payloads' contents are validated where
-they are made (procedure, bat and rig models, the measurement code).
+The log's JSON payload of an event is its typed fields; an event that carries a typed record
+(ShotEvaluated's ShotOutcome, MoiMeasured's MoiResult, RunFinished's RunVerdict: rig.core.outcomes)
+writes the record's fields flat beside its own, as these payloads have been written from the start
+(LOG_FORMAT 1). `to_payload` and `from_payload` are the only translation, so a payload read from the
+log and written back is the same JSON. `extra` holds the payload keys an event does not type: only
+records written by older code have them (the gate speeds an old ShotFired also held); the producers
+of this code write none (tests/store/test_events.py checks every event of a run). Dataclasses, not
+pydantic models: an event is built on every gate crossing (the 1 ms path from the last gate to the
+metric) and the payloads' contents are validated where they are made (procedure, bat and rig
+models, the measurement code).
 
 Why one module of ~400 lines: the event vocabulary is kept in one place on purpose (issue 11):
 every kind, its fields and its one translation to and from the log, so no kind is spelled twice.
@@ -19,33 +23,29 @@ every kind, its fields and its one translation to and from the log, so no kind i
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field, fields
-from enum import StrEnum
+from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
 from typing import Any, ClassVar
 
-from rig.core.errors import RigError
+from rig.core.outcomes import EventFormatError, MoiResult, PayloadRecord, RunVerdict, ShotOutcome, Verdict
 
 LOG_FORMAT = 1  # version of the payloads below in the record store's log
 
-
-class Verdict(StrEnum):
-    """A certification's verdict; str-valued, so payloads hold "PASS" and "FAIL" as before."""
-
-    PASS = "PASS"
-    FAIL = "FAIL"
-
-
-class EventFormatError(RigError, ValueError):
-    """A log payload that is not the event its kind says (a damaged record: one line, no traceback)."""
+__all__ = ["EventFormatError", "MoiResult", "RunVerdict", "ShotOutcome", "Verdict"]
 
 
 @dataclass(frozen=True)
 class RunEvent:
-    """One fact about a run: the base of every event class."""
+    """One fact about a run: the base of every event class.
+
+    RECORD names the field holding a typed record written flat into the payload (None: none);
+    WRITTEN the optional fields written even when None (the producers always wrote them).
+    """
 
     kind: ClassVar[str] = ""
     persisted: ClassVar[bool] = True
+    RECORD: ClassVar[str | None] = None
+    WRITTEN: ClassVar[frozenset[str]] = frozenset()
     extra: Mapping[str, Any] = field(default_factory=dict, kw_only=True)
 
     @cached_property
@@ -70,6 +70,13 @@ class RunStarted(RunEvent):
     procedure: dict[str, Any]
     bat: dict[str, Any]
     rig: dict[str, Any]
+    software: dict[str, Any] | None = None  # rig.core.version.software()
+    calibration: dict[str, Any] | None = None  # the model calibration, whole (protocols.verdict)
+    ball: dict[str, Any] | None = None  # the ball terms of a run with a ball lot
+    lot: dict[str, Any] | None = None  # a ball test's lot
+    test: str | None = None  # a ball test's kind
+    one_shot: bool | None = None  # a one-shot run (rig shot)
+    plan: str | None = None  # a lab's own plan (module.function); None for the standard one
 
 
 @dataclass(frozen=True)
@@ -99,11 +106,11 @@ class EnvironmentChecked(RunEvent):
 
 @dataclass(frozen=True)
 class MoiMeasured(RunEvent):
-    """The bat's MOI and its standard uncertainty (extra: contributions, pendulum timings)."""
+    """The bat's MOI with its uncertainty, entered or timed (rig.core.outcomes.MoiResult)."""
 
     kind: ClassVar[str] = "MoiMeasured"
-    moi_kgm2: float
-    u_kgm2: float | None = None
+    RECORD: ClassVar[str | None] = "result"
+    result: MoiResult
 
 
 @dataclass(frozen=True)
@@ -134,37 +141,61 @@ class ShotRequested(RunEvent):
 
     kind: ClassVar[str] = "ShotRequested"
     index: int
-    purpose: str  # "scan" or "valid"
+    purpose: str  # "scan", "valid", or a ball test's "ball"; a one-shot run's "shot"
     location_in: float
+    target_speed_m_s: float | None = None
+    aim_speed_m_s: float | None = None  # what the cannon was asked, after the learned aim
+    impact_from_pivot_m: float | None = None
+    temperature_c: float | None = None  # the lab's air at the shot, where the run read it
+    humidity_pct: float | None = None
+    ball: str | None = None  # a ball test's ball, its slot and planned hit
+    ball_hit: int | None = None
+    planned_hit: int | None = None
+    slot: int | None = None
 
 
 @dataclass(frozen=True)
 class ShotFired(RunEvent):
-    """Raw gate ticks, recoil, device data: committed before derivation (extra: the raw record)."""
+    """The raw record of a fired shot, committed before anything is derived from it: the gate
+    events, the gates' configuration and positions, the recoil, the device data and the ball. The
+    speeds derived from it are the evaluation's (ShotEvaluated); older records held them here too
+    (in `extra`). A shot nothing came back from has no crossings."""
 
     kind: ClassVar[str] = "ShotFired"
+    WRITTEN: ClassVar[frozenset[str]] = frozenset({"recoil_rad_s"})
     index: int
     crossings: list[Any] | None = None
+    ball_number: int | None = None
+    ball: str | None = None
+    ball_hits: int | None = None  # the ball's hits before this shot
+    shot_number: int | None = None
+    target_speed_m_s: float | None = None
+    pressure_kpa: float | None = None
+    impact_from_pivot_m: float | None = None
+    gate_positions_m: list[float] | None = None
+    gate_config: dict[str, Any] | None = None
+    recoil_rad_s: float | None = None
+    notes: list[str] | None = None
 
 
 @dataclass(frozen=True)
-class ShotMeasured(RunEvent):
-    """A valid shot's measurement (extra: speeds, metric, u, budget, reasons)."""
+class ShotEvaluated(RunEvent):
+    """A fired shot's evaluation (rig.core.outcomes.ShotOutcome): its kind says its validity,
+    ShotMeasured for a valid shot and ShotRejected for an invalid one, as the log has named them."""
 
     kind: ClassVar[str] = "ShotMeasured"
+    KINDS: ClassVar[tuple[str, str]] = ("ShotMeasured", "ShotRejected")
+    RECORD: ClassVar[str | None] = "outcome"
     index: int
-    metric: float | None = None
-    valid: bool | None = None
+    outcome: ShotOutcome
 
+    def __post_init__(self) -> None:
+        self.__dict__["kind"] = self.KINDS[0] if self.outcome.valid else self.KINDS[1]
 
-@dataclass(frozen=True)
-class ShotRejected(RunEvent):
-    """An invalid shot's measurement and the reasons (extra as ShotMeasured)."""
-
-    kind: ClassVar[str] = "ShotRejected"
-    index: int
-    metric: float | None = None
-    valid: bool | None = None
+    @property
+    def valid(self) -> bool:
+        """Whether the shot is valid."""
+        return self.outcome.valid
 
 
 @dataclass(frozen=True)
@@ -188,6 +219,7 @@ class ShotOverruled(RunEvent):
 class BallReplaced(RunEvent):
     kind: ClassVar[str] = "BallReplaced"
     ball_number: int
+    ball: str | None = None  # a ball test's ball id
 
 
 @dataclass(frozen=True)
@@ -196,25 +228,25 @@ class LocationChosen(RunEvent):
     from_barrel_end_in: float
     mean_metric: float | None = None
     scan: dict[str, float] | None = None
+    bracketed: bool | None = None  # whether the scan bracketed the maximum
+    accepted_by: str | None = None  # who accepted a location the scan did not bracket
 
 
 @dataclass(frozen=True)
 class RunFinished(RunEvent):
-    """The verdict (extra: mean, U, hits, budget, cross-check, or a failed ring check's reason)."""
+    """The verdict and what decided it (rig.core.outcomes.RunVerdict)."""
 
     kind: ClassVar[str] = "RunFinished"
-    verdict: Verdict
-    metric: str | None = None
-    limit: float | None = None
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "verdict", Verdict(self.verdict))
+    RECORD: ClassVar[str | None] = "result"
+    result: RunVerdict
 
 
 @dataclass(frozen=True)
 class RunInterrupted(RunEvent):
     kind: ClassVar[str] = "RunInterrupted"
     reason: str | None = None
+    budget_exceeded: bool | None = None  # stopped by the re-shoot budget
+    where: str | None = None  # the step a plan error stopped in
 
 
 @dataclass(frozen=True)
@@ -316,8 +348,7 @@ EVENT_TYPES: tuple[type[RunEvent], ...] = (
     LocationSet,
     ShotRequested,
     ShotFired,
-    ShotMeasured,
-    ShotRejected,
+    ShotEvaluated,
     ShotLost,
     ShotOverruled,
     BallReplaced,
@@ -336,13 +367,20 @@ EVENT_TYPES: tuple[type[RunEvent], ...] = (
     RunPaused,
     RunContinued,
 )
-BY_KIND: dict[str, type[RunEvent]] = {t.kind: t for t in EVENT_TYPES}
+BY_KIND: dict[str, type[RunEvent]] = {t.kind: t for t in EVENT_TYPES} | dict.fromkeys(
+    ShotEvaluated.KINDS, ShotEvaluated
+)
 _FIELDS: dict[type[RunEvent], tuple[str, ...]] = {
-    t: tuple(f.name for f in fields(t) if f.name != "extra") for t in EVENT_TYPES
+    t: tuple(f.name for f in fields(t) if f.name not in ("extra", t.RECORD)) for t in EVENT_TYPES
 }
 # typed fields a payload may lack (old runs, or a producer with nothing to say): None when absent
 _OPTIONAL: dict[type[RunEvent], frozenset[str]] = {
     t: frozenset(f.name for f in fields(t) if f.name != "extra" and f.default is None) for t in EVENT_TYPES
+}
+RECORDS: dict[type[RunEvent], type[PayloadRecord]] = {
+    ShotEvaluated: ShotOutcome,
+    MoiMeasured: MoiResult,
+    RunFinished: RunVerdict,
 }
 
 # The kinds by name (the store and its queries speak kinds)
@@ -356,8 +394,7 @@ OPERATOR_ANSWERED = OperatorAnswered.kind
 LOCATION_SET = LocationSet.kind
 SHOT_REQUESTED = ShotRequested.kind
 SHOT_FIRED = ShotFired.kind
-SHOT_MEASURED = ShotMeasured.kind
-SHOT_REJECTED = ShotRejected.kind
+SHOT_MEASURED, SHOT_REJECTED = ShotEvaluated.KINDS
 SHOT_LOST = ShotLost.kind
 SHOT_OVERRULED = ShotOverruled.kind
 BALL_REPLACED = BallReplaced.kind
@@ -376,22 +413,28 @@ RIG_NAMED = RigNamed.kind
 RUN_PAUSED = RunPaused.kind
 RUN_CONTINUED = RunContinued.kind
 
-PERSISTED = frozenset(t.kind for t in EVENT_TYPES if t.persisted)
+PERSISTED = frozenset(k for k, t in BY_KIND.items() if t.persisted)
 SHOT_KINDS = (SHOT_REQUESTED, SHOT_FIRED, SHOT_MEASURED, SHOT_REJECTED, SHOT_LOST, SHOT_OVERRULED)
 STOP_KINDS = (RUN_INTERRUPTED, RUN_RESUMED, RIG_CHECKED, RUN_ENDED)  # breaks in a run's course
 
 
 def to_payload(event: RunEvent) -> dict[str, Any]:
-    """The event's log payload: its typed fields (optional ones only when set), then the untyped rest.
+    """The event's log payload: its typed fields (optional ones only when set), its record's
+    fields flat, then the untyped rest.
 
     An event read from the log keeps the payload as read (`data`); this builds it for one made in code.
     """
-    optional = _OPTIONAL[type(event)]
+    cls = type(event)
+    optional = _OPTIONAL[cls]
+    read: frozenset[str] | None = event.__dict__.get("_read")  # the keys of a payload as read
+    written = cls.WRITTEN if read is None else read
     payload = {
         name: value
-        for name in _FIELDS[type(event)]
-        if (value := getattr(event, name)) is not None or name not in optional
+        for name in _FIELDS[cls]
+        if (value := getattr(event, name)) is not None or name not in optional or name in written
     }
+    if cls.RECORD is not None:
+        payload.update(getattr(event, cls.RECORD).to_payload())
     payload.update(event.extra)
     return payload
 
@@ -405,18 +448,29 @@ def from_payload(kind: str, payload: Mapping[str, Any]) -> RunEvent:
     missing = [n for n in names if n not in payload and n not in _OPTIONAL[cls]]
     if missing:
         raise EventFormatError(f"{kind} payload lacks {', '.join(missing)}")
-    extra = {k: v for k, v in payload.items() if k not in names}
+    rest = {k: v for k, v in payload.items() if k not in names}
+    own: dict[str, Any] = {n: payload[n] for n in names if n in payload}
     try:
-        typed = cls(**{n: payload[n] for n in names if n in payload}, extra=extra)
+        if cls.RECORD is None:
+            typed = cls(**own, extra=rest)
+        else:
+            record: Any = RECORDS[cls].from_payload(
+                _validity(kind, rest) if cls is ShotEvaluated else rest, kind
+            )
+            typed = cls(**own, **{cls.RECORD: replace(record, read=tuple(rest))})
     except ValueError as exc:
         raise EventFormatError(f"{kind} payload: {exc}") from None
     typed.__dict__["data"] = payload if isinstance(payload, dict) else dict(payload)  # as read, key order too
+    typed.__dict__["_read"] = frozenset(payload)
     return typed
 
 
-def event(kind: str, **data: Any) -> RunEvent:
-    """Compatibility path for producers that still speak a kind and keywords."""
-    return from_payload(kind, data)
+def _validity(kind: str, rest: dict[str, Any]) -> dict[str, Any]:
+    """An evaluated shot's record with its validity: the kind's, which a payload's own must match."""
+    valid = kind == SHOT_MEASURED
+    if rest.get("valid", valid) is not valid:
+        raise EventFormatError(f"{kind} payload says valid {rest['valid']!r}")
+    return {**rest, "valid": valid} if "valid" not in rest else rest
 
 
 def parse_log(entries: Iterable[Any]) -> list[RunEvent]:

@@ -13,27 +13,43 @@ from typing import Any
 
 from rig.core import events as ev
 from rig.core.events import RunEvent
+from rig.core.outcomes import MoiResult, RunVerdict, ShotOutcome
 from rig.core.run_phase import UNRESOLVED, RunPhase, ShotStatus, fold_step
 
 
 @dataclass
 class ShotEntry:
-    """What the record says about one requested shot."""
+    """What the record says about one requested shot: the one shot type the fold, the report, the
+    console and the views read. The request, the raw record (ShotFired) and the evaluation
+    (ShotOutcome) are kept apart, as the log has them."""
 
     index: int
     purpose: str  # "scan" or "valid"
     location_in: float
-    fired: bool = False
-    valid: bool | None = None  # None until measured or rejected
-    metric: float | None = None
-    lost: bool = False
-    measured: dict[str, Any] = field(default_factory=dict)
-    requested: dict[str, Any] = field(default_factory=dict)  # the ShotRequested payload
+    requested: ev.ShotRequested | None = None
     requested_utc: str | None = None
-    raw: dict[str, Any] | None = None  # the ShotFired payload
-    outcome: dict[str, Any] | None = None  # the ShotMeasured or ShotRejected payload
-    overruled: list[dict[str, Any]] = field(default_factory=list)  # ShotOverruled payloads
+    raw: ev.ShotFired | None = None  # the raw record, before anything was derived
+    outcome: ShotOutcome | None = None  # the evaluation: speeds, metrics, u, validity
+    overruled: list[ev.ShotOverruled] = field(default_factory=list)  # the operator's rejections
+    lost: bool = False
     lost_reason: str | None = None
+
+    @property
+    def fired(self) -> bool:
+        """Whether its raw record was recorded."""
+        return self.raw is not None
+
+    @property
+    def valid(self) -> bool | None:
+        """Valid, invalid (rejected, overruled or lost), or None until evaluated."""
+        if self.overruled or self.lost:
+            return False
+        return None if self.outcome is None else self.outcome.valid
+
+    @property
+    def metric(self) -> float | None:
+        """The evaluated metric (None before evaluation, or if it could not be computed)."""
+        return None if self.outcome is None else self.outcome.metric
 
     @property
     def status(self) -> ShotStatus:
@@ -63,10 +79,9 @@ class RunState:
     started: bool = False
     setup: dict[str, Any] | None = None  # the RunStarted payload: procedure, bat, rig, software
     calibration: dict[str, Any] | None = None  # the model calibration RunStarted recorded
-    finished: bool = False
-    verdict: dict[str, Any] | None = None
-    moi: dict[str, Any] | None = None
-    environment: dict[str, Any] | None = None  # the latest lab environment check
+    verdict: RunVerdict | None = None
+    moi: MoiResult | None = None
+    environment: dict[str, Any] | None = None  # the latest lab environment check (its payload)
     environment_checks: list[Noted] = field(default_factory=list)
     instruments: list[Noted] = field(default_factory=list)  # each session's identification
     operator: list[Noted] = field(default_factory=list)  # prompts and answers, in order
@@ -76,14 +91,23 @@ class RunState:
     by_index: dict[int, ShotEntry] = field(default_factory=dict)
     ball_number: int = 1
     ball_hits: int = 0
-    location: dict[str, Any] | None = None  # the LocationChosen payload
-    best_location_in: float | None = None
+    location: ev.LocationChosen | None = None
     location_in: float | None = None
     aim_factor: float = 1.0
     aim_shots: int = 0  # shots that taught aim_factor since the run (or its last resume) started
     extra_locations: list[float] = field(default_factory=list)  # scan extensions, in order
     invalid_at_last_check: int = 0  # invalid shots already counted when the rig was last checked
-    ended: dict[str, Any] | None = None  # ended on the operator's word, no verdict
+    ended: ev.RunEnded | None = None  # ended on the operator's word, no verdict
+
+    @property
+    def finished(self) -> bool:
+        """Whether a verdict is recorded (the run table's finished phase)."""
+        return self.phase is RunPhase.FINISHED
+
+    @property
+    def best_location_in(self) -> float | None:
+        """The location chosen for the valid hits (None before the scan chose one)."""
+        return None if self.location is None else self.location.from_barrel_end_in
 
     @property
     def pending(self) -> ShotEntry | None:
@@ -102,7 +126,7 @@ class RunState:
     @property
     def invalid_count(self) -> int:
         """Shots rejected or lost."""
-        return sum(1 for s in self.shots if s.valid is False or s.lost)
+        return sum(1 for s in self.shots if s.valid is False)
 
     @property
     def invalid_since_check(self) -> int:
@@ -122,64 +146,57 @@ class RunState:
     def apply(self, e: RunEvent, t_utc: str | None = None, seq: int | None = None) -> None:
         """Take one event (live-only ones change nothing)."""
         self.phase = fold_step(self.phase, e.kind)
-        d, kind = e.data, e.kind
-        noted = Noted(kind, d, t_utc, seq)
-        if kind == ev.RUN_STARTED:
-            self.started, self.setup = True, d
-            self.calibration = d.get("calibration")
-        elif kind == ev.RUN_RESUMED:
-            # a new session may have a repaired cannon or a corrected rig config: aim from the
-            # calibration again rather than from what the last session learned
-            self.aim_factor, self.aim_shots = 1.0, 0
-        elif kind == ev.INSTRUMENTS_IDENTIFIED:
-            self.instruments.append(noted)
-        elif kind == ev.MOI_MEASURED:
-            self.moi = d
-        elif kind == ev.ENVIRONMENT_CHECKED:
-            self.environment = d
-            self.environment_checks.append(noted)
-        elif kind in (ev.OPERATOR_PROMPTED, ev.OPERATOR_ANSWERED):
-            self.operator.append(noted)
-        elif kind == ev.LOCATION_SET:
-            self.location_in = d["from_barrel_end_in"]
-        elif kind == ev.SHOT_REQUESTED:
-            entry = ShotEntry(d["index"], d["purpose"], d["location_in"], requested=d, requested_utc=t_utc)
-            self.shots.append(entry)
-            self.by_index[entry.index] = entry
-        elif kind == ev.SHOT_FIRED:
-            shot = self._shot(d["index"])
-            shot.fired, shot.raw = True, d
-            if d.get("crossings"):
-                self.ball_hits += 1
-        elif kind in (ev.SHOT_MEASURED, ev.SHOT_REJECTED):
-            shot = self._shot(d["index"])
-            shot.valid, shot.metric, shot.outcome = kind == ev.SHOT_MEASURED, d.get("metric"), d
-            if shot.valid:
-                shot.measured = d
-            self.aim_factor = d.get("aim_factor", self.aim_factor)
-            self.aim_shots = d.get("aim_shots", self.aim_shots)
-        elif kind == ev.SHOT_OVERRULED:
-            shot = self._shot(d["index"])
-            shot.valid = False
-            shot.overruled.append(d)
-        elif kind == ev.SHOT_LOST:
-            shot = self._shot(d["index"])
-            shot.lost, shot.lost_reason = True, d.get("reason", "")
-        elif kind == ev.BALL_REPLACED:
-            self.ball_number, self.ball_hits = d["ball_number"], 0
-        elif kind == ev.LOCATION_CHOSEN:
-            self.location, self.best_location_in = d, d["from_barrel_end_in"]
-        elif kind == ev.SCAN_EXTENDED:
-            self.extra_locations.append(d["from_barrel_end_in"])
-            self.scan_extensions.append(noted)
-        elif kind == ev.RUN_FINISHED:
-            self.finished, self.verdict = True, d
-        if kind in ev.STOP_KINDS:
-            self.stops.append(noted)
-            if kind == ev.RIG_CHECKED:
+        noted = Noted(e.kind, e.data, t_utc, seq)
+        match e:
+            case ev.RunStarted():
+                self.started, self.setup, self.calibration = True, e.data, e.calibration
+            case ev.RunResumed():
+                # a new session may have a repaired cannon or a corrected rig config: aim from the
+                # calibration again rather than from what the last session learned
+                self.aim_factor, self.aim_shots = 1.0, 0
+            case ev.InstrumentsIdentified():
+                self.instruments.append(noted)
+            case ev.MoiMeasured():
+                self.moi = e.result
+            case ev.EnvironmentChecked():
+                self.environment = e.data
+                self.environment_checks.append(noted)
+            case ev.OperatorPrompted() | ev.OperatorAnswered():
+                self.operator.append(noted)
+            case ev.LocationSet():
+                self.location_in = e.from_barrel_end_in
+            case ev.ShotRequested():
+                entry = ShotEntry(e.index, e.purpose, e.location_in, requested=e, requested_utc=t_utc)
+                self.shots.append(entry)
+                self.by_index[entry.index] = entry
+            case ev.ShotFired():
+                self._shot(e.index).raw = e
+                if e.crossings:
+                    self.ball_hits += 1
+            case ev.ShotEvaluated():
+                self._shot(e.index).outcome = o = e.outcome
+                self.aim_factor = self.aim_factor if o.aim_factor is None else o.aim_factor
+                self.aim_shots = self.aim_shots if o.aim_shots is None else o.aim_shots
+            case ev.ShotOverruled():
+                self._shot(e.index).overruled.append(e)
+            case ev.ShotLost():
+                shot = self._shot(e.index)
+                shot.lost, shot.lost_reason = True, e.reason or ""
+            case ev.BallReplaced():
+                self.ball_number, self.ball_hits = e.ball_number, 0
+            case ev.LocationChosen():
+                self.location = e
+            case ev.ScanExtended():
+                self.extra_locations.append(e.from_barrel_end_in)
+                self.scan_extensions.append(noted)
+            case ev.RunFinished():
+                self.verdict = e.result
+            case ev.RigChecked():
                 self.invalid_at_last_check = self.invalid_count
-            elif kind == ev.RUN_ENDED:
-                self.ended = d
+            case ev.RunEnded():
+                self.ended = e
+        if e.kind in ev.STOP_KINDS:
+            self.stops.append(noted)
 
 
 def fold(events: Iterable[RunEvent]) -> RunState:

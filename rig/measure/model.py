@@ -13,9 +13,9 @@ plain spacing / time above when Cd or rho is 0. rig.measure.uncertainty propagat
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
@@ -102,6 +102,14 @@ class ShotInputs:
         drag = (self.cd_in, self.cd_out, self.air_density)
         if not (all(math.isfinite(v) and v >= 0.0 for v in drag) and 0.0 < self.ball_diameter_m < 1.0):
             raise ShotDataError(f"Cd, air density must be finite and >= 0, not {drag}")
+
+    @classmethod
+    def recorded(cls, inputs: Mapping[str, Any] | None) -> ShotInputs:
+        """A hit's inputs from its record (ShotOutcome.inputs: JSON has lists where these are tuples)."""
+        if inputs is None:
+            raise ShotDataError("a valid hit without its recorded inputs: a damaged record")
+        fields: dict[str, Any] = {k: tuple(v) if isinstance(v, list) else v for k, v in inputs.items()}
+        return cls(**fields)
 
     @classmethod
     def ideal(

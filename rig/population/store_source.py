@@ -17,36 +17,33 @@ from collections import defaultdict
 from typing import Any
 
 from rig.core import events as ev
+from rig.core.run_state import fold
 from rig.modal.link import latest_modal_result
 from rig.population.dataset import METRICS, PopulationBat
 from rig.store import Store
 
 
 def _run_metrics(store: Store, run_id: str) -> tuple[dict[str, list[float]], float | None]:
-    entries = store.entries(run_id, kinds=[ev.SHOT_REQUESTED, ev.SHOT_MEASURED, ev.RUN_FINISHED])
-    finished = [e.payload for e in entries if e.kind == ev.RUN_FINISHED]
+    kinds = [ev.SHOT_REQUESTED, ev.SHOT_MEASURED, ev.SHOT_REJECTED, ev.SHOT_OVERRULED, ev.RUN_FINISHED]
+    state = fold(ev.parse_log(store.entries(run_id, kinds=kinds)))
     out: dict[str, list[float]] = defaultdict(list)
-    if not finished:
+    v = state.verdict
+    if v is None:
         return out, None
-    location = finished[-1].get("location_in")
-    requested = {e.payload.get("index"): e.payload for e in entries if e.kind == ev.SHOT_REQUESTED}
-    for e in entries:
-        if e.kind != ev.SHOT_MEASURED or not e.payload.get("valid"):
+    location = v.location_in
+    for shot in state.shots:
+        o = shot.outcome
+        if not shot.valid or o is None or shot.purpose != "valid" or shot.location_in != location:
             continue
-        req = requested.get(e.payload.get("index"), {})
-        if req.get("purpose") != "valid" or req.get("location_in") != location:
-            continue
-        metrics: dict[str, Any] = e.payload.get("metrics") or {}
+        metrics: dict[str, Any] = o.metrics or {}
         for name in METRICS:
             if isinstance(metrics.get(name), int | float):
                 out[name].append(float(metrics[name]))
     if out and isinstance(location, int | float):
         out["location_in"].append(float(location))  # once per run: the bat's mean chosen location
-    metric, u = finished[-1].get("metric"), finished[-1].get("u")
-    if metric in METRICS and out.get(metric) and isinstance(u, int | float):
-        out[f"u_{metric}"].append(float(u))  # once per run: the certified result's standard uncertainty
-    moi = finished[-1].get("moi_kgm2")
-    return out, float(moi) if isinstance(moi, int | float) else None
+    if v.metric in METRICS and out.get(v.metric) and isinstance(v.u, int | float):
+        out[f"u_{v.metric}"].append(float(v.u))  # once per run: the certified result's standard uncertainty
+    return out, float(v.moi_kgm2) if isinstance(v.moi_kgm2, int | float) else None
 
 
 def bats_from_store(store: Store) -> tuple[list[PopulationBat], list[str]]:

@@ -75,11 +75,11 @@ def _fill(record: dict[str, Any], st: RunState, locks: list[LogEntry]) -> None:
         if st.setup.get("plan"):  # a lab's own plan (rig.plans) ran the procedure, not the standard one
             record["plan"] = st.setup["plan"]
     record["environment"] = [{**n.data, "t_utc": n.t_utc} for n in st.environment_checks]
-    record["moi"] = st.moi
+    record["moi"] = None if st.moi is None else st.moi.to_payload()
     if st.instruments:  # runs recorded before instruments were identified have none
         record["instruments"] = [{**n.data, "t_utc": n.t_utc} for n in st.instruments]
     record["operator"] = [{"kind": n.kind, **n.data, "t_utc": n.t_utc} for n in st.operator]
-    record["location"] = st.location
+    record["location"] = None if st.location is None else st.location.data
     stops = [(n.seq or 0, {"kind": n.kind, **n.data, "t_utc": n.t_utc}) for n in st.stops]
     for e in locks:  # a killed runner's lock, broken by the next one
         holder = e.payload.get("holder") or {}
@@ -91,8 +91,8 @@ def _fill(record: dict[str, Any], st: RunState, locks: list[LogEntry]) -> None:
     record["ended"] = {**ended[-1].data, "t_utc": ended[-1].t_utc} if ended else None
     record["scan_extensions"] = [{**n.data, "t_utc": n.t_utc} for n in st.scan_extensions]
     if st.verdict is not None:
-        record["verdict"] = {k: v for k, v in st.verdict.items() if k != "cross_check"}
-        record["cross_check"] = st.verdict.get("cross_check")
+        record["verdict"] = {k: v for k, v in st.verdict.to_payload().items() if k != "cross_check"}
+        record["cross_check"] = st.verdict.cross_check
     record["shots"] = [_shot(st.by_index[i]) for i in sorted(st.by_index)]
 
 
@@ -164,37 +164,39 @@ _AIR_KEYS = ("temperature_c", "humidity_pct")  # the lab's air at the shot, wher
 def _shot(s: ShotEntry) -> dict[str, Any]:
     """One shot of the record: its request, raw data (ticks first), outcome and reasons."""
     shot: dict[str, Any] = {"index": s.index, "status": s.status}
-    if s.requested:
-        d = s.requested
+    if s.requested is not None:
+        r = s.requested
         shot.update(
-            purpose=d["purpose"],
-            location_in=d["location_in"],
+            purpose=r.purpose,
+            location_in=r.location_in,
             requested_utc=s.requested_utc,
-            target_speed_m_s=d.get("target_speed_m_s"),
+            target_speed_m_s=r.target_speed_m_s,
         )
-        shot.update({k: d[k] for k in _AIR_KEYS if d.get(k) is not None})
+        shot.update({k: v for k in _AIR_KEYS if (v := getattr(r, k)) is not None})
     if s.raw is not None:
-        shot["raw"] = {k: s.raw.get(k) for k in _RAW_KEYS} | {k: s.raw[k] for k in _BALL_KEYS if k in s.raw}
+        raw = s.raw.data  # the raw record as written
+        shot["raw"] = {k: raw.get(k) for k in _RAW_KEYS} | {k: raw[k] for k in _BALL_KEYS if k in raw}
     if s.outcome is not None:
-        d = s.outcome
+        o = s.outcome
         shot.update(
-            valid=s.outcome is s.measured,
-            inbound_speed_m_s=d.get("inbound_speed_m_s"),
-            rebound_speed_m_s=d.get("rebound_speed_m_s"),
-            inbound_at_impact_m_s=d.get("inbound_at_impact_m_s"),  # drag-corrected (none in old runs)
-            rebound_at_impact_m_s=d.get("rebound_at_impact_m_s"),
-            metrics=d.get("metrics"),
-            metric=d.get("metric"),
-            u=d.get("u"),
-            reasons=list(d.get("reasons", [])),
-            budget=d.get("budget"),
+            valid=o.valid,
+            inbound_speed_m_s=o.inbound_speed_m_s,
+            rebound_speed_m_s=o.rebound_speed_m_s,
+            inbound_at_impact_m_s=o.inbound_at_impact_m_s,  # drag-corrected (none in old runs)
+            rebound_at_impact_m_s=o.rebound_at_impact_m_s,
+            metrics=o.metrics,
+            metric=o.metric,
+            u=o.u,
+            reasons=list(o.reasons),
+            budget=o.budget,
         )
-    for o in s.overruled:
+        shot.update(o.shown())  # fields a lab added to the outcome, declared shown (rig.core.outcomes)
+    for over in s.overruled:
         shot["valid"] = False
         shot.setdefault("reasons", []).append(
             {
                 "code": "OPERATOR_REJECTED",
-                "message": f"{o.get('reason', '')} ({o.get('who', '')})",
+                "message": f"{over.reason or ''} ({over.who or ''})",
                 "invalidates": True,
             }
         )

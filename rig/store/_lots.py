@@ -16,6 +16,7 @@ from typing import Any
 from rig.core import events as ev
 from rig.core.ball import BALL_TESTS, BallLot, LotResult
 from rig.core.errors import RecordRefused, UnknownRecord
+from rig.core.outcomes import RunVerdict
 from rig.store._codec import decode_payload
 from rig.store._records import BALL_LAW_RECORDED, BALL_LOT_REGISTERED
 from rig.store._rows import known_ids
@@ -90,9 +91,9 @@ def results(store: Any, lot_id: str) -> list[LotResult]:
         if run.procedure not in BALL_TESTS or run.status != "finished":
             continue
         for entry in store.entries(run.run_id, kinds=[ev.RUN_FINISHED]):
-            data = entry.payload
-            if data.get("lot") == lot_id and isinstance(data.get("lot_result"), dict):
-                found.append(LotResult.model_validate({**data["lot_result"], "run_id": run.run_id}))
+            v = RunVerdict.from_payload(entry.payload, ev.RUN_FINISHED)
+            if v.lot == lot_id and isinstance(v.lot_result, dict):
+                found.append(LotResult.model_validate({**v.lot_result, "run_id": run.run_id}))
     return found
 
 

@@ -17,6 +17,7 @@ from typing import Any
 from rig.core import events as ev
 from rig.core.devices import CannonStatus, GateConfig
 from rig.core.events import RunEvent
+from rig.core.outcomes import RunVerdict
 from rig.core.run_state import RunState, ShotEntry
 from rig.protocols.procedure import Procedure
 
@@ -54,7 +55,7 @@ class LiveShot:
 
     @property
     def u(self) -> float | None:
-        return (self.entry.outcome or {}).get("u")
+        return None if self.entry.outcome is None else self.entry.outcome.u
 
     @property
     def reasons(self) -> list[str]:
@@ -63,8 +64,8 @@ class LiveShot:
         if e.lost:
             return [str(e.lost_reason)]
         if e.overruled:
-            return [f"OPERATOR_REJECTED: {e.overruled[-1].get('reason', '')}"]
-        found = (e.outcome or {}).get("reasons", [])
+            return [f"OPERATOR_REJECTED: {e.overruled[-1].reason or ''}"]
+        found = [] if e.outcome is None else e.outcome.reasons
         return [f"{x['code']}: {x.get('message', '')}" for x in found if x.get("invalidates", True)]
 
 
@@ -91,7 +92,7 @@ class LiveRun:
     best_location_in: float | None = None
     prediction: float | None = None
     prediction_note: str = ""
-    verdict: dict[str, Any] | None = None
+    verdict: RunVerdict | None = None
     interrupted: str = ""
     paused: bool = False
     log: list[str] = field(default_factory=list)
@@ -176,8 +177,10 @@ def _environment(r: LiveRun, d: dict[str, Any]) -> None:
 
 
 def _moi(r: LiveRun, d: dict[str, Any]) -> None:
-    r.moi = float((r.run.moi or d)["moi_kgm2"])
-    r.note(f"MOI {r.moi:.5f} kg m^2 ({d['source']})")
+    moi = r.run.moi
+    assert moi is not None, "the fold took the MoiMeasured first"
+    r.moi = float(moi.moi_kgm2)
+    r.note(f"MOI {r.moi:.5f} kg m^2 ({moi.source})")
 
 
 def _requested(r: LiveRun, d: dict[str, Any]) -> None:
@@ -208,8 +211,10 @@ def _fired(r: LiveRun, d: dict[str, Any]) -> None:
 
 def _measured(r: LiveRun, d: dict[str, Any]) -> None:
     shot = r._shot(int(d["index"]))
-    shot.inbound = d.get("inbound_speed_m_s", shot.inbound)
-    shot.rebound = d.get("rebound_speed_m_s", shot.rebound)
+    o = shot.entry.outcome
+    if o is not None:
+        shot.inbound = shot.inbound if o.inbound_speed_m_s is None else o.inbound_speed_m_s
+        shot.rebound = shot.rebound if o.rebound_speed_m_s is None else o.rebound_speed_m_s
     if shot.entry.valid:
         r.note(f"shot {shot.index} valid: {r.metric_name} {shot.metric:.4f} +- {shot.u:.4f}")
     else:
@@ -259,8 +264,9 @@ def _traffic(r: LiveRun, d: dict[str, Any]) -> None:
 
 
 def _finished(r: LiveRun, d: dict[str, Any]) -> None:
-    r.verdict = dict(r.run.verdict or d)
-    cc = d.get("cross_check") or {}
+    v = r.verdict = r.run.verdict
+    assert v is not None, "the fold took the RunFinished first"
+    cc = v.cross_check or {}
     if cc.get("predicted") is not None:
         r.prediction = float(cc["predicted"])
         flagged = cc.get("flagged")
@@ -269,7 +275,7 @@ def _finished(r: LiveRun, d: dict[str, Any]) -> None:
             if flagged is None
             else ("FLAGGED: out of line" if flagged else "consistent (run's check)")
         )
-    r.note(f"verdict: {d['verdict']}" + (f" ({d['zone']})" if d.get("zone") else ""))
+    r.note(f"verdict: {v.verdict}" + (f" ({v.zone})" if v.zone else ""))
 
 
 def _interrupted(r: LiveRun, d: dict[str, Any]) -> None:

@@ -172,7 +172,7 @@ def progress_panel(r: LiveRun) -> Text:
     if avg is None:
         text.append(f"-       limit {limit:g}\n", style="dim")
     else:
-        big_u = float(r.verdict["U"]) if r.verdict and "U" in r.verdict else 0.0
+        big_u = float(r.verdict.U) if r.verdict and r.verdict.U is not None else 0.0
         text.append(f"{avg:.4f} ")
         text.append_text(gauge(avg, limit, big_u, width=18))
         text.append(f" {limit:g}\n")
@@ -189,15 +189,14 @@ def verdict_text(r: LiveRun) -> Text:
     v = r.verdict
     if not v:
         return Text()
-    passed = v.get("verdict") == Verdict.PASS
-    text = Text(f" {v.get('verdict')} ", style="bold white on green" if passed else "bold white on red")
-    if "mean" in v:
+    passed = v.verdict == Verdict.PASS
+    text = Text(f" {v.verdict} ", style="bold white on green" if passed else "bold white on red")
+    if v.mean is not None:
         text.append(
-            f" {v['metric']} {v['mean']:.4f} ± {v['U']:.4f} (k={v['coverage_k']:g}), "
-            f"limit {v['limit']:g}: {v.get('zone', '')}"
+            f" {v.metric} {v.mean:.4f} ± {v.U:.4f} (k={v.coverage_k:g}), limit {v.limit:g}: {v.zone or ''}"
         )
     else:
-        text.append(f" {v.get('reason', '')}")
+        text.append(f" {v.reason or ''}")
     return text
 
 
@@ -269,7 +268,8 @@ def hits_plot(r: LiveRun, width: int = 16) -> Text:
 def budget_panel(r: LiveRun, rows: int = 8, width: int = 12) -> Text:
     """The last valid shot's uncertainty budget: u, U and the largest shares of the variance."""
     shot = next((s for s in reversed(r.shots.values()) if s.status == "valid"), None)
-    budget = ((shot.entry.outcome or {}).get("budget") or {}) if shot else {}
+    outcome = shot.entry.outcome if shot else None
+    budget = (outcome.budget if outcome is not None else None) or {}
     out = (budget.get("outputs") or {}).get(r.metric_name) if r.metric_name else None
     if shot is None or not out:
         return Text("no valid shot yet", style="dim")

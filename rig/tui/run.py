@@ -183,8 +183,9 @@ class RunScreen(RunKeys, Screen[None]):
             self.notify(result.failure, title="Device fault: run stopped", severity="error", timeout=10)
         elif outcome.status is RunPhase.FINISHED:
             if self.live.verdict is None and outcome.verdict:
-                self.live.verdict = dict(outcome.verdict)
-            self.notify(f"verdict: {(outcome.verdict or {}).get('verdict')}", title="Run finished")
+                self.live.verdict = outcome.verdict
+            said = outcome.verdict.verdict if outcome.verdict else None
+            self.notify(f"verdict: {said}", title="Run finished")
         else:
             self.notify(outcome.reason, title="Run interrupted (resumable)", severity="warning")
         if result.run_id:

@@ -213,23 +213,23 @@ def certify_population(args: argparse.Namespace) -> Tally:
             if outcome.status != "finished":
                 tally.stopped = f"bat {bat.spec.id}: run {outcome.run_id} {outcome.status}: {outcome.reason}"
                 break
-            verdict = outcome.verdict or {}
+            verdict = outcome.verdict
             tally.seconds.append(seconds)
             tally.certified.append(
                 {
                     "bat_id": bat.spec.id,
                     "hoop_hz": bat.spec.hoop_hz,
                     "altered": bat.altered,
-                    "verdict": verdict.get("verdict"),
-                    "metric": verdict.get("metric"),
-                    "value": verdict.get("mean"),
-                    "location_in": verdict.get("location_in"),
+                    "verdict": verdict and verdict.verdict,
+                    "metric": verdict and verdict.metric,
+                    "value": verdict and verdict.mean,
+                    "location_in": verdict and verdict.location_in,
                     "seconds": seconds,
                     "resumed": state == "resume",
                 }
             )
-            mean = verdict.get("mean")
-            last = f"{bat.spec.id}: {verdict.get('verdict')} {mean:.4f}" if mean is not None else ""
+            mean = verdict and verdict.mean
+            last = f"{bat.spec.id}: {verdict and verdict.verdict} {mean:.4f}" if mean is not None else ""
             bar.update(task, advance=1, last=last)
     return tally
 

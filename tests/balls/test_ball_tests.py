@@ -105,7 +105,7 @@ def test_ball_cor_measures_the_simulated_truth_within_u(store: Store, tmp_path: 
     p, rig = small("ball-cor"), f"bc-{uuid.uuid4().hex[:6]}"
     outcome = run(store, p, scene_file(tmp_path), rig)
     assert outcome.status == "finished", outcome.reason
-    r = outcome.verdict["lot_result"]
+    r = outcome.verdict.lot_result
     shots = [s for s in get_world(rig).shots if s.hit]
     truth = statistics.fmean(s.e_a for s in shots)  # the world's rigid_cor at each true speed
     assert abs(r["mean"] - truth) <= r["U"], (r["mean"], truth, r["U"])
@@ -133,7 +133,7 @@ def test_ball_cor_measures_the_wear_per_hit(store: Store, tmp_path: Path) -> Non
     extra = f'[[effects]]\nkind = "ball_wear"\ndamping_per_hit = {WEAR}\n'
     p, rig = small("ball-cor", hits_per_ball=4), f"bw-{uuid.uuid4().hex[:6]}"
     outcome = run(store, p, scene_file(tmp_path, extra), rig)
-    r = outcome.verdict["lot_result"]
+    r = outcome.verdict.lot_result
     from rig.physics import rigid_cor
 
     # the truth, independently: c1 rises by WEAR per earlier impact of the world's ball
@@ -148,7 +148,7 @@ def test_ccor_per_speed_matches_rigid_cor_and_the_reference(store: Store, tmp_pa
     p, rig = small("ccor"), f"cc-{uuid.uuid4().hex[:6]}"
     outcome = run(store, p, scene_file(tmp_path), rig)
     assert outcome.status == "finished", outcome.reason
-    r = outcome.verdict["lot_result"]
+    r = outcome.verdict.lot_result
     shots = [s for s in get_world(rig).shots if s.hit]
     assert len(r["per_speed"]) == 5
     for point in r["per_speed"]:
@@ -167,7 +167,7 @@ def test_an_interrupted_test_resumes_each_shot_at_its_speed_and_ball(store: Stor
     control, seen = RunControl(), []
 
     def stop_after_four(event: ev.RunEvent) -> None:
-        if isinstance(event, ev.ShotMeasured):
+        if isinstance(event, ev.ShotEvaluated) and event.valid:
             seen.append(event.index)
             if len(seen) == 4:
                 control.abort("stopped by the test")
@@ -182,10 +182,10 @@ def test_an_interrupted_test_resumes_each_shot_at_its_speed_and_ball(store: Stor
     requested = [e for e in events if isinstance(e, ev.ShotRequested)]
     slots = {s.number: s for s in p.schedule(lot())}
     for e in requested:  # every shot, before and after the resume, where its slot says
-        slot = slots[e.extra["slot"]]
-        assert (e.extra["ball"], e.extra["target_speed_m_s"]) == (slot.ball_id, slot.speed_m_s)
-    valid = [e for e in events if isinstance(e, ev.ShotMeasured)]
-    assert [r.extra["slot"] for r in requested if r.index in {v.index for v in valid}] == list(slots)
+        slot = slots[e.slot]
+        assert (e.ball, e.target_speed_m_s) == (slot.ball_id, slot.speed_m_s)
+    valid = [e for e in events if isinstance(e, ev.ShotEvaluated) and e.valid]
+    assert [r.slot for r in requested if r.index in {v.index for v in valid}] == list(slots)
     # the cannon was aimed at each shot's own speed: the world's impacts, session by session
     worlds = [get_world(first).shots, get_world(second).shots]
     fired = [e for e in events if isinstance(e, ev.ShotFired) and e.crossings]
@@ -193,7 +193,7 @@ def test_an_interrupted_test_resumes_each_shot_at_its_speed_and_ball(store: Stor
     truths = worlds[0] + worlds[1]
     by_index = {e.index: e for e in requested}
     for shot, truth in zip(fired, truths, strict=True):
-        assert abs(truth.impact_speed - by_index[shot.index].extra["target_speed_m_s"]) < 1.5
+        assert abs(truth.impact_speed - by_index[shot.index].target_speed_m_s) < 1.5
     assert len(worlds[1]) >= 6  # the resumed session fired what was left, nothing twice
     assert any(isinstance(e, ev.RunResumed) for e in events)
 
@@ -208,7 +208,7 @@ def test_verify_passes_and_finds_an_altered_result(store: Store, tmp_path: Path)
         (seq, payload) = conn.execute(
             "SELECT seq, payload FROM log WHERE run_id = ? AND kind = 'RunFinished'", (outcome.run_id,)
         ).fetchone()
-        mean = repr(outcome.verdict["lot_result"]["mean"])
+        mean = repr(outcome.verdict.lot_result["mean"])
         assert mean in payload
         conn.execute("UPDATE log SET payload = ? WHERE seq = ?", (payload.replace(mean, "0.55", 1), seq))
     with Store.open(path) as again:
@@ -284,7 +284,7 @@ def test_a_ccor_test_learns_an_aim_at_each_speed(tmp_path: Path) -> None:
         store.register_lot(lot)
         outcome = run_ball_test(store, procedure, lot, config)
         events = ev.parse_log(store.entries(outcome.run_id))
-    rejected = sum(isinstance(e, ev.ShotRejected) for e in events)
-    measured = sum(isinstance(e, ev.ShotMeasured) for e in events)
+    rejected = sum(isinstance(e, ev.ShotEvaluated) and not e.valid for e in events)
+    measured = sum(isinstance(e, ev.ShotEvaluated) and e.valid for e in events)
     assert outcome.status == "finished", outcome.reason
     assert rejected <= 0.35 * (rejected + measured), (rejected, measured)

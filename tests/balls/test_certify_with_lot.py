@@ -113,11 +113,12 @@ def test_a_qualified_lot_is_recorded_and_each_valid_hit_names_its_ball(lab: Path
     assert recorded["wear_per_hit"] == pytest.approx(results[-1].wear_per_hit)
     assert not recorded["conditions_measured"]  # one ball-cor test cannot tell the air's effect
     fired = [s for s in state.shots if s.raw]
-    assert all(str(s.raw["ball"]).startswith("L-") for s in fired)
-    assert fired[0].raw["ball"] == "L-03"  # the lot's ball-cor test fired L-01 and L-02
-    assert [s.raw["ball_hits"] for s in fired] == list(range(len(fired)))  # one ball, 12 hits allowed
-    verdict = state.verdict or {}
-    assert len(verdict["ball"]["corrections"]) == len(
+    assert all(str(s.raw.ball).startswith("L-") for s in fired)
+    assert fired[0].raw.ball == "L-03"  # the lot's ball-cor test fired L-01 and L-02
+    assert [s.raw.ball_hits for s in fired] == list(range(len(fired)))  # one ball, 12 hits allowed
+    verdict = state.verdict
+    assert verdict is not None and verdict.ball is not None
+    assert len(verdict.ball["corrections"]) == len(
         [s for s in state.shots if s.valid and s.purpose != "scan"]
     )
 
@@ -158,7 +159,7 @@ def test_a_run_stops_when_the_lots_balls_are_used_up(lab: Path) -> None:
         state = fold(history(store, outcome.run_id))
         stop = [e for e in store.entries(outcome.run_id) if e.kind == ev.RUN_INTERRUPTED]
     first = terms.first_ball
-    assert [s.raw["ball"] for s in state.shots if s.raw] == [f"L-{first:02d}", f"L-{first + 1:02d}"]
+    assert [s.raw.ball for s in state.shots if s.raw] == [f"L-{first:02d}", f"L-{first + 1:02d}"]
     assert stop and f"lot L has {first + 1} balls" in str(stop[-1].payload)
 
 
@@ -170,11 +171,11 @@ def test_each_run_starts_on_balls_no_earlier_run_fired(lab: Path) -> None:
     assert code in (0, 1), err
     with Store.open(lab / "s.db") as store:
         state = fold(history(store, store.runs()[-1].run_id))
-    used = [s.raw["ball"] for s in state.shots if s.raw]
+    used = [s.raw.ball for s in state.shots if s.raw]
     assert not set(used) & fired_before
     numbers = sorted(int(b.split("-")[1]) for b in fired_before if str(b).startswith("L-"))
     assert used[0] == f"L-{numbers[-1] + 1:02d}"
-    assert state.shots[0].raw["ball_hits"] == 0
+    assert state.shots[0].raw.ball_hits == 0
 
 
 def test_the_air_outside_the_conditioning_window_stops_the_run_before_a_shot(lab: Path) -> None:
@@ -242,8 +243,9 @@ def test_ball_cor_tests_at_three_hours_from_the_cli_measure_the_air(tmp_path: Pa
     assert terms["conditions_measured"] and terms["air_cov"] is not None
     assert len({round(r.temp_c or 0.0, 1) for r in results}) == 3  # three hours, three airs
     hits = [s for s in state.shots if s.valid and s.purpose != "scan"]
-    assert all("temperature_c" in s.requested for s in hits)  # the air read before each shot
-    assert (state.verdict or {})["ball"]["u_conditions"] < 0.002
+    assert all(s.requested.temperature_c is not None for s in hits)  # the air read before each shot
+    assert state.verdict is not None and state.verdict.ball is not None
+    assert state.verdict.ball["u_conditions"] < 0.002
 
 
 def test_the_hits_scatter_in_the_budget_is_that_of_the_corrected_hits(tmp_path: Path) -> None:
@@ -256,13 +258,14 @@ def test_the_hits_scatter_in_the_budget_is_that_of_the_corrected_hits(tmp_path: 
     with Store.open(tmp_path / "s.db") as store:
         outcome = certify(store, procedure, bat, sim_config("ideal", bat=bat), ball=terms.model_dump())
         state = fold(history(store, outcome.run_id))
-    v = state.verdict or {}
+    v = state.verdict
+    assert v is not None and v.ball is not None
     hits = [s for s in state.shots if s.valid and s.purpose != "scan"]
-    corrected = [float(s.metric or 0.0) + c for s, c in zip(hits, v["ball"]["corrections"], strict=True)]
+    corrected = [float(s.metric or 0.0) + c for s, c in zip(hits, v.ball["corrections"], strict=True)]
     type_a = statistics.stdev(corrected) / math.sqrt(len(corrected))
     measured = [float(s.metric or 0.0) for s in hits]
     assert type_a > 3 * statistics.stdev(measured) / math.sqrt(len(measured))  # the corrections spread them
-    assert v["ball"]["u_measurement"] >= type_a * (1 - 1e-9)
+    assert v.ball["u_measurement"] >= type_a * (1 - 1e-9)
 
 
 def test_the_lots_recorded_law_is_used_and_named_without_ball(lab: Path, tmp_path: Path) -> None:
@@ -296,10 +299,11 @@ def test_the_lots_recorded_law_is_used_and_named_without_ball(lab: Path, tmp_pat
     from rig.measure.metrics import compute_metrics
     from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat, predict_bat
 
-    verdict = state.verdict or {}
-    cc, q, moi = verdict["cross_check"], verdict["impact_from_pivot_m"], verdict["moi_kgm2"]
+    verdict = state.verdict
+    assert verdict is not None
+    cc, q, moi = verdict.cross_check, verdict.impact_from_pivot_m, verdict.moi_kgm2
     v_in = statistics.mean(
-        h.measured["inbound_at_impact_m_s"] for h in state.valid_shots("valid", state.best_location_in)
+        h.outcome.inbound_at_impact_m_s for h in state.valid_shots("valid", state.best_location_in)
     )
     bat = BatSpec.load(lab / "bat.toml")
 

@@ -199,7 +199,7 @@ def test_killed_run_resumes_without_loss_or_double_fire(tmp_path: Path, kind: st
         before = store.entries(run.run_id)
         bat = BatSpec.load(SAMPLE_BAT)
         out = certify(store, Procedure.load("bbcor"), bat, sim_config("lab", bat=bat), run_id=run.run_id)
-        assert out.status == "finished" and out.verdict["verdict"] in ("PASS", "FAIL")
+        assert out.status == "finished" and out.verdict.verdict in ("PASS", "FAIL")
         after = store.entries(run.run_id)
         assert after[: len(before)] == before  # nothing recorded before the kill was touched
         requested = Counter(e.payload["index"] for e in after if e.kind == "ShotRequested")

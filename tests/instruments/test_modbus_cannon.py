@@ -440,7 +440,7 @@ def test_a_certification_with_the_cannon_on_the_simulated_plc(tmp_path: Path) ->
     finally:
         twin.close()
     assert out.status == "finished", out.reason
-    assert out.verdict is not None and out.verdict["verdict"] in ("PASS", "FAIL")
+    assert out.verdict is not None and out.verdict.verdict in ("PASS", "FAIL")
     fires = cannon_fires(entries)
     fired = [e.payload["index"] for e in entries if e.kind == "ShotFired"]
     assert [e for e in entries if e.kind == "ShotLost"] == []

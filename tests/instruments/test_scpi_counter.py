@@ -463,7 +463,7 @@ def run(name: str, **faults: Any) -> tuple[Any, list[Any], SimWorld]:
 @pytest.mark.usefixtures("clean_worlds")
 def test_certification_through_the_twin_agrees_with_truth() -> None:
     out, entries, world = run("scpi-cert")
-    assert out.status == "finished" and out.verdict["verdict"] in ("PASS", "FAIL")
+    assert out.status == "finished" and out.verdict.verdict in ("PASS", "FAIL")
     fired = [e.payload for e in entries if e.kind == "ShotFired"]
     assert len(fired) == len(world.shots)  # every ball the world launched is a recorded shot, once
     assert all(n == 1 for n in Counter(p["index"] for p in fired).values())
@@ -501,7 +501,7 @@ def test_certification_through_the_twin_agrees_with_truth() -> None:
 )
 def test_a_counter_fault_loses_one_shot_and_the_run_goes_on(faults: dict[str, int], cause: str) -> None:
     out, entries, world = run(f"scpi-fault-{next(iter(faults))}", **faults)
-    assert out.status == "finished" and out.verdict["verdict"] in ("PASS", "FAIL")
+    assert out.status == "finished" and out.verdict.verdict in ("PASS", "FAIL")
     lost = [e.payload for e in entries if e.kind == "ShotLost"]
     assert [p["reason"].startswith(cause) for p in lost] == [True], lost
     assert "\n" not in lost[0]["reason"]
@@ -517,7 +517,7 @@ def test_a_counter_fault_loses_one_shot_and_the_run_goes_on(faults: dict[str, in
 @pytest.mark.usefixtures("clean_worlds")
 def test_a_dropped_counter_connection_loses_that_shot_and_the_next_arm_reconnects() -> None:
     out, entries, world = run("scpi-drop", drop_on_shot=3)
-    assert out.status == "finished" and out.verdict["verdict"] in ("PASS", "FAIL")
+    assert out.status == "finished" and out.verdict.verdict in ("PASS", "FAIL")
     fired = [e.payload for e in entries if e.kind == "ShotFired"]
     assert len(world.shots) == len(fired)  # nothing fired twice, nothing fired unrecorded
     (dropped,) = [p for p in fired if p["shot_number"] == 3]

@@ -40,7 +40,7 @@ def _with(config: RigConfig, table: str, field: str, value: float) -> RigConfig:
 
 def _big_u(run: tuple, config: RigConfig) -> float:
     p, bat, state, _ = run
-    return float(evaluate.verdict(p, bat, state, config)["U"])
+    return float(evaluate.verdict(p, bat, state, config).U)
 
 
 PRINTED = [

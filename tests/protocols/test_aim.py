@@ -63,8 +63,10 @@ def test_a_resumed_run_learns_its_aim_afresh() -> None:
 
     shot = {"index": 0, "purpose": "valid", "location_in": 6.0}
     taught = {"index": 0, "metric": 0.49, "aim_factor": 0.98, "aim_shots": 3}
-    before = fold([ev.event(ev.SHOT_REQUESTED, **shot), ev.event(ev.SHOT_MEASURED, **taught)])
+    before = fold([ev.from_payload(ev.SHOT_REQUESTED, shot), ev.from_payload(ev.SHOT_MEASURED, taught)])
     assert (before.aim_factor, before.aim_shots) == (0.98, 3)
-    resumed = ev.event(ev.RUN_RESUMED, shots_so_far=1)
-    after = fold([ev.event(ev.SHOT_REQUESTED, **shot), ev.event(ev.SHOT_MEASURED, **taught), resumed])
+    resumed = ev.RunResumed(shots_so_far=1)
+    after = fold(
+        [ev.from_payload(ev.SHOT_REQUESTED, shot), ev.from_payload(ev.SHOT_MEASURED, taught), resumed]
+    )
     assert (after.aim_factor, after.aim_shots) == (1.0, 0)

@@ -19,6 +19,7 @@ from scipy.stats import t as student_t
 
 from rig.certification import certify, history
 from rig.cli import main
+from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import Model, RigConfig
 from rig.core.errors import ConfigError
@@ -137,7 +138,7 @@ def test_resume_uses_the_recorded_calibration_even_when_the_file_is_gone(lab: Pa
         )
         done = certify(store, procedure, BAT, good, run_id=out.run_id)
         assert done.status == "finished", done.reason
-        cc = done.verdict["cross_check"]
+        cc = done.verdict.cross_check
         assert cc["calibrated"] is True and cc["calibration"]["sha256"] == sha
         assert store.verify().ok
 
@@ -220,7 +221,7 @@ def test_an_old_record_still_reports(tmp_path: Path) -> None:
     assert "| tolerance | ± 0.05 |" in md and "| flagged | no |" in md and "0.4990" in md
     assert "Model at 3600.0 Hz predicts 0.4990" in record_summary(old)
     live = LiveRun()
-    live.apply(type("E", (), {"kind": "RunFinished", "data": old["verdict"]})())  # type: ignore[arg-type]
+    live.apply(ev.from_payload(ev.RUN_FINISHED, old["verdict"]))  # the old verdict as its log entry reads
     assert live.prediction == 0.499 and live.prediction_note == "consistent (run's check)"
 
 

@@ -183,7 +183,7 @@ def test_a_custom_plan_runs_through_the_runner_and_its_steps_compose(tmp_path: P
         yield from steps.environment(ctx)
         yield from steps.prepare(ctx)
         yield from steps.measure_moi(ctx)
-        yield Record(LocationChosen(from_barrel_end_in=6.0, extra={"bracketed": False, "by": "lab plan"}))
+        yield Record(LocationChosen(from_barrel_end_in=6.0, bracketed=False, extra={"by": "lab plan"}))
         yield from steps.valid_hits(ctx)
         return (yield from steps.decide(ctx))
 
@@ -192,10 +192,10 @@ def test_a_custom_plan_runs_through_the_runner_and_its_steps_compose(tmp_path: P
     with Store.open(tmp_path / "r.db") as store:
         out = certify(store, p, BAT, sim_config("ideal", bat=BAT), plan=three_at_six)
         entries = store.entries(out.run_id)
-    assert out.status == "finished" and out.verdict["verdict"] in ("PASS", "FAIL")
+    assert out.status == "finished" and out.verdict.verdict in ("PASS", "FAIL")
     requested = [e.payload for e in entries if e.kind == ev.SHOT_REQUESTED]
     assert {r["purpose"] for r in requested} == {"valid"} and {r["location_in"] for r in requested} == {6.0}
-    assert out.verdict["hits"] and len(out.verdict["hits"]) == 3
+    assert out.verdict.hits and len(out.verdict.hits) == 3
 
 
 def test_the_cli_dry_run_says_what_the_plan_would_do(
@@ -233,11 +233,11 @@ def test_a_plan_that_forgets_to_move_still_fires_where_the_shot_was_requested(tm
 
     def forgets_the_move(ctx: PlanContext) -> Plan[dict[str, Any]]:
         yield from _setup(ctx)
-        yield Record(ev.LocationChosen(from_barrel_end_in=7.0, extra={"bracketed": False}))
+        yield Record(ev.LocationChosen(from_barrel_end_in=7.0, bracketed=False))
         yield Record(ev.ShotRequested(index=1, purpose="valid", location_in=7.0))
         fired = yield Fire(1, 7.0, ctx.procedure.target_speed_m_s)  # no Move: the stage is at 5.0 in
         result = yield Evaluate(fired)
-        yield Record(ev.event(ev.SHOT_MEASURED if result["valid"] else ev.SHOT_REJECTED, index=1, **result))
+        yield Record(ev.ShotEvaluated(index=1, outcome=result))
         yield from steps.valid_hits(ctx)
         return (yield from steps.decide(ctx))
 

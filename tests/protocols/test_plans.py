@@ -73,13 +73,13 @@ class Driver:
         if isinstance(msg, TimePendulum):
             return PendulumPeriod(1.5, 5.0, msg.cycles)
         if isinstance(msg, Fire):
-            self.ctx.state.apply(ev.event(ev.SHOT_FIRED, index=msg.index, crossings=[{"gate": 1}]))
+            self.ctx.state.apply(ev.ShotFired(index=msg.index, crossings=[{"gate": 1}]))
             return Fired(record=None)  # type: ignore[arg-type]  # the driver evaluates by location
         if isinstance(msg, Evaluate):
             loc = self.ctx.state.shots[-1].location_in
-            return {"metric": self.metric(loc), "valid": True, "aim_factor": 1.0}
+            return ev.ShotOutcome(metric=self.metric(loc), valid=True, aim_factor=1.0)
         if isinstance(msg, Decide):
-            return {"verdict": "PASS", "metric": "bbcor", "limit": 0.5}
+            return ev.RunVerdict(verdict="PASS", metric="bbcor", limit=0.5)
         return None
 
     def run(self, plan: Generator[Msg, Any, Any]) -> Any:
@@ -122,7 +122,7 @@ def test_a_failed_ring_check_records_fail_then_stops() -> None:
     with pytest.raises(RunAborted, match="ring check failed at shot 1"):
         drv.run(steps.shoot(ctx, 6.0, "scan"))
     assert not any(isinstance(m, Fire) for m in drv.log)  # failed before: nothing fired
-    assert ctx.state.finished and ctx.state.verdict["verdict"] == "FAIL"
+    assert ctx.state.finished and ctx.state.verdict.verdict == "FAIL"
 
 
 def test_the_ball_is_replaced_after_its_hits() -> None:
@@ -165,7 +165,7 @@ def test_the_scan_extends_towards_a_maximum_at_its_edge_and_brackets_it() -> Non
     extended = [m.event for m in drv.log if isinstance(m, Record) and isinstance(m.event, ev.ScanExtended)]
     assert [e.from_barrel_end_in for e in extended] == [4.5, 4.0]  # 4.5 still the edge; 4.0 brackets it
     drv.run(steps.choose_location(ctx))
-    assert ctx.state.best_location_in == 4.5 and ctx.state.location["bracketed"] is True
+    assert ctx.state.best_location_in == 4.5 and ctx.state.location.bracketed is True
 
 
 def test_an_unbracketed_maximum_needs_the_operators_yes() -> None:
@@ -207,7 +207,7 @@ def test_a_resumed_plan_goes_on_where_the_record_stops() -> None:
     resumed.state.moi = {"moi_kgm2": 0.2}
     drv = Driver(resumed)
     result = drv.run(steps.certification(resumed))
-    assert result["verdict"] == "PASS"
+    assert result.verdict == "PASS"
     lost = [m.event for m in drv.log if isinstance(m, Record) and isinstance(m.event, ev.ShotLost)]
     assert [x.index for x in lost] == [history[-1].index]  # the pending one, never fired
     fires = [m for m in drv.log if isinstance(m, Fire)]
@@ -226,7 +226,7 @@ def test_moi_from_the_pendulum_times_the_procedures_repeats() -> None:
     # I = m g d T^2 / (4 pi^2) at small amplitude: the recorded MOI is that of the answered period
     d = (BAT.balance_point_in - 6.0) * 0.0254
     closed = BAT.mass_kg * ctx.config.pendulum.gravity_m_s2 * d * 1.5**2 / (4 * math.pi**2)
-    assert ctx.state.moi["moi_kgm2"] == pytest.approx(closed, rel=2e-3)  # 5 deg amplitude correction
+    assert ctx.state.moi.moi_kgm2 == pytest.approx(closed, rel=2e-3)  # 5 deg amplitude correction
 
 
 def test_missing_bat_data_is_a_problem_not_a_crash() -> None:

@@ -90,7 +90,7 @@ def test_api_mid_run_error_records_the_interruption_and_resumes(
             assert lost["index"] == 1 and "OverflowError" in lost["reason"]
             assert check_fires(entries) == {1: 1}
         resumed = certify(store, Procedure.load("bbcor"), bat, good, run_id=out.run_id)
-        assert resumed.status == "finished" and resumed.verdict["verdict"] in ("PASS", "FAIL")
+        assert resumed.status == "finished" and resumed.verdict.verdict in ("PASS", "FAIL")
         per_shot = check_fires(store.entries(out.run_id))
         assert all(n == 1 for n in per_shot.values())
         assert store.verify().ok

@@ -200,13 +200,13 @@ def test_the_shot_table_follows_a_shot_from_its_request_to_its_end() -> None:
 
 def test_a_damaged_log_folds_without_an_error() -> None:
     """An old or damaged log is reported, not refused: the fold never raises on the table."""
-    verdict = ev.RunFinished(verdict=ev.Verdict.FAIL)
+    verdict = ev.RunFinished(result=ev.RunVerdict(verdict=ev.Verdict.FAIL))
     resumed = ev.RunResumed(shots_so_far=0)
     assert fold([verdict]).phase is RunPhase.FINISHED  # no start recorded: where a verdict leads
     assert fold([resumed]).phase is RunPhase.RUNNING
     after = fold([verdict, resumed, ev.RunEnded(who="x", why="y")])  # nothing reopens a closed run
     assert after.phase is RunPhase.FINISHED and after.finished and after.ended is not None
-    shot = fold([ev.ShotMeasured(index=3, metric=0.5, valid=True)])  # an outcome with no request
+    shot = fold([ev.ShotEvaluated(index=3, outcome=ev.ShotOutcome(metric=0.5, valid=True))])  # no request
     assert shot.phase is RunPhase.NEW and shot.by_index[3].status == "valid"
 
 
@@ -285,7 +285,7 @@ def _records(*events: RunEvent) -> Any:
     ("events", "refused"),
     [
         (
-            (ev.RunFinished(verdict=ev.Verdict.PASS), ev.RunResumed(shots_so_far=0)),
+            (ev.RunFinished(result=ev.RunVerdict(verdict=ev.Verdict.PASS)), ev.RunResumed(shots_so_far=0)),
             "no RunResumed in a run that is finished",
         ),
         (
@@ -293,7 +293,7 @@ def _records(*events: RunEvent) -> Any:
             "no LocationSet in a run that is ended",
         ),
         (
-            (ev.RunInterrupted(reason="r"), ev.MoiMeasured(moi_kgm2=0.04)),
+            (ev.RunInterrupted(reason="r"), ev.MoiMeasured(result=ev.MoiResult(moi_kgm2=0.04))),
             "no MoiMeasured in a run that is interrupted",
         ),
         ((ev.RunResumed(shots_so_far=0),), "no RunResumed in a run that is new"),

@@ -60,19 +60,19 @@ def test_the_runs_fold_into_their_resume_state(db: Path) -> None:
         st = states[name]
         assert st.finished and st.pending is None and st.ended is None
         v = st.verdict
-        assert v is not None and v["n_hits"] == len(v["hits"]) >= 3
-        assert v["mean"] == pytest.approx(statistics.fmean(v["hits"]), abs=1e-15)
-        assert (v["verdict"] == "PASS") == (v["mean"] + v["U"] <= v["limit"])
-        assert v["U"] == pytest.approx(v["coverage_k"] * v["u"], rel=1e-15)
+        assert v is not None and v.n_hits == len(v.hits) >= 3
+        assert v.mean == pytest.approx(statistics.fmean(v.hits), abs=1e-15)
+        assert (v.verdict == "PASS") == (v.mean + v.U <= v.limit)
+        assert pytest.approx(v.coverage_k * v.u, rel=1e-15) == v.U
         requested = [e.payload["index"] for e in raw[name] if e.kind == "ShotRequested"]
         assert [s.index for s in st.shots] == requested
-        assert len(st.valid_shots("valid", st.best_location_in)) == v["n_hits"]
-        assert st.moi is not None and st.moi["moi_kgm2"] == v["moi_kgm2"]
-    assert "ball" in states["bbcor_lot"].verdict  # the lot's ball terms corrected the verdict
-    assert states["bbs"].verdict["metric"] == "bbs"
+        assert len(st.valid_shots("valid", st.best_location_in)) == v.n_hits
+        assert st.moi is not None and st.moi.moi_kgm2 == v.moi_kgm2
+    assert states["bbcor_lot"].verdict.ball is not None  # the lot's ball terms corrected the verdict
+    assert states["bbs"].verdict.metric == "bbs"
     ended = states["ended"]
     assert not ended.finished and ended.verdict is None
-    assert ended.ended is not None and ended.ended["who"] == "Q. Manager"
+    assert ended.ended is not None and ended.ended.who == "Q. Manager"
     shot = states["shot"]
     assert len(shot.shots) == 1 and shot.shots[0].valid is not None and shot.verdict is None
 

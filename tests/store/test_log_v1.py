@@ -76,11 +76,11 @@ def test_the_old_runs_fold_into_their_resume_state(db: Path) -> None:
         st = states[name]
         assert st.finished and st.pending is None and st.ended is None
         v = st.verdict
-        assert v is not None and v["n_hits"] == len(v["hits"]) == 6
-        assert v["mean"] == pytest.approx(statistics.fmean(v["hits"]), abs=1e-15)
+        assert v is not None and v.n_hits == len(v.hits) == 6
+        assert v.mean == pytest.approx(statistics.fmean(v.hits), abs=1e-15)
         # guarded acceptance: PASS exactly when mean + U is at or below the limit
-        assert (v["verdict"] == "PASS") == (v["mean"] + v["U"] <= v["limit"])
-        assert v["verdict"] == "PASS"
+        assert (v.verdict == "PASS") == (v.mean + v.U <= v.limit)
+        assert v.verdict == "PASS"
         requested = [e.payload["index"] for e in raw[name] if e.kind == "ShotRequested"]
         assert [s.index for s in st.shots] == requested
         assert len(st.valid_shots("valid", st.best_location_in)) == 6
@@ -89,7 +89,7 @@ def test_the_old_runs_fold_into_their_resume_state(db: Path) -> None:
     assert resumed.invalid_at_last_check == 11 and resumed.invalid_count == invalid
     ended = states["ended"]
     assert not ended.finished and ended.verdict is None
-    assert ended.ended is not None and ended.ended["who"] == "Q. Manager"
+    assert ended.ended is not None and ended.ended.who == "Q. Manager"
     assert ended.invalid_count == 11 and ended.pending is None
 
 
@@ -129,7 +129,7 @@ def test_the_console_and_the_report_show_what_the_one_fold_says(db: Path) -> Non
             # one shot record: the console's shots are the fold's entries, which the report renders
             assert all(s.entry is live.run.by_index[i] for i, s in live.shots.items())
             assert live.run == st and live.verdict == st.verdict
-            verdict = st.verdict and {k: v for k, v in st.verdict.items() if k != "cross_check"}
+            verdict = st.verdict and {k: v for k, v in st.verdict.to_payload().items() if k != "cross_check"}
             assert record["verdict"] == verdict
             assert live.best_location_in == st.best_location_in
             assert [i["kind"] for i in record["interruptions"]] == [n.kind for n in st.stops]
