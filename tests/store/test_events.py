@@ -137,3 +137,24 @@ def test_a_damaged_entry_is_one_line_naming_it_not_a_traceback(
     assert main(["report", run, "--format", "json", "--db", str(path)]) == 2
     err = capsys.readouterr().err
     assert err == f"rig: log entry {bad.seq}: ShotRequested payload lacks purpose\n"
+
+
+def test_a_run_of_this_code_types_every_key_it_writes(tmp_path: Path) -> None:
+    """No producer writes an untyped key: a run's events have empty `extra`, their records empty `rest`
+    (the untyped parts hold only what older code wrote)."""
+    import rig
+
+    seen: list[ev.RunEvent] = []
+    bat = rig.Bat.load(Path(__file__).resolve().parents[2] / "protocols" / "examples" / "sample-bat.toml")
+    with rig.open_store(tmp_path / "r.db") as store:
+        result = rig.certify(
+            bat=bat, procedure="bbcor", rig=rig.simulated("lab"), store=store, on_event=seen.append
+        )
+        logged = ev.parse_log(store.entries(result.run_id))
+    assert result.status == "finished"
+    kinds = {e.kind for e in seen if e.persisted}
+    assert {ev.SHOT_FIRED, ev.SHOT_MEASURED, ev.MOI_MEASURED, ev.RUN_FINISHED} <= kinds
+    for e in (*seen, *logged):
+        assert dict(e.extra) == {}, (e.kind, sorted(e.extra))
+        record = getattr(e, e.RECORD) if e.RECORD else None
+        assert record is None or dict(record.rest) == {}, (e.kind, sorted(record.rest))
