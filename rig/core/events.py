@@ -23,7 +23,7 @@ every kind, its fields and its one translation to and from the log, so no kind i
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields
 from functools import cached_property
 from typing import Any, ClassVar
 
@@ -454,10 +454,9 @@ def from_payload(kind: str, payload: Mapping[str, Any]) -> RunEvent:
         if cls.RECORD is None:
             typed = cls(**own, extra=rest)
         else:
-            record: Any = RECORDS[cls].from_payload(
-                _validity(kind, rest) if cls is ShotEvaluated else rest, kind
-            )
-            typed = cls(**own, **{cls.RECORD: replace(record, read=tuple(rest))})
+            fields_in = _validity(kind, rest) if cls is ShotEvaluated else rest
+            record: Any = RECORDS[cls].from_payload(fields_in, kind, read=tuple(rest))
+            typed = cls(**own, **{cls.RECORD: record})
     except ValueError as exc:
         raise EventFormatError(f"{kind} payload: {exc}") from None
     typed.__dict__["data"] = payload if isinstance(payload, dict) else dict(payload)  # as read, key order too

@@ -64,8 +64,11 @@ class PayloadRecord:
         return out
 
     @classmethod
-    def from_payload(cls, payload: Mapping[str, Any], what: str = "") -> Self:
-        """The record in a payload; EventFormatError if a required field is missing."""
+    def from_payload(
+        cls, payload: Mapping[str, Any], what: str = "", read: tuple[str, ...] | None = None
+    ) -> Self:
+        """The record in a payload; EventFormatError if a required field is missing. `read`: the
+        payload's keys as written back (default: the payload's own)."""
         required, optional = _names(cls)
         missing = [n for n in required if n not in payload]
         if missing:
@@ -74,7 +77,7 @@ class PayloadRecord:
         return cls(
             **{n: payload[n] for n in known if n in payload},
             rest={k: v for k, v in payload.items() if k not in known},
-            read=tuple(payload),
+            read=tuple(payload) if read is None else read,
         )
 
     @classmethod
