@@ -56,7 +56,8 @@ class PayloadRecord:
         if self.read:
             values = {n: getattr(self, n) for n in (*required, *optional)} | dict(self.rest)
             out = {k: values[k] for k in self.read if k in values}
-            out.update({n: v for n in optional if n not in out and (v := getattr(self, n)) not in (None, [])})
+            defaults = _defaults(type(self))  # a field the payload lacked is written once it differs
+            out.update({n: v for n in optional if n not in out and (v := values[n]) != defaults[n]})
             return out
         out = {n: getattr(self, n) for n in required}
         out.update({n: v for n in optional if (v := getattr(self, n)) is not None or n in self.WRITTEN})
@@ -80,14 +81,10 @@ class PayloadRecord:
             read=tuple(payload) if read is None else read,
         )
 
-    @classmethod
-    def names(cls) -> frozenset[str]:
-        """The payload keys this record types."""
-        required, optional = _names(cls)
-        return frozenset((*required, *optional))
-
 
 _NAMES: dict[type, tuple[tuple[str, ...], tuple[str, ...]]] = {}
+_DEFAULTS: dict[type, dict[str, Any]] = {}
+_SHOWN: dict[type, tuple[str, ...]] = {}
 
 
 def _names(cls: type) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -97,6 +94,17 @@ def _names(cls: type) -> tuple[tuple[str, ...], tuple[str, ...]]:
         required = tuple(f.name for f in own if f.default is MISSING and f.default_factory is MISSING)
         _NAMES[cls] = required, tuple(f.name for f in own if f.name not in required)
     return _NAMES[cls]
+
+
+def _defaults(cls: type) -> dict[str, Any]:
+    """Each optional field's default value (a factory's value for a list)."""
+    if cls not in _DEFAULTS:
+        _DEFAULTS[cls] = {
+            f.name: f.default if f.default_factory is MISSING else f.default_factory()
+            for f in fields(cls)
+            if f.name in _names(cls)[1]
+        }
+    return _DEFAULTS[cls]
 
 
 @dataclass(frozen=True)
@@ -137,11 +145,10 @@ class ShotOutcome(PayloadRecord):
 
     def shown(self) -> dict[str, Any]:
         """The set fields declared `SHOWN`: the report shows them with each shot, as declared."""
-        return {
-            f.name: v
-            for f in fields(self)
-            if f.metadata.get("shown") and (v := getattr(self, f.name)) is not None
-        }
+        cls = type(self)
+        if cls not in _SHOWN:
+            _SHOWN[cls] = tuple(f.name for f in fields(cls) if f.metadata.get("shown"))
+        return {n: v for n in _SHOWN[cls] if (v := getattr(self, n)) is not None}
 
 
 @dataclass(frozen=True)
