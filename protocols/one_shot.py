@@ -30,7 +30,7 @@ from rig.protocols.plan import (
 )
 from rig.protocols.shot import ShotRecord
 
-KIND = "shot"  # the run's kind in the store, shown where a certification shows its procedure
+KIND = ev.ONE_SHOT_KIND  # the run's kind in the store, shown where a certification shows its procedure
 ITEM_ID = "unnamed"  # what the clamp holds: a one-shot run is not told
 ITEM_SPEC = {"item": "what the clamp held for a one-shot run (rig shot): not named"}
 SHOT_POINT = 0.0  # the one shot goes to the point asked: "location" 0

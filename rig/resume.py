@@ -15,7 +15,7 @@ from typing import Any
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.errors import ConfigError
-from rig.protocols.one_shot import KIND as ONE_SHOT
+from rig.core.events import ONE_SHOT_KIND as ONE_SHOT
 from rig.protocols.procedure import Procedure
 from rig.store import Store
 

@@ -28,15 +28,14 @@ from rig.cli.common import (
     sim_session,
 )
 from rig.cli.common import console as out
-from rig.core import events as ev
 from rig.core.dbpath import DB_HELP
-from rig.core.events import Verdict
 from rig.measure.registry import BUILTIN_METRICS
 
 
 def _resume_command(store: Any, run_id: str, args: argparse.Namespace) -> str:
     """`rig certify --resume RUN ...` as the operator types it: the rig and store of this command;
     for a run that never started, also what it starts with (a procedure file, balls, calibration)."""
+    from rig.core import events as ev
     from rig.protocols.procedure import BUILTIN
 
     where = ("--config", args.config) if args.config else ("--sim", args.sim) if args.sim else None
@@ -182,7 +181,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
             live.summary(outcome)
     if outcome.status != "finished":
         return _interrupted(outcome, args, resume)
-    return 0 if outcome.verdict and outcome.verdict.verdict == Verdict.PASS else 1
+    return 0 if outcome.verdict and outcome.verdict.passed else 1
 
 
 def _ball_terms(store: Any, args: argparse.Namespace, procedure: Any) -> dict[str, Any] | None:
@@ -279,7 +278,7 @@ def cmd_report(args: argparse.Namespace) -> int:
     output_file(args.output, "--output")
     output_dir(args.figures, "--figures")
     anchor = Anchor.parse(args.anchor) if args.anchor else None
-    from rig.protocols.one_shot import KIND as ONE_SHOT
+    from rig.core.events import ONE_SHOT_KIND as ONE_SHOT
     from rig.report.ball_lot import is_ball_test, lot_record
 
     with open_db(args, readonly=True) as store:

@@ -62,6 +62,10 @@ class LiveEvent(RunEvent):
 
 
 # -- persisted ---------------------------------------------------------------------------------
+ONE_SHOT_KIND = "shot"  # a one-shot run's procedure name in the store (rig shot), shown where a
+# certification shows its procedure
+
+
 @dataclass(frozen=True)
 class RunStarted(RunEvent):
     """The run's procedure, bat and rig as run (extra: software, calibration)."""

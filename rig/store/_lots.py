@@ -11,15 +11,17 @@ from __future__ import annotations
 
 import hashlib
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rig.core import events as ev
-from rig.core.ball import BALL_TESTS, BallLot, LotResult
 from rig.core.errors import RecordRefused, UnknownRecord
 from rig.core.outcomes import RunVerdict
 from rig.store._codec import decode_payload
 from rig.store._records import BALL_LAW_RECORDED, BALL_LOT_REGISTERED
 from rig.store._rows import known_ids
+
+if TYPE_CHECKING:  # the lot models need pydantic: imported when a lot is read, not with the store
+    from rig.core.ball import BallLot, LotResult
 
 CcorPoint = tuple[float, float, float, str]  # (speed_m_s, ccor, u_ccor, ball_id)
 
@@ -27,6 +29,8 @@ CcorPoint = tuple[float, float, float, str]  # (speed_m_s, ccor, u_ccor, ball_id
 def registered(conn: Any) -> dict[str, BallLot]:
     """Every registered lot by id, in registration order."""
     rows = conn.execute("SELECT payload FROM log WHERE kind = ? ORDER BY seq", (BALL_LOT_REGISTERED,))
+    from rig.core.ball import BallLot
+
     lots: dict[str, BallLot] = {}
     for (payload,) in rows:
         data = decode_payload(payload)
@@ -71,6 +75,8 @@ def checked_lot(lot: BallLot | dict[str, Any]) -> dict[str, Any]:
     """The lot as the store keeps it (validated); RecordRefused naming the first bad field."""
     from pydantic import ValidationError
 
+    from rig.core.ball import BallLot
+
     try:
         return BallLot.model_validate(lot).model_dump(mode="json")
     except ValidationError as exc:
@@ -86,6 +92,8 @@ def unknown(lot_id: str, lots: dict[str, BallLot]) -> UnknownRecord:
 
 def results(store: Any, lot_id: str) -> list[LotResult]:
     """The lot's measured results, oldest first: one per finished ball-test run of the lot."""
+    from rig.core.ball import BALL_TESTS, LotResult
+
     found = []
     for run in store.runs():
         if run.procedure not in BALL_TESTS or run.status != "finished":

@@ -13,7 +13,7 @@ from textual.widgets import DataTable, Footer, Header, Static
 
 from rig.certification import history
 from rig.core.errors import RigError
-from rig.protocols.one_shot import KIND as ONE_SHOT
+from rig.core.events import ONE_SHOT_KIND as ONE_SHOT
 from rig.report.record import run_record
 from rig.resume import recorded_inputs
 from rig.store import RunSummary, Store, shown_status
