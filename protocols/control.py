@@ -8,11 +8,33 @@ from typing import Protocol
 
 from rig.core.errors import RigError
 
+ASKED = "asked"  # a person answered this prompt's own question
+WITH = "with"  # given by the key that answered another prompt (Answer.with_prompt)
+SCRIPT = "script"  # a script answered: nobody was shown the question
+GIVEN = (ASKED, WITH, SCRIPT)
+
+
+@dataclass(frozen=True)
+class Answer:
+    """An answer and how it was given, as the record keeps it: an inspection counts as done only
+    when `given` is ASKED (rig.core.events.OperatorAnswered)."""
+
+    value: bool
+    given: str = ASKED
+    with_prompt: str | None = None  # the prompt whose answer gave this one (given WITH)
+
+    def __post_init__(self) -> None:
+        if self.given not in GIVEN:
+            raise ValueError(f"an answer is given {', '.join(GIVEN)}, not {self.given!r}")
+        if (self.given == WITH) != (self.with_prompt is not None):
+            raise ValueError("an answer given with another names that prompt, and only then")
+
 
 class Operator(Protocol):
-    """Answers the operator prompts (ring check, ball replacement)."""
+    """Answers the operator prompts (ring check, ball replacement): an Answer, or a bare bool
+    when the operator does not say how it was given (recorded as not stated)."""
 
-    def ask(self, prompt_id: str, text: str) -> bool: ...
+    def ask(self, prompt_id: str, text: str) -> Answer | bool: ...
 
 
 @dataclass
@@ -22,9 +44,9 @@ class ScriptedOperator:
     answer: bool = True
     who: str = "script"
 
-    def ask(self, prompt_id: str, text: str) -> bool:
-        """Return the scripted answer."""
-        return self.answer
+    def ask(self, prompt_id: str, text: str) -> Answer:
+        """Return the scripted answer, marked as given by the script (no inspection was made)."""
+        return Answer(self.answer, SCRIPT)
 
 
 class RunControl:

@@ -32,7 +32,7 @@ from rig.core.outcomes import RunVerdict, ShotOutcome
 from rig.core.run_phase import refuse, shot_refuse
 from rig.measure.realtime import InboundKnown, ReboundKnown, ShotTracker
 from rig.protocols import evaluate
-from rig.protocols.control import Operator, PlanError, RunAborted, RunControl, ScriptedOperator
+from rig.protocols.control import Answer, Operator, PlanError, RunAborted, RunControl, ScriptedOperator
 from rig.protocols.plan import (
     Ask,
     Checkpoint,
@@ -317,8 +317,18 @@ class Executor:
 
     def _ask(self, msg: Ask) -> bool:
         self.emit(ev.OperatorPrompted(prompt_id=msg.prompt_id, text=msg.text))
-        answer = bool(self.operator.ask(msg.prompt_id, msg.text))
-        self.emit(ev.OperatorAnswered(prompt_id=msg.prompt_id, answer=answer, who=self.ctx.who))
+        said = self.operator.ask(msg.prompt_id, msg.text)
+        how = said if isinstance(said, Answer) else None  # a bare bool does not say how it was given
+        answer = bool(said.value if isinstance(said, Answer) else said)
+        self.emit(
+            ev.OperatorAnswered(
+                prompt_id=msg.prompt_id,
+                answer=answer,
+                who=self.ctx.who,
+                given=None if how is None else how.given,
+                with_prompt=None if how is None else how.with_prompt,
+            )
+        )
         return answer
 
     def _move(self, loc_in: float) -> None:

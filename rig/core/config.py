@@ -232,6 +232,18 @@ RIG_NAME_PATTERN = r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}"  # also a key file's name:
 _NOT_NAME = re.compile(r"[^A-Za-z0-9._-]+")
 
 
+class Console(_Model):
+    """How the console takes the operator's answers.
+
+    `one_key`: Enter on a shot's review also passes the ring check after it, and Enter on that check
+    the one before the next shot (nothing touches the bat between). Off by default: each inspection
+    is asked on its own prompt. On, the record says of each such answer that it came with the other
+    one, not that it was inspected (rig.core.events.OperatorAnswered.given).
+    """
+
+    one_key: Annotated[bool, Field(strict=True)] = False
+
+
 class Identity(_Model):
     """Which rig this is, as each run records it: name (default sim-SCENE or the host name), serial."""
 
@@ -272,6 +284,7 @@ class RigConfig(_Model):
     pendulum: Pendulum = Pendulum()
     model: Model = Model()
     identity: Identity = Identity()
+    console: Console = Console()
     equipment: tuple[Equipment, ...] = Field((), max_length=200)
 
     @model_validator(mode="after")

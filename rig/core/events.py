@@ -126,10 +126,15 @@ class OperatorPrompted(RunEvent):
 
 @dataclass(frozen=True)
 class OperatorAnswered(RunEvent):
+    """An answer; `given` says how (protocols.control: asked, with another prompt's answer, by a
+    script; None in records made before it was kept, or when the operator did not say)."""
+
     kind: ClassVar[str] = "OperatorAnswered"
     prompt_id: str
     answer: bool
     who: str | None = None
+    given: str | None = None
+    with_prompt: str | None = None  # the prompt whose answer gave this one
 
 
 @dataclass(frozen=True)

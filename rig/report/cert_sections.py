@@ -194,15 +194,37 @@ def shot_blocks(record: dict[str, Any], decimals: int, fig: dict[str, Figure]) -
     return out
 
 
+_GIVEN_COLUMNS = (  # how a yes was given (protocols.control), as the certificate names it
+    ("asked", "yes, on its own prompt"),
+    ("with", "yes, with another answer"),
+    ("script", "yes, by the script"),
+)
+
+
 def operator_blocks(record: dict[str, Any]) -> list[Block]:
-    """Prompts grouped by kind with their answers; anything but 'yes' listed one by one."""
+    """Prompts grouped by kind with their answers; anything but 'yes' listed one by one.
+
+    A record that keeps how each answer was given (OperatorAnswered.given) splits the yes answers:
+    on the prompt's own question, with another prompt's answer (a lab's one key), by a script; an
+    inspection counts as made only in the first. Older records keep the one yes column."""
     groups: dict[str, dict[str, Any]] = {}
     texts: dict[str, str] = {}
     odd: list[tuple[str, ...]] = []
+    carried: list[tuple[str, ...]] = []
+    answers = [e for e in record.get("operator") or [] if e.get("kind") != ev.OPERATOR_PROMPTED]
+    split = any("given" in e for e in answers)
     for e in record.get("operator") or []:
         pid = str(e.get("prompt_id", "?"))
         g = groups.setdefault(
-            _PROMPT_SEQ.sub("", pid), {"text": "", "asked": 0, "yes": 0, "no": 0, "who": set()}
+            _PROMPT_SEQ.sub("", pid),
+            {
+                "text": "",
+                "asked": 0,
+                "yes": 0,
+                "no": 0,
+                "who": set(),
+                "given": dict.fromkeys(("asked", "with", "script", None), 0),
+            },
         )
         if e.get("kind") == ev.OPERATOR_PROMPTED:
             g["asked"] += 1
@@ -212,6 +234,12 @@ def operator_blocks(record: dict[str, Any]) -> list[Block]:
         g["who"].add(str(e.get("who", "?")))
         if e.get("answer") is True:
             g["yes"] += 1
+            given = e.get("given")
+            g["given"][given if given in g["given"] else None] += 1
+            if given == "with":
+                carried.append(
+                    (str(e.get("t_utc", "")), pid, texts.get(pid, ""), str(e.get("with_prompt", "?")))
+                )
         else:
             g["no"] += 1
             odd.append(
@@ -225,12 +253,23 @@ def operator_blocks(record: dict[str, Any]) -> list[Block]:
             )
     if not groups:
         return [Para("No operator prompts.")]
+    unstated = split and any(g["given"][None] for g in groups.values())
+    yes_heads = (
+        tuple(name for _, name in _GIVEN_COLUMNS) + (("yes, how not stated",) if unstated else ())
+        if split
+        else ("yes",)
+    )
     rows = tuple(
         (
             key,
             g["text"],
             str(g["asked"]),
-            str(g["yes"]),
+            *(
+                tuple(str(g["given"][k]) for k, _ in _GIVEN_COLUMNS)
+                + ((str(g["given"][None]),) if unstated else ())
+                if split
+                else (str(g["yes"]),)
+            ),
             str(g["no"]),
             str(g["asked"] - g["yes"] - g["no"]),
             ", ".join(sorted(g["who"])),
@@ -238,14 +277,31 @@ def operator_blocks(record: dict[str, Any]) -> list[Block]:
         for key, g in groups.items()
     )
     out: list[Block] = [
-        Table(("prompt", "question", "asked", "yes", "no", "unanswered", "answered by"), rows)
+        Table(("prompt", "question", "asked", *yes_heads, "no", "unanswered", "answered by"), rows)
     ]
+    if split:
+        out.append(Para(_GIVEN_NOTE))
+    if carried:
+        out += [
+            Para(
+                "Answers given with another prompt's answer (the lab's one key; not inspected on their own):"
+            ),
+            Table(("time (UTC)", "prompt", "question", "given with"), tuple(carried)),
+        ]
     if odd:
         out += [
             Para("Answers other than yes:"),
             Table(("time (UTC)", "prompt", "question", "answer", "by"), tuple(odd)),
         ]
     return out
+
+
+_GIVEN_NOTE = (
+    "An inspection (a ring check) counts as made only when it was answered on its own prompt. "
+    "'With another answer': the key that answered an earlier prompt (a shot's acceptance, or the ring "
+    "check after the last hit) also answered this one, as the lab's console allows ([console] one_key); "
+    "'by the script': a scripted run answered, and nobody was shown the question."
+)
 
 
 def _input_name(key: str) -> str:

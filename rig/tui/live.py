@@ -244,7 +244,8 @@ def _ball(r: LiveRun, d: dict[str, Any]) -> None:
 
 def _answered(r: LiveRun, d: dict[str, Any]) -> None:
     if not d["prompt_id"].startswith("fire-"):
-        r.note(f"{d['prompt_id']}: {'yes' if d['answer'] else 'NO'}")
+        how = f" (given with {d.get('with_prompt')})" if d.get("given") == "with" else ""
+        r.note(f"{d['prompt_id']}: {'yes' if d['answer'] else 'NO'}{how}")
 
 
 def _traffic(r: LiveRun, d: dict[str, Any]) -> None:

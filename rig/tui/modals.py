@@ -20,7 +20,7 @@ HELP = """\
   f  fire the waiting shot (the key is the confirmation); off (f says why)
      while an interlock is open, the cannon's status is unknown or paused
   Enter  the answer that needs no thought: the ring passes, accept the
-     valid shot (and its ring check after); never fires
+     valid shot; never fires (\\[console] one_key: also the rings after)
   y / n  answer one prompt; n on a ring check asks first (it fails the bat)
   p  pause (PAUSED leads the prompt line) / go on   a  abort (resumable)
   r  resume   b  back once ended

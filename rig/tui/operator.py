@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 from rig.core.devices import CannonStatus, GateConfig
 from rig.core.errors import RigError
-from rig.protocols.control import RunAborted
+from rig.protocols.control import ASKED, WITH, Answer, RunAborted
 from rig.session import RigSession
 
 
@@ -79,6 +79,7 @@ class ConsoleOperator:
         self._cancel_reason = ""
         self._read_status: Callable[[], CannonStatus] | None = None
         self._standing: tuple[str, ...] = ()  # ring checks already answered yes, in order
+        self._standing_with = ""  # the prompt whose key answered them
 
     # -- runner side (worker thread) ---------------------------------------------------------
     def attach(self, session: RigSession) -> None:
@@ -97,15 +98,16 @@ class ConsoleOperator:
         except RigError as exc:
             self._publish(CannonRead(None, str(exc)))
 
-    def ask(self, prompt_id: str, text: str) -> bool:
-        """Publish the prompt and wait for the operator's answer; a cancel stops the run (resumable)."""
+    def ask(self, prompt_id: str, text: str) -> Answer:
+        """Publish the prompt and wait for the operator's answer; a cancel stops the run (resumable).
+        A ring check answered ahead (`answer`'s `then`) is not shown: its answer says which key gave it."""
         prompt = PromptPending(prompt_id, text)
         with self._lock:
             if self._cancel_reason:
                 raise RunAborted(self._cancel_reason)
             if prompt_id in self._standing:  # answered with an earlier key: nothing happened since
                 self._standing = self._standing[self._standing.index(prompt_id) + 1 :]
-                return True
+                return Answer(True, WITH, self._standing_with)
             if prompt_id != "ball":  # a new ball does not touch the bat; anything else ends them
                 self._standing = ()
             self._pending, self._answer = prompt, False
@@ -120,7 +122,7 @@ class ConsoleOperator:
         self._publish(PromptClosed(prompt_id))
         if reason:
             raise RunAborted(reason)
-        return answer
+        return Answer(answer, ASKED)
 
     # -- UI side -----------------------------------------------------------------------------
     @property
@@ -141,7 +143,9 @@ class ConsoleOperator:
             if self._pending is None or self._pending.prompt_id != prompt_id or self._done.is_set():
                 return False
             self._answer = value
-            self._standing = then if value else ()
+            if prompt_id != "ball" or not value:  # a new ball does not touch the bat: checks stand
+                self._standing = then if value else ()
+                self._standing_with = prompt_id
             self._done.set()
             return True
 

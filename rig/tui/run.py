@@ -234,6 +234,7 @@ class RunScreen(RunKeys, Screen[None]):
             reason=self.outcome.reason if self.outcome else "",
             failure=self.failure,
             ring_check=self.job.procedure.ring_check,
+            one_key=self.job.config.console.one_key,
         )
 
     def essentials(self) -> Text:

@@ -63,7 +63,13 @@ class RunKeys:
         if prompt is not None and prompt.prompt_id == self._withdrawn_fail:
             self.notify("the ring check was failed, then withdrawn: answer it with y (passes) or n (fails)")
             return
-        then = None if prompt is None else quick_answer(prompt.prompt_id, self.job.procedure.ring_check)
+        then = (
+            None
+            if prompt is None
+            else quick_answer(
+                prompt.prompt_id, self.job.procedure.ring_check, self.job.config.console.one_key
+            )
+        )
         if then and self.control.paused:
             then = ()  # paused: the bat may be handled before the run goes on, so no answers ahead
         if prompt is not None and then is not None:

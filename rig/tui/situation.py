@@ -27,6 +27,7 @@ class Situation:
     reason: str = ""  # why it was interrupted
     failure: str = ""  # the error that stopped it (a device fault)
     ring_check: bool = False  # whether the procedure asks for ring checks
+    one_key: bool = False  # the lab lets Enter answer the ring checks ahead (rig config [console])
 
 
 def fire_block(s: Situation) -> str:
@@ -46,14 +47,17 @@ RUN_KEYS = ("fire", "fire_off", "quick", "answer", "pause", "go_on", "abort", "r
 PAUSED = ("PAUSED", "bold reverse")
 
 
-def quick_answer(prompt_id: str, ring_check: bool) -> tuple[str, ...] | None:
-    """What Enter answers yes with the pending prompt: the ring checks that come next with nothing
-    hitting the bat between (None: Enter does not answer this prompt, e.g. a fire)."""
+def quick_answer(prompt_id: str, ring_check: bool, one_key: bool = False) -> tuple[str, ...] | None:
+    """What Enter answers yes with the pending prompt (None: Enter does not answer it, e.g. a fire).
+
+    Each inspection is asked on its own prompt; only a lab that chose `one_key` (rig config
+    [console]) has Enter also pass the ring checks that come next with nothing hitting the bat
+    between, and the record says each came with that answer (OperatorAnswered.given)."""
     kind, _, number = prompt_id.rpartition("-")
     if prompt_id == "ball" or kind == "ring-before":
         return ()
-    if not number.isdigit() or not ring_check:
-        return () if kind == "review" else None
+    if not number.isdigit() or not ring_check or not one_key:
+        return () if kind in ("review", "ring-after") else None
     after, before = f"ring-after-{number}", f"ring-before-{int(number) + 1}"
     if kind == "review":  # accept the shot and pass the ring check after it (and before the next)
         return (after, before)
@@ -63,10 +67,15 @@ def quick_answer(prompt_id: str, ring_check: bool) -> tuple[str, ...] | None:
 
 
 QUICK_HINT = {
-    "review": "Enter: accept, and the ring passes  y: accept only  n: reject",
-    "ring-after": "Enter/y: passes (also counts before the next shot)  n: fails",
+    "review": "Enter/y: accept  n: reject",
+    "ring-after": "Enter/y: passes  n: fails",
     "ring-before": "Enter/y: passes  n: fails",
     "ball": "Enter/y: done  n: stop the run",
+}
+ONE_KEY_HINT = {  # a lab's one key ([console] one_key): the record says which answers came with it
+    "review": "Enter: accept, and the ring passes (recorded as given with the acceptance)  y: accept only"
+    "  n: reject",
+    "ring-after": "Enter: passes, also before the next shot (recorded so)  y: passes  n: fails",
 }
 
 
@@ -79,7 +88,7 @@ def allowed(s: Situation, action: str) -> bool | None:
     if action == "answer":
         return s.prompt is not None and not s.prompt.is_fire
     if action == "quick":
-        return s.prompt is not None and quick_answer(s.prompt.prompt_id, s.ring_check) is not None
+        return s.prompt is not None and quick_answer(s.prompt.prompt_id, s.ring_check, s.one_key) is not None
     if action == "pause":
         return s.running and not s.paused
     if action == "go_on":
@@ -121,8 +130,8 @@ def _asked(s: Situation) -> Text:
     pid = s.prompt.prompt_id
     kind = pid if pid == "ball" else pid.rpartition("-")[0]
     hint = QUICK_HINT.get(kind, "y: yes  n: no")
-    if kind == "review" and not s.ring_check:
-        hint = "Enter/y: accept  n: reject"
+    if s.one_key and s.ring_check:
+        hint = ONE_KEY_HINT.get(kind, hint)
     return Text.assemble((s.prompt.text, "bold"), "  ", (hint, "reverse"))
 
 

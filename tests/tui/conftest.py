@@ -12,7 +12,11 @@ from pathlib import Path
 import pytest
 from textual.pilot import Pilot
 
+from rig.core.bat import BatSpec
+from rig.core.tomlfile import dump_toml
+from rig.session import sim_config
 from rig.tui import ConsoleSettings, RigConsole
+from rig.tui.rigs import RigChoice
 from rig.tui.run import RunScreen
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -34,6 +38,15 @@ def make_settings(tmp_path: Path) -> Callable[..., ConsoleSettings]:
         return settings
 
     return make
+
+
+def one_key_rig(folder: Path, scene: str = "ideal") -> RigChoice:
+    """A rig file for a simulated scene whose lab chose the one key ([console] one_key = true)."""
+    config = sim_config(scene, bat=BatSpec.load(SAMPLE_BAT))  # its devices are served in this process
+    data = config.model_dump(mode="json", exclude_none=True) | {"console": {"one_key": True}}
+    path = folder / "one-key-rig.toml"
+    path.write_text(dump_toml(data), encoding="utf-8")
+    return RigChoice("config", str(path))
 
 
 async def until(pilot: Pilot, cond: Callable[[], object], what: str, timeout: float = 30.0) -> None:

@@ -28,7 +28,7 @@ from rig.tui.history import HistoryScreen, ReportView
 from rig.tui.operator import ConsoleOperator
 from rig.tui.run import RunScreen
 from rig.tui.setup import SetupScreen
-from tests.tui.conftest import QUICK, SAMPLE_BAT, until
+from tests.tui.conftest import QUICK, SAMPLE_BAT, one_key_rig, start_run, until
 
 SIZE = (80, 24)
 MAX_KEYS = 40
@@ -69,9 +69,12 @@ def test_typing_a_bat_path_on_the_first_screen_loads_it(
 
 
 def test_whole_bbcor_in_at_most_40_keys_every_fire_confirmed(
-    make_settings: Callable[..., ConsoleSettings],
+    make_settings: Callable[..., ConsoleSettings], tmp_path: Path
 ) -> None:
+    """On a rig whose lab chose the one key: Enter on a review also passes the ring checks up to the
+    next hit, and the record says which answers came with which key (issue 24: not as inspected)."""
     settings = make_settings()
+    settings.rigs = (one_key_rig(tmp_path),)
     fire_keys = 0
 
     async def body() -> list[str]:
@@ -123,6 +126,23 @@ def test_whole_bbcor_in_at_most_40_keys_every_fire_confirmed(
     assert {f"fire-{e.payload['index']}" for e in fired} == {p["prompt_id"] for p in confirmed}
     assert len(rings) == 28 and all(p["answer"] for p in rings)  # before and after every hit
     assert len(pressed) <= MAX_KEYS
+    # the first ring check was asked on its own prompt; each later one came with the review of the
+    # hit before it (Enter), and the record says so
+    # each ring check came with the review of the hit before it (Enter on the review), unless a
+    # question that needed thought came between (edge-location): then it was asked; a new ball
+    # between does not touch the bat
+    review = None
+    for p in answered:
+        kind = p["prompt_id"].rpartition("-")[0]
+        if kind == "review":
+            review = p["prompt_id"]
+        elif kind.startswith("ring"):
+            assert (p["given"], p.get("with_prompt")) == (("with", review) if review else ("asked", None)), p
+        elif p["prompt_id"] != "ball":  # a fire, or a question that needed thought
+            review = None
+    assert rings[0]["given"] == "asked" and sum(p["given"] == "with" for p in rings) >= 24
+    reviews = [p for p in answered if p["prompt_id"].startswith("review-")]
+    assert len(reviews) == 14 and all(p["given"] == "asked" for p in reviews)
 
 
 def test_history_shows_the_certificate_without_drawing_figures(
@@ -139,7 +159,7 @@ def test_history_shows_the_certificate_without_drawing_figures(
     with Store.open(settings.db) as store:
         run_id = certify(store, Procedure.load(QUICK), bat, sim_config("ideal", bat=bat)).run_id
 
-    async def body() -> str:
+    async def body() -> None:
         app = RigConsole(settings)
         async with app.run_test(size=SIZE) as pilot:
             await until(pilot, lambda: isinstance(app.screen, SetupScreen) and app.screen.report, "set-up")
@@ -216,13 +236,60 @@ def test_the_set_up_screen_reads_the_devices_once(
     assert calls == ["read", "read"]
 
 
-def test_a_withdrawn_fail_and_a_pause_are_not_passed_by_habit(
+def test_by_default_each_ring_check_is_asked_on_its_own_prompt(
     make_settings: Callable[..., ConsoleSettings],
+) -> None:
+    """Issue 24: Enter on a review accepts the shot only; the ring checks after it and before the next
+    hit are each asked, and recorded as answered on their own prompts."""
+    settings = make_settings()
+    asked: list[str] = []
+
+    async def body() -> None:
+        async with RigConsole(settings).run_test(size=SIZE) as pilot:
+            screen = await start_run(pilot)
+            op: ConsoleOperator = screen.operator
+            while "ring-before-2" not in asked:
+                await until(
+                    pilot,
+                    lambda: (
+                        op.pending is not None
+                        and op.pending.prompt_id not in asked
+                        and (not op.pending.is_fire or not screen.fire_block())
+                    ),
+                    "the next prompt",
+                )
+                prompt = op.pending
+                assert prompt is not None
+                asked.append(prompt.prompt_id)
+                if prompt.prompt_id == "ring-before-2":
+                    break
+                await pilot.press("f" if prompt.is_fire else "enter")
+                await until(pilot, lambda p=prompt: op.pending is not p, "the answer to go through")
+            screen.stop("test over")
+            await until(pilot, lambda: not screen.running, "the run to stop")
+
+    asyncio.run(body())
+    assert asked == ["ring-before-1", "fire-1", "review-1", "ring-after-1", "ring-before-2"]
+    with Store.open(settings.db, create=False) as store:
+        (run,) = store.runs()
+        answered = [e.payload for e in store.entries(run.run_id, kinds=["OperatorAnswered"])]
+    rings = [p for p in answered if not p["prompt_id"].startswith("fire-")]
+    assert [(p["prompt_id"], p["answer"], p["given"]) for p in rings] == [
+        ("ring-before-1", True, "asked"),
+        ("review-1", True, "asked"),
+        ("ring-after-1", True, "asked"),
+    ]
+
+
+def test_a_withdrawn_fail_and_a_pause_are_not_passed_by_habit(
+    make_settings: Callable[..., ConsoleSettings], tmp_path: Path
 ) -> None:
     """Review of issue 14: n, Enter (withdraws the fail), Enter recorded the ring check as passed;
     and ring checks passed ahead by Enter on a review survived a pause, when the bat may be handled.
-    Now the withdrawn check needs y or n, and a pause drops answers given ahead."""
+    Now the withdrawn check needs y or n, and a pause drops answers given ahead (a rig whose lab
+    chose the one key: without it nothing is answered ahead)."""
     settings = make_settings()
+    settings.rigs = (one_key_rig(tmp_path),)
 
     async def body() -> None:
         app = RigConsole(settings)

@@ -13,6 +13,7 @@ import pytest
 from rig.certification import certify, history
 from rig.core.bat import BatSpec
 from rig.core.devices import CannonState, CannonStatus, GateConfig, Interlocks
+from rig.protocols.control import ASKED, WITH, Answer
 from rig.protocols.procedure import Procedure
 from rig.protocols.runner import RunAborted
 from rig.report.record import run_record
@@ -100,7 +101,7 @@ def test_operator_waits_for_the_ui_and_polls_the_cannon_meanwhile() -> None:
         cannon=SimpleNamespace(status=status), gates=SimpleNamespace(config=lambda: GateConfig(3, 100.0, 32))
     )
     op.attach(session)  # type: ignore[arg-type]
-    answers: list[bool] = []
+    answers: list[Answer] = []
     worker = threading.Thread(target=lambda: answers.append(op.ask("ring-before-1", "Ring?")))
     worker.start()
     while op.pending is None:
@@ -109,7 +110,7 @@ def test_operator_waits_for_the_ui_and_polls_the_cannon_meanwhile() -> None:
     threading.Event().wait(0.05)
     assert op.answer("ring-before-1", False)
     worker.join(2)
-    assert answers == [False]
+    assert answers == [Answer(False, ASKED)]  # answered on its own prompt
     assert isinstance(seen[0], GatesRead) and isinstance(seen[-1], PromptClosed)
     assert sum(isinstance(n, CannonRead) for n in seen) >= 3  # read again while it waited
     op.cancel("aborted by the operator")
@@ -118,21 +119,30 @@ def test_operator_waits_for_the_ui_and_polls_the_cannon_meanwhile() -> None:
 
 
 def test_enter_answers_only_what_needs_no_thought() -> None:
-    assert quick_answer("review-4", ring_check=True) == ("ring-after-4", "ring-before-5")
-    assert quick_answer("ring-after-4", ring_check=True) == ("ring-before-5",)
-    assert quick_answer("ring-before-4", ring_check=True) == ()
-    assert quick_answer("review-4", ring_check=False) == () and quick_answer("ball", True) == ()
-    assert quick_answer("fire-4", ring_check=True) is None  # a fire takes its own key
+    # by default every inspection is asked on its own prompt: Enter answers the one shown
+    assert quick_answer("review-4", ring_check=True) == ()
+    assert quick_answer("ring-after-4", ring_check=True) == ()
+    # a lab's one key ([console] one_key) also passes the ring checks up to the next hit
+    assert quick_answer("review-4", ring_check=True, one_key=True) == ("ring-after-4", "ring-before-5")
+    assert quick_answer("ring-after-4", ring_check=True, one_key=True) == ("ring-before-5",)
+    assert quick_answer("ring-before-4", ring_check=True, one_key=True) == ()
+    assert quick_answer("review-4", ring_check=False, one_key=True) == () and quick_answer("ball", True) == ()
+    assert quick_answer("fire-4", ring_check=True, one_key=True) is None  # a fire takes its own key
     assert quick_answer("edge-location", ring_check=True) is None  # a question to think about
     fire = Situation(running=True, prompt=PromptPending("fire-3", "Fire?"), cannon=status())
     assert allowed(fire, "quick") is False and allowed(fire, "answer") is False
     review = replace(fire, prompt=PromptPending("review-3", "Accept?"), ring_check=True)
     assert allowed(review, "quick") is True
-    assert "Enter: accept, and the ring passes" in prompt_text(review).plain
+    assert prompt_text(review).plain.endswith("Enter/y: accept  n: reject")
+    one_key = replace(review, one_key=True)
+    assert (
+        "Enter: accept, and the ring passes (recorded as given with the acceptance)"
+        in prompt_text(one_key).plain
+    )
 
 
-def _ask_in_thread(op: ConsoleOperator, prompt_id: str) -> list[bool]:
-    out: list[bool] = []
+def _ask_in_thread(op: ConsoleOperator, prompt_id: str) -> list[Answer]:
+    out: list[Answer] = []
 
     def ask() -> None:
         with contextlib.suppress(RunAborted):  # the test ends by cancelling the last one
@@ -154,7 +164,8 @@ def test_ring_checks_answered_with_the_key_before_stop_at_anything_else() -> Non
         pass
     assert op.answer("review-1", True, ("ring-after-1", "ring-before-2"))
     worker.join(2)
-    assert _ask_in_thread(op, "ring-after-1") == [True]  # returned at once: no one was asked
+    # returned at once: no one was asked, and the answer says which key gave it
+    assert _ask_in_thread(op, "ring-after-1") == [Answer(True, WITH, "review-1")]
     assert op.pending is None
     assert _ask_in_thread(op, "edge-location") == []  # something else: it waits for the operator
     assert op.pending is not None and op.pending.prompt_id == "edge-location"
