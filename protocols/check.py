@@ -11,17 +11,7 @@ from __future__ import annotations
 from rig.core import events as ev
 from rig.core.outcomes import RunVerdict
 from rig.protocols.plan import Checkpoint, Plan, PlanContext, Problem, Record
-from rig.protocols.steps import (
-    check_budget,
-    decide,
-    environment,
-    measure_moi,
-    preflight,
-    prepare,
-    resolve_pending,
-    start,
-    valid_hits,
-)
+from rig.protocols.steps import decide, opening, valid_hits
 from rig.quality import CHECK_KIND
 
 KIND = CHECK_KIND  # the store's kind of a check run
@@ -34,16 +24,7 @@ def check_session(ctx: PlanContext) -> Plan[RunVerdict | None]:
     scan = ctx.procedure.scan
     if scan.count != 1:
         yield Problem(f"a check procedure strikes one location: its scan has {scan.count} (from_in = to_in)")
-    yield from preflight(ctx)
-    yield from start(ctx)
-    yield from check_budget(ctx)
-    yield Checkpoint()
-    yield from environment(ctx)
-    yield Checkpoint()
-    yield from prepare(ctx)
-    yield from resolve_pending(ctx)
-    if ctx.state.moi is None:
-        yield from measure_moi(ctx)
+    yield from opening(ctx)
     if ctx.state.best_location_in is None:
         yield Record(ev.LocationChosen(from_barrel_end_in=scan.from_in))
     yield from valid_hits(ctx)

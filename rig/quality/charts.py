@@ -120,7 +120,7 @@ class Signal:
         }[self.rule]
         return (
             f"{self.rule}: session {self.index} (run {self.session[:12]}) {words} "
-            f"{self.value:.5g} beyond {self.limit:.5g}"
+            f"{self.value:.6g} beyond {self.limit:.6g}"
         )
 
 
