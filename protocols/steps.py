@@ -414,10 +414,8 @@ def shoot(ctx: PlanContext, loc_in: float, purpose: str) -> Plan[None]:
 
 
 # -- the standard procedure --------------------------------------------------------------------
-def certification(ctx: PlanContext) -> Plan[RunVerdict | None]:
-    """The certification procedure of NCAA BESR, BBCOR and BBS (their Procedure data differ)."""
-    if ctx.state.finished:
-        return ctx.state.verdict
+def opening(ctx: PlanContext) -> Plan[None]:
+    """What every run of a bat does before its first shot: checks, start, air, stage, MOI."""
     yield from preflight(ctx)
     yield from start(ctx)
     yield from check_budget(ctx)
@@ -428,6 +426,13 @@ def certification(ctx: PlanContext) -> Plan[RunVerdict | None]:
     yield from resolve_pending(ctx)
     if ctx.state.moi is None:
         yield from measure_moi(ctx)
+
+
+def certification(ctx: PlanContext) -> Plan[RunVerdict | None]:
+    """The certification procedure of NCAA BESR, BBCOR and BBS (their Procedure data differ)."""
+    if ctx.state.finished:
+        return ctx.state.verdict
+    yield from opening(ctx)
     yield from scan(ctx)
     if ctx.state.best_location_in is None:
         yield from choose_location(ctx)

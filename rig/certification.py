@@ -37,6 +37,7 @@ from rig.protocols.plan import PlanContext
 from rig.protocols.procedure import Procedure
 from rig.protocols.runner import run_to_verdict
 from rig.protocols.state import RunState
+from rig.quality.records import rig_quality
 from rig.request import CertifyRequest, Prepared, Signoff
 from rig.session import RigSession
 from rig.store import RunLocked, Store, StoreDamaged, StoreGone
@@ -145,17 +146,22 @@ def _where(exc: BaseException) -> str:
     return "; ".join(f"{Path(f.filename).name}:{f.lineno} in {f.name}" for f in frames[-3:])
 
 
-def prepare(store: Store, request: CertifyRequest) -> Prepared:
+def prepare(store: Store, request: CertifyRequest, *, gated: bool = True) -> Prepared:
     """The one rehearsal of a certification, before anything is recorded or opened: a new run's bat
     takes its measured hoop (rig.modal.link, before the rig is built: a simulated bat takes it as its
     own), the rig config is built, the plan (a resumed run: what is left of it) is rehearsed against
-    checking fakes, and a new run's named calibration is loaded. Every problem: one ConfigError."""
+    checking fakes, and a new run's named calibration is loaded. Every problem: one ConfigError.
+    `gated`: a new run on a rig whose control charts signal, unacknowledged, is refused (rig check)."""
     run_id, bat = request.run_id, request.bat
     if run_id is not None:
         _running(store, run_id, "--resume")
     else:
         bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
     config = request.config_for(bat)
+    if gated and run_id is None:
+        refusal = rig_quality(store, config.identity_name()).refusal()
+        if refusal:
+            raise ConfigError(refusal, source="quality control")
     past = history(store, run_id) if run_id is not None else None
     rehearsal = rehearse(request.procedure, bat, config, request.plan, past, options=request.options)
     if rehearsal.problems:
@@ -165,7 +171,7 @@ def prepare(store: Store, request: CertifyRequest) -> Prepared:
     return Prepared(request, bat, config, rehearsal)
 
 
-def run_prepared(store: Store, prepared: Prepared) -> Outcome:
+def run_prepared(store: Store, prepared: Prepared, *, kind: str | None = None) -> Outcome:
     """Record and run a rehearsed certification (with its `run_id`: resume it); returns its outcome.
 
     The listeners first hear RigNamed: the rig, whether it is simulated, and what its signature will
@@ -174,14 +180,20 @@ def run_prepared(store: Store, prepared: Prepared) -> Outcome:
     `accept_overdue` (who, why) lets instruments past their calibration due date be used, recorded
     with the instruments' identities (rig.instruments); without it such a run is refused. `on_open`
     sees the open session before the plan starts: an operator console reads device status through it
-    on the run's thread while the run waits for the operator.
+    on the run's thread while the run waits for the operator. `kind`: the run's kind in the store
+    (default the procedure's metric; `check` for a check run). A new run made while the rig's
+    control-chart signals stand acknowledged records the acknowledgement (RunCreated's check_ack).
     """
     request, bat, config = prepared.request, prepared.bat, prepared.config
     refusal = ConfigError(
         f"bat {bat.id} is registered with other properties; give it a new id", source="bat file"
     )
     p = request.procedure
-    new = NewRun(p.standard, bat.id, bat.model_dump(mode="json"), refusal, {"procedure": p.name})
+    meta: dict[str, Any] = {"procedure": p.name}
+    under = rig_quality(store, config.identity_name()).under if request.run_id is None else None
+    if under is not None:
+        meta["check_ack"] = under.as_dict()
+    new = NewRun(kind or p.standard, bat.id, bat.model_dump(mode="json"), refusal, meta)
 
     def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Driven, Callable[[], Any]]:
         executor = live_executor(session, prepared.context(past), emit, prepared.operator, request.control)

@@ -52,6 +52,9 @@ def run_record(store: Store, run_id: str, anchor: Anchor | None = None) -> dict[
         if e.kind in ev.BY_KIND:
             st.apply(ev.parse_entry(e), e.t_utc, e.seq)
     _fill(record, st, [e for e in entries if e.kind == RUN_LOCK_BROKEN])
+    created = next((e.payload.get("meta") for e in entries if e.kind == "RunCreated"), None)
+    if isinstance(created, dict) and created.get("check_ack"):  # made under an acknowledged signal
+        record["check_ack"] = created["check_ack"]
     return record
 
 

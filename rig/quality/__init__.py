@@ -1,0 +1,9 @@
+"""Quality control of the lab's results (ISO/IEC 17025 7.7.1): check standards on control charts.
+
+`charts` is the pure maths; `records` reads the store's check runs into chart series, records
+acknowledgements of signals (lab-level `CheckAcknowledged` entries) and says whether a rig may
+certify (`RigQuality.refusal`).
+"""
+
+CHECK_KIND = "check"  # the store's kind of a check run (rig check)
+ACK_KIND = "CheckAcknowledged"  # lab-level: signals of a rig's charts acknowledged (rig check ack)
