@@ -184,7 +184,10 @@ def measure_moi(ctx: PlanContext) -> Plan[None]:
     p, bat = ctx.procedure, ctx.bat
     if p.moi.source == "entered":
         if bat.moi_kgm2 is None:
-            yield Problem("procedure wants the MOI entered, but the bat file has no moi_kgm2")
+            yield Problem(
+                "procedure wants the MOI entered, but the bat file has no moi_kgm2 (give moi_kgm2 and "
+                "moi_u_kgm2, measured once on the pivot, as protocols/examples/reference-bat.toml does)"
+            )
             return
         if bat.moi_u_kgm2 is None:
             yield Problem("an entered MOI needs its standard uncertainty: add moi_u_kgm2 to the bat file")

@@ -350,7 +350,9 @@ def test_the_dry_run_lists_a_missing_calibration_with_the_other_problems(tmp_pat
     bat = BAT.model_copy(update={"moi_kgm2": None})
     problems = dry_run(p, bat, sim_config("ideal", bat=bat))
     assert any("gone.json" in x for x in problems)
-    assert "procedure wants the MOI entered, but the bat file has no moi_kgm2" in problems
+    assert any(
+        x.startswith("procedure wants the MOI entered, but the bat file has no moi_kgm2") for x in problems
+    )
 
 
 def test_a_location_off_the_bat_is_named_once(tmp_path: Path) -> None:
