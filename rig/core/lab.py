@@ -60,7 +60,8 @@ def load_lab(path: str | Path) -> dict[str, Any]:
     logo = None
     if lab.logo is not None:
         where = Path(path).parent / Path(lab.logo).expanduser()
-        raw = read_bounded(where, LOGO_BYTES, "a logo image (PNG or JPEG)", binary=True)
+        missing = f"no such file (the logo that {source} names)"
+        raw = read_bounded(where, LOGO_BYTES, "a logo image (PNG or JPEG)", missing=missing, binary=True)
         kind = next((m for magic, m in _MAGIC.items() if raw.startswith(magic)), None)
         if kind is None:
             raise ConfigError(

@@ -100,7 +100,7 @@ def build(record: dict[str, Any], fig: dict[str, Figure]) -> list[Block]:
         Para(f"Test report {report_id(record)}" + (f" — {marked}" if marked else ""), strong=True),
         *identification_blocks(record),
         Heading("Result"),
-        *[replace(b, mark=marked) if isinstance(b, Banner) else b for b in verdict_blocks(record)],
+        *[replace(b, mark=marked) for b in verdict_blocks(record) if isinstance(b, Banner)],
         Para(STATEMENT),
         Heading("Deviations"),
         *deviation_blocks(record),
@@ -120,6 +120,7 @@ def build(record: dict[str, Any], fig: dict[str, Figure]) -> list[Block]:
                 ("record status", str(record.get("status"))),
             ]
         ),
+        *verdict_detail_blocks(record),
         Heading("Bat"),
         bat_table(record),
         Heading("Rig and software"),
@@ -271,6 +272,12 @@ def verdict_blocks(record: dict[str, Any]) -> list[Block]:
             ]
         ),
     ]
+
+
+def verdict_detail_blocks(record: dict[str, Any]) -> list[Block]:
+    """The verdict's figures, the resume commands of a run without one: the annex's Verdict section."""
+    rest = [b for b in verdict_blocks(record) if not isinstance(b, Banner)]
+    return [Heading("Verdict"), *rest] if rest else []
 
 
 def bat_table(record: dict[str, Any]) -> Table:
