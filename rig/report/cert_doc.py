@@ -162,7 +162,7 @@ th { background: #eee; }
 pre { background: #f4f4f4; padding: .6rem; overflow-x: auto; }
 figure { margin: 1rem 0; } figure img { width: 100%; max-width: 40rem; height: auto; }
 figcaption { font-size: .85rem; color: #555; }
-.banner .mark { font-size: 1.4rem; font-weight: bold; color: #c0262d; letter-spacing: .05em; }
+.banner .mark { font-size: 1.4rem; font-weight: bold; color: #6f2da8; letter-spacing: .05em; }
 .logo { max-height: 18mm; max-width: 60mm; }
 @page { size: A4; margin: 18mm 14mm 16mm; }
 @media print {
@@ -188,7 +188,7 @@ def page_css(marks: PageMarks) -> str:
     """The @page margin boxes that put the marks on every printed page (Chromium 131 and later)."""
     boxes = {
         "top-left": (css_string(marks.lab), ""),
-        "top-center": (css_string(marks.mark), "color: #c0262d; font-weight: bold; font-size: 11pt;"),
+        "top-center": (css_string(marks.mark), "color: #6f2da8; font-weight: bold; font-size: 11pt;"),
         "top-right": (css_string(f"Report {marks.report_id}"), ""),
         "bottom-left": (css_string(marks.status), "color: #c0262d; font-weight: bold;"),
         "bottom-right": ('"page " counter(page) " of " counter(pages)', ""),
