@@ -23,6 +23,7 @@ from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
 from rig.core.errors import ConfigError, RecordRefused, RigError, StoreError
 from rig.core.events import RunEvent, Subscriber
+from rig.core.lab import lab_file, load_lab
 from rig.core.outcomes import RunVerdict
 from rig.core.run_phase import RunPhase
 from rig.core.version import __version__
@@ -166,9 +167,12 @@ def prepare(store: Store, request: CertifyRequest, *, gated: bool = True) -> Pre
     rehearsal = rehearse(request.procedure, bat, config, request.plan, past, options=request.options)
     if rehearsal.problems:
         raise ConfigError("; ".join(rehearsal.problems), source="dry run")
+    lab = None
     if run_id is None:
         run_calibration(request.procedure, config)  # a named calibration that will not load stops us here
-    return Prepared(request, bat, config, rehearsal)
+        named = lab_file(request.lab, config.identity.lab)
+        lab = None if named is None else load_lab(named)  # a bad lab file stops us here
+    return Prepared(request, bat, config, rehearsal, lab)
 
 
 def run_prepared(store: Store, prepared: Prepared, *, kind: str | None = None) -> Outcome:
@@ -189,11 +193,11 @@ def run_prepared(store: Store, prepared: Prepared, *, kind: str | None = None) -
         f"bat {bat.id} is registered with other properties; give it a new id", source="bat file"
     )
     p = request.procedure
-    meta: dict[str, Any] = {"procedure": p.name}
+    meta: dict[str, Any] = {"procedure": p.name, "report": prepared.report_meta()}
     under = rig_quality(store, config.identity_name()).under if request.run_id is None else None
     if under is not None:
         meta["check_ack"] = under.as_dict()
-    new = NewRun(kind or p.standard, bat.id, bat.model_dump(mode="json"), refusal, meta)
+    new = NewRun(kind or p.standard, bat.id, bat.registered(), refusal, meta)
 
     def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Driven, Callable[[], Any]]:
         executor = live_executor(session, prepared.context(past), emit, prepared.operator, request.control)

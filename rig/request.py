@@ -66,6 +66,8 @@ class CertifyRequest:
     reads the open devices (none of them changes what the rehearsal sees). `confirm_fire`,
     `review_shots`: the operator confirms each shot, may reject a valid one. `rig_checked`,
     `accept_overdue`: recorded decisions. `sign_simulated`: sign a simulated run with a real key.
+    `lab`: the lab identity file (else $RIG_LAB, else the rig config's; rig.core.lab), `tested_by`:
+    the operator who performs the test; both recorded when the run is created, for its report.
     """
 
     procedure: Procedure
@@ -83,9 +85,12 @@ class CertifyRequest:
     rig_checked: Signoff | None = None
     accept_overdue: Signoff | None = None
     sign_simulated: bool = False
+    lab: str | Path | None = None
+    tested_by: str | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "subscribers", tuple(self.subscribers))
+        object.__setattr__(self, "tested_by", operator_name(self.tested_by))
 
     @property
     def options(self) -> dict[str, Any]:
@@ -97,14 +102,36 @@ class CertifyRequest:
         return self.rig if isinstance(self.rig, RigConfig) else self.rig(bat)
 
 
+def operator_name(name: str | None) -> str | None:
+    """The operator's name as recorded (stripped), None for none; ConfigError if it is not 1-200
+    printable characters."""
+    if name is None:
+        return None
+    if not isinstance(name, str) or not name.strip() or len(name) > 200 or not name.isprintable():
+        raise ConfigError("the operator's name: 1-200 printable characters", source="--operator")
+    return name.strip()
+
+
 @dataclass(frozen=True)
 class Prepared:
-    """A request rehearsed: the bat as it runs (with its measured hoop), the rig config, the rehearsal."""
+    """A request rehearsed: the bat as it runs (with its measured hoop), the rig config, the rehearsal,
+    and the lab identity its report names (rig.core.lab; None: none named)."""
 
     request: CertifyRequest
     bat: BatSpec
     config: RigConfig
     rehearsal: Rehearsal
+    lab: dict[str, Any] | None = None
+
+    def report_meta(self) -> dict[str, Any]:
+        """What a new run records for its test report (RunCreated): the lab, who performs the test,
+        who answers the prompts, and whether the rig is simulated."""
+        return {
+            "lab": self.lab,
+            "tested_by": self.request.tested_by,
+            "answered_by": getattr(self.operator, "who", "operator"),
+            "simulated": self.config.simulated,
+        }
 
     @property
     def operator(self) -> Operator:

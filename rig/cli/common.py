@@ -231,6 +231,21 @@ def resolve_run(store: Any, text: str) -> str:
     return store.run(text).run_id  # raises a clear error for unknown or ambiguous ids
 
 
+def add_report_options(p: argparse.ArgumentParser) -> None:
+    """--lab FILE and --operator NAME: what a new run records for its test report."""
+    p.add_argument(
+        "--lab",
+        metavar="LAB.toml",
+        help="the lab identity file its report names (name, address, accreditation id, logo); default "
+        "$RIG_LAB, else the rig config's [identity] lab (recorded when the run is created)",
+    )
+    p.add_argument(
+        "--operator",
+        metavar="NAME",
+        help="who performs the test (recorded; the report's 'test performed by')",
+    )
+
+
 def add_rig_options(p: argparse.ArgumentParser) -> None:
     """--sim [SCENE] or --config RIG.toml, one of them."""
     where = p.add_mutually_exclusive_group()

@@ -15,6 +15,7 @@ from typing import Any
 from rig.cli.common import (
     ConfigError,
     add_columns,
+    add_report_options,
     add_rig_options,
     default_db,
     new_table,
@@ -133,6 +134,11 @@ def cmd_certify(args: argparse.Namespace) -> int:
             procedure, bat = Procedure.load(args.procedure), BatSpec.load(args.bat)
             run_id = None
             ball = _ball_terms(store, args, procedure)
+        if args.resume and (args.lab or args.operator):
+            raise ConfigError(
+                "--lab and --operator are recorded when a run is created; a resumed run keeps its own",
+                source="command line",
+            )
         if args.calibration and args.resume and started:
             raise ConfigError(
                 "--calibration starts a run; a resumed run keeps the calibration it recorded",
@@ -154,6 +160,8 @@ def cmd_certify(args: argparse.Namespace) -> int:
             ball=ball,
             sign_simulated=args.sign_simulated,
             accept_overdue=accept_overdue,
+            lab=args.lab,
+            tested_by=args.operator,
         )
         prepared = prepare(store, request)  # the one rehearsal (a resumed run: what is left of it)
         if args.dry_run:
@@ -278,11 +286,21 @@ def cmd_report(args: argparse.Namespace) -> int:
     output_file(args.output, "--output")
     output_dir(args.figures, "--figures")
     anchor = Anchor.parse(args.anchor) if args.anchor else None
+    if bool(args.issue) != bool(args.by):
+        raise ConfigError("--issue needs --by NAME (who authorises the report), and --by goes with --issue")
     from rig.core.events import ONE_SHOT_KIND as ONE_SHOT
     from rig.report.ball_lot import is_ball_test, lot_record
 
-    with open_db(args, readonly=True) as store:
+    with open_db(args, readonly=not args.issue) as store:
         run_id = resolve_run(store, args.run)
+        if args.issue:
+            from rig.report.issue import issue
+
+            done = issue(store, run_id, args.by)
+            print(
+                f"issued report {done['report_id']} of run {run_id} on {done['issued']} by {done['by']}",
+                file=sys.stderr,
+            )
         if args.format != "json" and store.run(run_id).procedure == ONE_SHOT:
             raise ConfigError(
                 f"run {run_id} is a one-shot run (rig shot), not a certification: it has no certificate;"
@@ -461,6 +479,7 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--why", metavar="TEXT", help="why (recorded)")
     p.add_argument("--dry-run", action="store_true", help="check the procedure against rig and bat only")
     p.add_argument("--json", action="store_true", help="print the run record as JSON")
+    add_report_options(p)
     p.set_defaults(handler=cmd_certify)
 
     p = sub.add_parser("runs", help="list recorded runs", description=cmd_runs.__doc__)
@@ -489,6 +508,12 @@ def add_parsers(sub: Any) -> None:
     p.add_argument(
         "--anchor", metavar="SEQ:HASH", help="show the run only as far as this anchor (from a certificate)"
     )
+    p.add_argument(
+        "--issue",
+        action="store_true",
+        help="issue the report (recorded: report id, today's date, --by): it is no longer a draft",
+    )
+    p.add_argument("--by", metavar="NAME", help="with --issue: who authorises the report (recorded)")
     p.set_defaults(handler=cmd_report)
 
     p = sub.add_parser("verify", help="check the records' hash chain", description=cmd_verify.__doc__)

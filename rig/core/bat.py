@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from datetime import date
 from enum import StrEnum
 from pathlib import Path
 from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationInfo, field_validator
 
+from rig.core.lab import Line, Lines
 from rig.core.tomlfile import read_toml, table, validate
 from rig.core.units import INCH, OUNCE
 
@@ -45,6 +47,9 @@ class SimulatedTruth(BaseModel):
     alteration_bbcor: Annotated[float, Field(ge=0.0, le=0.1)] = 0.0
 
 
+SUBMISSION = ("customer", "maker", "model", "serial", "condition", "received")
+
+
 class BatSpec(BaseModel):
     """Identity and properties of a bat; optional values are measured or left to the model."""
 
@@ -60,6 +65,14 @@ class BatSpec(BaseModel):
     moi_u_kgm2: Annotated[float, Field(gt=0.0, lt=0.1)] | None = None  # standard u of an entered moi_kgm2
     # from the knob end, on the bat past the pivot
     balance_point_in: Annotated[float, Field(gt=PIVOT_FROM_KNOB_IN, lt=LENGTH_IN[1])] | None = None
+    # The item as the test report describes it (ISO/IEC 17025 7.8.2.1): optional, and not part of the
+    # bat's registration (SUBMISSION), so that bat files written before them stay valid and the same.
+    customer: Lines | None = None  # who submitted the bat (name, and address if wanted)
+    maker: Line | None = None
+    model: Line | None = None
+    serial: Line | None = None
+    condition: Lines | None = None  # the bat's condition on receipt, e.g. "new, no visible damage"
+    received: date | None = None  # date of receipt at the lab
     _simulated: SimulatedTruth | None = PrivateAttr(default=None)
 
     def __eq__(self, other: object) -> bool:
@@ -70,6 +83,10 @@ class BatSpec(BaseModel):
 
     def __hash__(self) -> int:
         return hash(tuple(self.model_dump().items()))
+
+    def registered(self) -> dict[str, object]:
+        """What the store registers of the bat: its properties, without the submission's details."""
+        return self.model_dump(mode="json", exclude=set(SUBMISSION))
 
     @property
     def simulated(self) -> SimulatedTruth | None:

@@ -249,6 +249,8 @@ class Identity(_Model):
 
     name: Annotated[str, Field(pattern=f"^{RIG_NAME_PATTERN}$")] | None = None
     serial: Annotated[str, Field(min_length=1, max_length=64)] | None = None
+    # the lab identity file (rig.core.lab) its reports name, relative to the rig config
+    lab: Annotated[str, Field(min_length=1, max_length=500)] | None = None
 
 
 def rig_name(text: str) -> str:
@@ -329,13 +331,17 @@ class RigConfig(_Model):
     def load(cls, path: str | Path) -> RigConfig:
         """Read and validate a TOML file; errors name the file and the field.
 
-        [model] calibration, when relative, is taken relative to the file.
+        [model] calibration and [identity] lab, when relative, are taken relative to the file.
         """
         config = cls.from_dict(read_toml(path, what="a rig config"), source=str(path))
         named = config.model.calibration
         if named is not None:
             where = str(Path(path).parent / Path(named).expanduser())
             config = config.model_copy(update={"model": Model(calibration=where)})
+        lab = config.identity.lab
+        if lab is not None:
+            where = str(Path(path).parent / Path(lab).expanduser())
+            config = config.model_copy(update={"identity": config.identity.model_copy(update={"lab": where})})
         return config
 
     @classmethod

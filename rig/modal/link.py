@@ -92,7 +92,7 @@ def with_measured_hoop(store: ModalLog, bat: BatSpec) -> BatSpec:
         return bat
     measured = bat.model_copy(update={"hoop_hz": float(latest["hoop_hz"])})
     registered = store.bats().get(bat.id)
-    if registered is not None and registered != measured.model_dump(mode="json"):
+    if registered is not None and registered != measured.registered():
         raise ConfigError(
             f"bat {bat.id} was registered with hoop_hz {registered.get('hoop_hz')} before its modal result"
             f" ({measured.hoop_hz:.1f} Hz from {latest.get('file')}); a registered bat's properties are"

@@ -16,10 +16,11 @@ from pathlib import Path
 
 @dataclass(frozen=True)
 class Heading:
-    """A section heading (level 1-3)."""
+    """A section heading (level 1-3); `new_page`: printed at the top of a new page."""
 
     text: str
     level: int = 2
+    new_page: bool = False
 
 
 @dataclass(frozen=True)
@@ -57,14 +58,37 @@ class Code:
 
 @dataclass(frozen=True)
 class Banner:
-    """The verdict, shown prominently; tone is 'pass', 'fail' or 'none'."""
+    """The verdict, shown prominently; tone is 'pass', 'fail' or 'none'; `mark` (a simulated run's
+    SIMULATED - NOT A CERTIFICATION) above its title."""
 
     title: str
     lines: tuple[str, ...]
     tone: str
+    mark: str = ""
 
 
-Block = Heading | Para | Table | Figure | Code | Banner
+@dataclass(frozen=True)
+class Logo:
+    """An image given as data (the lab's logo, PNG or JPEG, from the record): HTML embeds it,
+    Markdown leaves it out."""
+
+    media_type: str
+    data_b64: str
+    alt: str
+
+
+@dataclass(frozen=True)
+class PageMarks:
+    """What every printed page of the HTML carries in its margins (CSS paged media): the report id
+    and the lab at the top, a simulated run's mark, and "page x of y" at the foot."""
+
+    report_id: str
+    lab: str = ""
+    mark: str = ""
+    status: str = ""  # e.g. DRAFT - NOT ISSUED
+
+
+Block = Heading | Para | Table | Figure | Code | Banner | Logo
 
 
 def kv(pairs: list[tuple[str, str]]) -> Table:
@@ -113,8 +137,11 @@ def to_markdown(blocks: list[Block], link_base: Path | None) -> str:
             parts.append(f"![{md_escape(b.caption)}]({target})\n\n*Figure: {md_escape(b.caption)}*")
         elif isinstance(b, Code):
             parts.append(f"```\n{b.text}\n```")
+        elif isinstance(b, Logo):
+            continue  # an image as data is for HTML; Markdown names the lab in text
         else:
-            body = [f"> **{md_escape(b.title)}**"] + [f"> {md_escape(line)}" for line in b.lines]
+            marked = [f"> **{md_escape(b.mark)}**"] if b.mark else []
+            body = marked + [f"> **{md_escape(b.title)}**"] + [f"> {md_escape(line)}" for line in b.lines]
             parts.append("\n>\n".join(body))
     return "\n\n".join(parts) + "\n"
 
@@ -135,8 +162,11 @@ th { background: #eee; }
 pre { background: #f4f4f4; padding: .6rem; overflow-x: auto; }
 figure { margin: 1rem 0; } figure img { width: 100%; max-width: 40rem; height: auto; }
 figcaption { font-size: .85rem; color: #555; }
-@page { size: A4; margin: 15mm 14mm; }
+.banner .mark { font-size: 1.4rem; font-weight: bold; color: #6f2da8; letter-spacing: .05em; }
+.logo { max-height: 18mm; max-width: 60mm; }
+@page { size: A4; margin: 18mm 14mm 16mm; }
 @media print {
+  h1.new-page, h2.new-page { break-before: page; page-break-before: always; }
   body { max-width: none; margin: 0; padding: 0; font-size: 10pt; }
   h1, h2, h3 { break-after: avoid; page-break-after: avoid; }
   table, tr, figure, pre, .banner { break-inside: avoid; page-break-inside: avoid; }
@@ -147,14 +177,39 @@ figcaption { font-size: .85rem; color: #555; }
 """
 
 
-def to_html(blocks: list[Block], title: str) -> str:
-    """A standalone HTML page: inline CSS (screen and print), figures embedded as data: URIs (SVG
-    where drawn as such), all text escaped."""
+def css_string(text: str) -> str:
+    """`text` as a CSS string literal: every character but letters, digits and spaces escaped (so a
+    record's text can neither end the string nor the style element)."""
+    out = "".join(c if c.isascii() and (c.isalnum() or c == " ") else f"\\{ord(c):06x}" for c in text)
+    return f'"{out}"'
+
+
+def page_css(marks: PageMarks) -> str:
+    """The @page margin boxes that put the marks on every printed page (Chromium 131 and later)."""
+    boxes = {
+        "top-left": (css_string(marks.lab), ""),
+        "top-center": (css_string(marks.mark), "color: #6f2da8; font-weight: bold; font-size: 11pt;"),
+        "top-right": (css_string(f"Report {marks.report_id}"), ""),
+        "bottom-left": (css_string(marks.status), "color: #c0262d; font-weight: bold;"),
+        "bottom-right": ('"page " counter(page) " of " counter(pages)', ""),
+    }
+    inner = "".join(
+        f"  @{box} {{ content: {content}; font-family: system-ui, sans-serif; font-size: 8.5pt; {style}}}\n"
+        for box, (content, style) in boxes.items()
+        if content != '""'
+    )
+    return f"@page {{\n{inner}}}\n"
+
+
+def to_html(blocks: list[Block], title: str, marks: PageMarks | None = None) -> str:
+    """A standalone HTML page: inline CSS (screen and print; `marks` in every printed page's
+    margins), figures embedded as data: URIs (SVG where drawn as such), all text escaped."""
     e = html_escape
     body: list[str] = []
     for b in blocks:
         if isinstance(b, Heading):
-            body.append(f"<h{b.level}>{e(b.text)}</h{b.level}>")
+            cls = ' class="new-page"' if b.new_page else ""
+            body.append(f"<h{b.level}{cls}>{e(b.text)}</h{b.level}>")
         elif isinstance(b, Para):
             body.append(f"<p><strong>{e(b.text)}</strong></p>" if b.strong else f"<p>{e(b.text)}</p>")
         elif isinstance(b, Table):
@@ -174,12 +229,21 @@ def to_html(blocks: list[Block], title: str) -> str:
             )
         elif isinstance(b, Code):
             body.append(f"<pre><code>{e(b.text)}</code></pre>")
+        elif isinstance(b, Logo):
+            if b.media_type in ("image/png", "image/jpeg") and re.fullmatch(r"[A-Za-z0-9+/=]*", b.data_b64):
+                body.append(
+                    f'<img class="logo" src="data:{b.media_type};base64,{b.data_b64}" alt="{e(b.alt)}">'
+                )
         else:
+            mark = f'<div class="mark">{e(b.mark)}</div>' if b.mark else ""
             lines = "".join(f"<p>{e(line)}</p>" for line in b.lines)
-            body.append(f'<div class="banner {e(b.tone)}"><div class="title">{e(b.title)}</div>{lines}</div>')
+            body.append(
+                f'<div class="banner {e(b.tone)}">{mark}<div class="title">{e(b.title)}</div>{lines}</div>'
+            )
+    css = _CSS + (page_css(marks) if marks is not None else "")
     return (
         '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
-        f"<title>{e(title)}</title>\n<style>{_CSS}</style>\n</head>\n<body>\n"
+        f"<title>{e(title)}</title>\n<style>{css}</style>\n</head>\n<body>\n"
         + "\n".join(body)
         + "\n</body>\n</html>\n"
     )

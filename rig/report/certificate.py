@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 import shlex
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
@@ -29,6 +30,17 @@ from rig.report.cert_doc import Banner, Block, Code, Figure, Heading, Para, Tabl
 from rig.report.cert_instruments import instrument_blocks
 from rig.report.cert_plots import certification_hits, metric_label, svg_figures, unit_suffix, write_figures
 from rig.report.cert_quality import quality_blocks
+from rig.report.cert_report import (
+    STATEMENT,
+    authorisation_blocks,
+    deviation_blocks,
+    identification_blocks,
+    letterhead_blocks,
+    mark,
+    page_marks,
+    report_id,
+    seal_blocks,
+)
 from rig.report.cert_sections import budget_blocks, operator_blocks, shot_blocks
 
 FORMATS = ("md", "html")
@@ -58,11 +70,11 @@ def render(
         return to_markdown(build(record, {k: Figure(p, c) for k, (p, c) in pngs.items()}), base)
     svgs = svg_figures(record)
     figures = {k: Figure(pngs[k][0] if k in pngs else None, c, svg=svg) for k, (svg, c) in svgs.items()}
-    return to_html(build(record, figures), title(record))
+    return to_html(build(record, figures), title(record), page_marks(record))
 
 
 def title(record: dict[str, Any]) -> str:
-    """'Certificate: <procedure name> — bat <id>'."""
+    """'Bat performance certificate: <procedure name> — bat <id>' (the report's title)."""
     proc, bat = record.get("procedure") or {}, record.get("bat") or {}
     return f"Bat performance certificate: {proc.get('name', 'unknown procedure')} — bat {bat.get('id', '?')}"
 
@@ -76,10 +88,28 @@ def own_plan(record: dict[str, Any]) -> list[tuple[str, str]]:
 
 
 def build(record: dict[str, Any], fig: dict[str, Figure]) -> list[Block]:
-    """Every section of the certificate, in reading order; `fig`: the figures drawn, by key."""
+    """Every section of the certificate, in reading order; `fig`: the figures drawn, by key.
+
+    First the report (ISO/IEC 17025 7.8.2.1: rig.report.cert_report), then the technical annex with
+    everything the record holds, then a clear end."""
     proc = record.get("procedure") or {}
+    marked = mark(record)
     blocks: list[Block] = [
+        *letterhead_blocks(record),
         Heading(title(record), 1),
+        Para(f"Test report {report_id(record)}" + (f" — {marked}" if marked else ""), strong=True),
+        *[replace(b, mark=marked) for b in verdict_blocks(record) if isinstance(b, Banner)],
+        Para(STATEMENT),
+        Heading("Report"),
+        *identification_blocks(record),
+        Heading("Deviations"),
+        *deviation_blocks(record),
+        *quality_blocks(record),
+        Heading("Seal of the record"),
+        *seal_blocks(record),
+        Heading("Authorisation"),
+        *authorisation_blocks(record),
+        Heading("Technical annex", 1, new_page=True),
         Para(f"Edition: {proc.get('edition', 'not recorded')}"),
         kv(
             [
@@ -90,9 +120,7 @@ def build(record: dict[str, Any], fig: dict[str, Figure]) -> list[Block]:
                 ("record status", str(record.get("status"))),
             ]
         ),
-        Heading("Verdict"),
-        *verdict_blocks(record),
-        *quality_blocks(record),
+        *verdict_detail_blocks(record),
         Heading("Bat"),
         bat_table(record),
         Heading("Rig and software"),
@@ -112,11 +140,7 @@ def build(record: dict[str, Any], fig: dict[str, Figure]) -> list[Block]:
         *cross_check_blocks(record, fig),
         Heading("Record anchor"),
         *anchor_blocks(record),
-        Heading("Signatures"),
-        Table(
-            ("role", "name", "signature", "date"),
-            (("test performed by", "", "", ""), ("reviewed and approved (quality manager)", "", "", "")),
-        ),
+        Para(f"End of report {report_id(record)}.", strong=True),
     ]
     return blocks
 
@@ -248,6 +272,12 @@ def verdict_blocks(record: dict[str, Any]) -> list[Block]:
             ]
         ),
     ]
+
+
+def verdict_detail_blocks(record: dict[str, Any]) -> list[Block]:
+    """The verdict's figures, the resume commands of a run without one: the annex's Verdict section."""
+    rest = [b for b in verdict_blocks(record) if not isinstance(b, Banner)]
+    return [Heading("Verdict"), *rest] if rest else []
 
 
 def bat_table(record: dict[str, Any]) -> Table:

@@ -20,6 +20,7 @@ from rig.store._records import (
     VerifyReport,
 )
 from rig.store._schema import SCHEMA_VERSION
+from rig.store._signed import run_seal
 from rig.store._status import SHOWN_STATUSES, shown_status, status_word
 from rig.store._store import DEFAULT_LEASE_S, EntrySpec, Store
 
@@ -50,6 +51,7 @@ __all__ = [
     "encode_bytes",
     "entry_hash",
     "is_url",
+    "run_seal",
     "safe_url",
     "shown_status",
     "status_word",

@@ -268,3 +268,30 @@ def registered_keys(entries: Iterable[Any]) -> list[RegisteredKey]:
             except ValueError:
                 continue  # verify names it
     return keys
+
+
+def run_seal(store: Any, run_id: str) -> dict[str, Any]:
+    """One run's seal as its report shows it: whether it is signed, by which rig's key (fingerprint),
+    and whether that signature holds in `store` ('valid', 'key not listed' or what is wrong)."""
+    entries = sorted(
+        [*store.entries(run_id), *store.entries(None, kinds=[RIG_KEY_REGISTERED, RUN_SIGNED])],
+        key=lambda e: e.seq,
+    )
+    checker = SignatureCheck()
+    for e in entries:
+        checker.feed(e.seq, e.run_id, e.kind, json.dumps(e.payload), e.t_utc, e.hash, e.chain_seq)
+    run = checker.runs.get(run_id, _Run())
+    mine = [(seq, data) for seq, data in checker.signatures if data.get("run_id") == run_id]
+    if not mine:
+        return {"signed": False, "rig": run.rig, "sealed": run.sealed_at is not None}
+    seq, data = mine[-1]
+    why = checker._check(seq, data)
+    check = "valid" if why is None else "key not listed in this store" if why == "" else why
+    return {
+        "signed": True,
+        "rig": data.get("rig"),
+        "fingerprint": data.get("fingerprint"),
+        "signature_seq": seq,
+        "check": check,
+        "sealed": run.sealed_at is not None,
+    }

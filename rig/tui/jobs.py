@@ -32,17 +32,30 @@ class JobResult:
 
 
 def console_request(
-    procedure: Procedure, bat: BatSpec, rig: RigConfig | ConfigFor, run_id: str | None = None
+    procedure: Procedure,
+    bat: BatSpec,
+    rig: RigConfig | ConfigFor,
+    run_id: str | None = None,
+    tested_by: str | None = None,
 ) -> CertifyRequest:
-    """A run from the console: the operator confirms each shot and reviews each valid one."""
-    return CertifyRequest(procedure, bat, rig, run_id=run_id, confirm_fire=True, review_shots=True)
+    """A run from the console: the operator confirms each shot and reviews each valid one;
+    `tested_by`: the name the set-up screen asked for (recorded with a new run)."""
+    return CertifyRequest(
+        procedure, bat, rig, run_id=run_id, confirm_fire=True, review_shots=True, tested_by=tested_by
+    )
 
 
-def prepare_job(settings: ConsoleSettings, procedure: Procedure, bat: BatSpec, choice: RigChoice) -> RunJob:
+def prepare_job(
+    settings: ConsoleSettings,
+    procedure: Procedure,
+    bat: BatSpec,
+    choice: RigChoice,
+    tested_by: str | None = None,
+) -> RunJob:
     """A new run's job, rehearsed (rig.certification.prepare: the bat's measured hoop, the rig, the
-    dry run); raises RigError naming every problem, so that the set-up form can show it."""
+    dry run, the lab file); raises RigError naming every problem, so that the set-up form can show it."""
     with Store.open(settings.db, clock=settings.clock) as store:
-        prepared = prepare(store, console_request(procedure, bat, choice.config))
+        prepared = prepare(store, console_request(procedure, bat, choice.config, tested_by=tested_by))
     return RunJob(procedure, prepared.bat, prepared.config, choice.label, rig=choice, prepared=prepared)
 
 

@@ -90,6 +90,10 @@ class SetupScreen(Screen[None]):
                         ),
                         "",
                     )
+                    # who performs the test: recorded with the new run, its report's "test performed by"
+                    yield self._row(
+                        "operator", Input(id="operator", placeholder="your name", compact=True), ""
+                    )
                     rigs = [(r.label, r.key) for r in self.settings.rigs]
                     yield self._row(
                         "rig",
@@ -255,7 +259,8 @@ class SetupScreen(Screen[None]):
 
         bat = self.bat_from_form()
         procedure = Procedure.load(str(self.query_one("#procedure", Select).value))
-        return prepare_job(self.settings, procedure, bat, self.rig)
+        tested_by = self.query_one("#operator", Input).value.strip() or None
+        return prepare_job(self.settings, procedure, bat, self.rig, tested_by)
 
     def action_start(self) -> None:
         """Check the set-up (a dry run) and open the run screen."""

@@ -1,5 +1,7 @@
 """The HTML certificate in a real browser: Debian's chromium, headless, renders it, shows the verdict
-in its first screen, draws the SVG figures, and prints it to PDF.
+in its first screen, draws the SVG figures, and prints it to PDF with the report id, "page x of y"
+and (a simulated run) SIMULATED - NOT A CERTIFICATION on every page. The PDF's text is read with
+pypdf (a test dependency: Chromium's PDFs hold compressed, subset-font text no regex reads).
 
 Opt-in: skipped when chromium is absent, with the hint; `RIG_BROWSER_TESTS=1` makes the test run
 tests/browser/setup.sh first (apt-get install chromium, as root), and fail rather than skip.
@@ -71,8 +73,12 @@ def test_the_browser_shows_the_verdict_and_the_figures(certificate: dict[str, An
     verdict = certificate["record"]["verdict"]["verdict"]
     dom = _headless(browser, "--dump-dom", page.as_uri(), cwd=folder)
     assert dom.returncode == 0, dom.stderr[-500:]
-    banner = re.search(r'<div class="banner (\w+)"><div class="title">([^<]*)</div>', dom.stdout)
-    assert banner is not None and banner.group(1) == verdict.lower() and banner.group(2).startswith(verdict)
+    banner = re.search(
+        r'<div class="banner (\w+)"><div class="mark">([^<]*)</div><div class="title">([^<]*)</div>',
+        dom.stdout,
+    )
+    assert banner is not None and banner.group(1) == verdict.lower() and banner.group(3).startswith(verdict)
+    assert banner.group(2) == "SIMULATED - NOT A CERTIFICATION"  # the run is on the simulated rig
     assert len(re.findall(r'<img src="data:image/svg\+xml;base64,', dom.stdout)) == 3
 
     shot = folder / "first-screen.png"
@@ -100,3 +106,30 @@ def test_the_certificate_prints_to_pdf(certificate: dict[str, Any]) -> None:
     # A4 pages (the print CSS's @page): 595 x 842 points
     sizes = set(re.findall(rb"/MediaBox\s*\[\s*0\s+0\s+([\d.]+)\s+([\d.]+)\s*\]", data))
     assert sizes and all(abs(float(w) - 595.3) < 2 and abs(float(h) - 841.9) < 2 for w, h in sizes), sizes
+
+
+def _squeezed(text: str) -> str:
+    """Text without whitespace: the PDF's text extraction spaces words as the layout placed them."""
+    return re.sub(r"\s+", "", text)
+
+
+def test_every_printed_page_carries_the_report_id_its_number_and_the_simulated_mark(
+    certificate: dict[str, Any],
+) -> None:
+    pypdf = pytest.importorskip("pypdf")
+    browser = _chromium()
+    folder, page = certificate["folder"], certificate["page"]
+    pdf = folder / "marked.pdf"
+    done = _headless(browser, f"--print-to-pdf={pdf}", "--no-pdf-header-footer", page.as_uri(), cwd=folder)
+    assert done.returncode == 0 and pdf.is_file(), done.stderr[-500:]
+    pages = [p.extract_text() or "" for p in pypdf.PdfReader(pdf).pages]
+    report_id = f"R-{certificate['record']['run_id'][:12]}"
+    assert len(pages) >= 3  # the report, then the technical annex on a page of its own
+    for number, text in enumerate(pages, 1):
+        flat = _squeezed(text)
+        assert _squeezed(f"page {number} of {len(pages)}") in flat, (number, text[:300])
+        assert _squeezed(f"Report {report_id}") in flat, number
+        assert _squeezed("SIMULATED - NOT A CERTIFICATION") in flat, number
+        assert _squeezed("DRAFT - NOT ISSUED") in flat, number  # the run's report is not issued
+    assert "Technical annex" in "".join(pages[1:]) and "Technical annex" not in pages[0]
+    assert _squeezed(f"End of report {report_id}.") in _squeezed(pages[-1])

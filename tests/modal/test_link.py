@@ -71,7 +71,7 @@ def test_a_bat_registered_before_its_modal_result_is_refused_clearly(
     tmp_path: Path, result: ModalResult, csv_file: Path
 ) -> None:
     with Store.open(tmp_path / "r.db") as store:
-        store.register_bat("AL-1", bat().model_dump(mode="json"))
+        store.register_bat("AL-1", bat().registered())
         record_modal_result(store, "AL-1", result, csv_file)
         with pytest.raises(ConfigError, match="registered with hoop_hz None before its modal result"):
             with_measured_hoop(store, bat())

@@ -30,12 +30,14 @@ ROOT = Path(__file__).resolve().parents[2]
 BAT = BatSpec.load(ROOT / "protocols" / "examples" / "sample-bat.toml")
 QUICK = ROOT / "tests" / "tui" / "quick-bbcor.toml"
 _VOLATILE = re.compile(
-    r"[0-9a-f]{32}|\d{4}-\d\d-\d\dT[0-9:.+]+|[0-9a-f]{64}|session-[0-9a-f]+|'(host_time_s|t_s)': [0-9.e+-]+"
+    r"[0-9a-f]{32}|R-[0-9a-f]{12}|\d{4}-\d\d-\d\dT[0-9:.+]+|[0-9a-f]{64}|session-[0-9a-f]+"
+    r"|'(host_time_s|t_s)': [0-9.e+-]+"
 )
 
 
 def _same(record: object) -> str:
-    """A record with its ids, times, host clocks and hashes blanked (they differ between any two runs)."""
+    """A record with its ids (the run's, the report's made of it), times, host clocks and hashes
+    blanked (they differ between any two runs)."""
     return _VOLATILE.sub("*", repr(record))
 
 

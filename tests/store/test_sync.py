@@ -191,7 +191,7 @@ def test_two_rigs_registering_the_same_bat_at_once_both_certify(
         def stale_then_real(self: Store) -> dict[str, object]:
             calls["n"] += 1
             if calls["n"] == 1:  # B's first read: before A registered the bat...
-                self.register_bat(BAT.id, BAT.model_dump(mode="json"))  # ...which A does now
+                self.register_bat(BAT.id, BAT.registered())  # ...which A does now
                 return {}
             return real_bats(self)
 

@@ -318,3 +318,27 @@ def test_the_title_line_docs_tui_quotes_is_what_sim_lab_shows(tmp_path: Path) ->
     title = RunScreen(settings, job)._title()
     docs = " ".join((Path(__file__).resolve().parents[2] / "docs" / "tui.md").read_text().split())
     assert f"`{title}` for `rig tui --sim lab` with the sample bat" in docs
+
+
+def test_the_operator_named_on_the_setup_screen_is_recorded_as_who_performed_the_test(
+    make_settings: Callable[..., ConsoleSettings],
+) -> None:
+    settings = make_settings(procedure=str(QUICK))
+
+    async def body() -> None:
+        app = RigConsole(settings)
+        async with app.run_test(size=SIZE) as pilot:
+            await until(pilot, lambda: app.screen.query("#devices"), "the set-up screen")
+            app.screen.query_one("#operator", Input).value = "  C. Operator "
+            app.screen.query_one("#start").focus()
+            screen = await start_run(pilot)
+            await answer_prompts(pilot, screen)
+
+    asyncio.run(body())
+    from rig.report.record import run_record
+
+    with Store.open(settings.db, create=False) as store:
+        (run,) = store.runs()
+        record = run_record(store, run.run_id)
+    assert record["tested_by"]["name"] == "C. Operator"  # as typed, stripped
+    assert record["tested_by"]["answered_by"].startswith("console")
