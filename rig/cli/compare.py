@@ -7,7 +7,7 @@ import json
 import sys
 from typing import Any
 
-from rig.cli.common import add_columns, console, default_db, new_table
+from rig.cli.common import add_columns, add_plain_row, console, default_db, new_table
 from rig.core.dbpath import DB_HELP
 
 
@@ -92,7 +92,8 @@ def _table(payload: dict[str, Any]) -> None:
     add_columns(table, "z says")
     for p in payload["pairs"]:
         x, ref = p["x"], p["X"]
-        table.add_row(
+        add_plain_row(
+            table,
             p["bat_id"],
             p["procedure"],
             x["run_id"][:12],
@@ -109,7 +110,11 @@ def _table(payload: dict[str, Any]) -> None:
         )
     if not payload["pairs"]:
         what = "no bat was retested" if payload["mode"] == "retests" else "no bat was tested in both"
-        out.print(f"{what} (same bat id and procedure, a finished run with a result on each side)")
+        out.print(
+            f"{what} (same bat id and procedure, a finished run with a result on each side)",
+            markup=False,
+            highlight=False,
+        )
         return
     out.print(table)
     sigma = payload["sigma_pt"]
@@ -122,9 +127,9 @@ def _table(payload: dict[str, Any]) -> None:
                 f"{sigma['robust_mean_difference']:+.3g})"
             )
         )
-        out.print(f"sigma_pt = {sigma['value']:.3g} ({how})")
+        out.print(f"sigma_pt = {sigma['value']:.3g} ({how})", markup=False, highlight=False)
     for note in payload["notes"]:
-        out.print(note)
+        out.print(note, markup=False, highlight=False)
 
 
 def add_parsers(sub: Any) -> None:
