@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from rig.core.errors import ParameterError
-from rig.quality.scores import MIN_ROBUST, Robust, Score, algorithm_a, score
+from rig.quality.scores import Robust, Score, algorithm_a, score
 
 
 @dataclass(frozen=True)
@@ -144,9 +144,7 @@ def compare(pairs: Sequence[Pair], given_sigma: float | None = None, z: bool = T
     sigma = (
         sigma_pt(pairs, given_sigma)
         if z or given_sigma is not None
-        else SigmaPt(
-            None, "none", why_not=f"no z: give --sigma-pt (at least {MIN_ROBUST} bats to estimate it)"
-        )
+        else SigmaPt(None, "none", why_not="no z: a retest's z needs --sigma-pt (E_n compares it with its U)")
     )
     rows = [Scored(p, score(p.x.mean, p.x.U, p.ref.mean, p.ref.U, sigma.value)) for p in pairs]
     return Comparison(rows, sigma, [sigma.why_not] if sigma.why_not else [])

@@ -29,6 +29,7 @@ from rig.report.cert_doc import Banner, Block, Code, Figure, Heading, Para, Tabl
 from rig.report.cert_instruments import instrument_blocks
 from rig.report.cert_plots import certification_hits, metric_label, svg_figures, unit_suffix, write_figures
 from rig.report.cert_quality import quality_blocks
+from rig.report.cert_retest import retest_blocks
 from rig.report.cert_sections import budget_blocks, operator_blocks, shot_blocks
 
 FORMATS = ("md", "html")
@@ -93,6 +94,7 @@ def build(record: dict[str, Any], fig: dict[str, Figure]) -> list[Block]:
         Heading("Verdict"),
         *verdict_blocks(record),
         *quality_blocks(record),
+        *retest_blocks(record),
         Heading("Bat"),
         bat_table(record),
         Heading("Rig and software"),
