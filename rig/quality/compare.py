@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from rig.core.errors import ParameterError
+from rig.quality import CHECK_KIND
 from rig.quality.scores import Robust, Score, algorithm_a, score
 
 
@@ -86,10 +87,13 @@ def paired(a: Sequence[Result], b: Sequence[Result]) -> list[Pair]:
 
 
 def retests(rs: Sequence[Result]) -> list[Pair]:
-    """Each retest (same bat id and procedure, tested again) with the result before it as X."""
+    """Each retest (same bat id and procedure, tested again) with the result before it as X; check
+    runs on the reference bat are not retests (their control charts follow them: rig check chart)."""
     last: dict[tuple[str, str], Result] = {}
     out = []
     for r in rs:
+        if r.procedure == CHECK_KIND:
+            continue
         key = (r.bat_id, r.procedure)
         if key in last:
             out.append(Pair(r, last[key]))
