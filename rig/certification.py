@@ -39,6 +39,7 @@ from rig.protocols.procedure import Procedure
 from rig.protocols.runner import run_to_verdict
 from rig.protocols.state import RunState
 from rig.quality.records import rig_quality
+from rig.report.cert_retest import retest_meta
 from rig.request import CertifyRequest, Prepared, Signoff
 from rig.session import RigSession
 from rig.store import RunLocked, Store, StoreDamaged, StoreGone
@@ -197,6 +198,8 @@ def run_prepared(store: Store, prepared: Prepared, *, kind: str | None = None) -
     under = rig_quality(store, config.identity_name()).under if request.run_id is None else None
     if under is not None:
         meta["check_ack"] = under.as_dict()
+    if request.run_id is None and kind is None:  # a certification of a retained bat: its last result
+        meta.update(retest_meta(store, p.standard, bat.id))
     new = NewRun(kind or p.standard, bat.id, bat.registered(), refusal, meta)
 
     def start(session: RigSession, past: list[RunEvent], emit: Emit) -> tuple[Driven, Callable[[], Any]]:

@@ -9,6 +9,7 @@ is attached, or the list is wrong).
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from datetime import UTC, date, datetime
 from typing import Any
@@ -82,6 +83,37 @@ def status(item: Equipment, day: date) -> str:
     if item.due is None:
         return "no due date"
     return "past due" if item.due < day else "in date"
+
+
+# The roles a result depends on, by what the run does [assumed: read from what each procedure's
+# result is computed from; a lab's own procedure that measures less may need fewer].
+DEVICE_ROLES = ("cannon", "gates", "clamp")
+AIR_ROLES = ("thermometer", "hygrometer", "barometer")  # the conditions window and the drag correction
+BAT_ROLES = (*DEVICE_ROLES, "gate-gauge", "pendulum-timer", "scale", *AIR_ROLES)  # speeds, MOI, mass
+BALL_ROLES = (*DEVICE_ROLES, "gate-gauge", "scale", *AIR_ROLES, "compression-tester")  # a lot's test
+SHOT_ROLES = ("cannon", "gates", "gate-gauge")  # one shot's speeds
+
+
+def roles_for(procedure: Mapping[str, Any] | None) -> tuple[str, ...]:
+    """The equipment roles the result of a run of `procedure` (as a record holds it) depends on:
+    a bat certification's (a `standard`), a ball test's (a `test`), else one shot's."""
+    procedure = procedure or {}
+    if procedure.get("standard"):
+        return BAT_ROLES
+    if procedure.get("test"):
+        return BALL_ROLES
+    return SHOT_ROLES
+
+
+def uncovered(equipment: Iterable[Mapping[str, Any]], roles: Iterable[str]) -> list[str]:
+    """The `roles` no item of `equipment` (items as recorded: role, else device) covers."""
+    covered = {e.get("role") or e.get("device") for e in equipment}
+    return [role for role in roles if role not in covered]
+
+
+def days_left(item: Equipment, day: date) -> int | None:
+    """Days from `day` to the item's due date (negative: past due); None without one."""
+    return None if item.due is None else (item.due - day).days
 
 
 def _identity(kind: str, device: object) -> InstrumentIdentity | None:

@@ -45,7 +45,8 @@ def sim_config(
     """A rig config whose ports are simulated devices of `scene` (a built-in name or a TOML path).
 
     The gate positions and the aim table come from the scene, as a lab would measure them on
-    its own rig; everything else is the controller's default. With `bat`, the simulated bat takes
+    its own rig; the equipment register is a sample in date (rig.simulators.register); everything
+    else is the controller's default. With `bat`, the simulated bat takes
     the bat file's properties as its true ones, unless the scene's [bat] table sets them. With
     `target` (kind, diameter in m), the simulated clamp holds the rigid cylinder or plate a ball
     test names, as the lab clamps it (the scene's own [target] table wins), and the aim table
@@ -53,6 +54,8 @@ def sim_config(
     `air_starting_at(900.0)`: the hour a ball test is run at). `session` names this run of the
     simulated lab (Scene.run_key): another session draws other noise, the same one repeats it.
     """
+    from rig.instruments import today_utc
+    from rig.simulators.register import sample_register
     from rig.simulators.scene import Scene
     from rig.simulators.urlhandler import install_world, register
 
@@ -71,7 +74,12 @@ def sim_config(
         install_world(rig, scene, loaded)
     ports = {dev: f"sim://{dev}?scene={quote(scene, safe='')}&rig={rig}" for dev in DEVICE_KINDS}
     fragment = loaded.rig_config_fragment(BALL_AIM_PRESSURES_KPA) if target else loaded.rig_config_fragment()
-    data = {"name": f"simulated rig ({loaded.name})", "ports": ports, **fragment}
+    data = {
+        "name": f"simulated rig ({loaded.name})",
+        "ports": ports,
+        **fragment,
+        "equipment": sample_register(today_utc()),  # a sample register, one item per role, in date
+    }
     return RigConfig.from_dict(data, source=f"scene {scene}")
 
 

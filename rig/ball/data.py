@@ -10,12 +10,11 @@ from __future__ import annotations
 
 import csv
 import io
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from rig.core.errors import ConfigError, listed, shown
-from rig.core.files import read_bounded
+from rig.core.errors import ConfigError, listed
+from rig.core.files import number_cell, read_bounded
 
 COLUMNS = ("speed_m_s", "ccor", "u_ccor", "ball_id")
 REQUIRED = ("speed_m_s", "ccor")
@@ -41,16 +40,6 @@ class CcorData:
     points: tuple[CcorPoint, ...]
     blob: bytes
     name: str
-
-
-def _number(cell: str, column: str, where: str) -> float:
-    try:
-        x = float(cell)
-    except ValueError:
-        raise ConfigError(f"{column} {shown(cell)} is not a number", source=where) from None
-    if not math.isfinite(x):
-        raise ConfigError(f"{column} {shown(cell)} is not a finite number", source=where)
-    return x
 
 
 def check_point(p: CcorPoint) -> CcorPoint:
@@ -102,9 +91,9 @@ def parse_ccor_csv(text: str, name: str) -> list[CcorPoint]:
         points.append(
             check_point(
                 CcorPoint(
-                    speed_m_s=_number(row["speed_m_s"], "speed_m_s", where),
-                    ccor=_number(row["ccor"], "ccor", where),
-                    u_ccor=_number(u, "u_ccor", where) if u else None,
+                    speed_m_s=number_cell(row["speed_m_s"], "speed_m_s", where),
+                    ccor=number_cell(row["ccor"], "ccor", where),
+                    u_ccor=number_cell(u, "u_ccor", where) if u else None,
                     ball_id=ball or None,
                     source=where,
                 )

@@ -12,7 +12,7 @@ import json
 import sys
 from collections.abc import Callable, Sequence
 
-from rig.cli import balls, check, export, keys, modal, model, records, rig_cmds, sync
+from rig.cli import balls, check, compare, equipment, export, keys, modal, model, records, rig_cmds, sync
 from rig.core.dbpath import DB_ENV, DEFAULT_DB_NAME
 from rig.core.errors import ParameterError, RigError
 
@@ -31,7 +31,19 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action=_Version, nargs=0, help="print the version and exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for part in (records, check, keys, export, sync, balls, rig_cmds, model, modal):  # task order in --help
+    for part in (
+        records,
+        check,
+        keys,
+        export,
+        compare,
+        equipment,
+        sync,
+        balls,
+        rig_cmds,
+        model,
+        modal,
+    ):  # task order in --help
         part.add_parsers(sub)
     return parser
 

@@ -59,6 +59,13 @@ def add_columns(table: Any, *names: str, justify: str = "left") -> None:
         table.add_column(name, justify=justify, overflow="fold")
 
 
+def add_plain_row(table: Any, *cells: str) -> None:
+    """A row whose cells are shown as written: brackets in a bat id or an item's name are not markup."""
+    from rich.text import Text
+
+    table.add_row(*(Text(cell) for cell in cells))
+
+
 def _cell(value: Any) -> str:
     """A value as a table cell: numbers to 6 significant digits, no Python reprs."""
     if isinstance(value, bool) or value is None:

@@ -206,16 +206,46 @@ class Model(_Model):
     named_by: Literal["rig config", "command line", "script"] = "rig config"
 
 
+# What an item of the equipment register is for: the three devices, then the instruments a
+# result depends on besides them (rig.instruments.roles_for says which a procedure needs).
+EQUIPMENT_ROLES: dict[str, str] = {
+    "cannon": "the air cannon (its pressure sets the inbound speed)",
+    "gates": "the light gates and their counter (ball speeds)",
+    "clamp": "the pivot clamp (impact point; the MOI pendulum's swing)",
+    "gate-gauge": "the tool the gate positions are measured with",
+    "pendulum-timer": "the MOI pendulum's period timer",
+    "scale": "the scale bats and balls are weighed on",
+    "thermometer": "the lab's air temperature",
+    "hygrometer": "the lab's relative humidity",
+    "barometer": "the lab's air pressure (the drag correction)",
+    "compression-tester": "the ball compression tester (ASTM F1888, the ball lot's qualification)",
+}
+Role = Literal[
+    "cannon",
+    "gates",
+    "clamp",
+    "gate-gauge",
+    "pendulum-timer",
+    "scale",
+    "thermometer",
+    "hygrometer",
+    "barometer",
+    "compression-tester",
+]
+
+
 class Equipment(_Model):
     """One item of the rig's equipment list: what it is, its serial number and its calibration.
 
     `device` ties it to a device of the rig (its identity's serial number must then match);
-    other items (a scale, a thermometer, a gauge block) leave it out. A run refuses an item past
-    its `due` date unless an override (who, why) is recorded.
+    other items (a scale, a thermometer, a gauge block) leave it out. `role` says what the item is
+    for (EQUIPMENT_ROLES; a device's item has its device's role). A run refuses an item past its
+    `due` date unless an override (who, why) is recorded.
     """
 
     name: Annotated[str, Field(min_length=1, max_length=120)]
     device: Literal["cannon", "gates", "clamp"] | None = None
+    role: Role | None = None
     serial: Annotated[str, Field(min_length=1, max_length=64)] | None = None
     certificate: Annotated[str, Field(min_length=1, max_length=120)] | None = None
     calibrated: date | None = None
@@ -225,7 +255,14 @@ class Equipment(_Model):
     def _due_after_calibration(self) -> Equipment:
         if self.calibrated is not None and self.due is not None and self.due < self.calibrated:
             raise ValueError(f"{self.name}: due {self.due} is before its calibration {self.calibrated}")
+        if self.device is not None and self.role is not None and self.role != self.device:
+            raise ValueError(f"{self.name}: role {self.role!r} is not its device's ({self.device!r})")
         return self
+
+    @property
+    def purpose(self) -> str | None:
+        """The item's role: its own, else its device's; None for an item of neither."""
+        return self.role or self.device
 
 
 RIG_NAME_PATTERN = r"[A-Za-z0-9][A-Za-z0-9._-]{0,63}"  # also a key file's name: no path separators

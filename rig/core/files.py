@@ -10,13 +10,14 @@ ConfigError naming the file.
 from __future__ import annotations
 
 import json
+import math
 import os
 import stat
 import tomllib
 from pathlib import Path
 from typing import Any
 
-from rig.core.errors import ConfigError
+from rig.core.errors import ConfigError, shown
 
 MAX_DEPTH = 32  # tables, arrays or objects inside each other; the deepest file we write has 4
 CONFIG_BYTES = 1_000_000  # a bat, procedure, rig config, scene or lot file is a few kB
@@ -120,6 +121,17 @@ def read_json_file(path: str | Path, max_bytes: int, what: str) -> tuple[Any, by
     """A JSON file read within `max_bytes` and parsed, and the bytes it was parsed from."""
     raw = read_bounded(path, max_bytes, what)
     return parse_json(raw, str(path), what), raw
+
+
+def number_cell(cell: str, column: str, where: str) -> float:
+    """A data file's cell as a finite float; ConfigError naming `where` and the column otherwise."""
+    try:
+        x = float(cell)
+    except ValueError:
+        raise ConfigError(f"{column} {shown(cell)} is not a number", source=where) from None
+    if not math.isfinite(x):
+        raise ConfigError(f"{column} {shown(cell)} is not a finite number", source=where)
+    return x
 
 
 def check_nesting(data: Any, source: str, what: str, limit: int = MAX_DEPTH) -> None:

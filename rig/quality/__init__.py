@@ -2,7 +2,8 @@
 
 `charts` is the pure maths; `records` reads the store's check runs into chart series, records
 acknowledgements of signals (lab-level `CheckAcknowledged` entries) and says whether a rig may
-certify (`RigQuality.refusal`).
+certify (`RigQuality.refusal`). Comparisons (7.7.2, retained items): `scores` gives ISO 13528's
+E_n, z and Algorithm A, `compare` pairs results bat by bat and finds retests (rig compare).
 """
 
 CHECK_KIND = "check"  # the store's kind of a check run (rig check)

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from rig.core.config import EQUIPMENT_ROLES
+from rig.instruments import roles_for, uncovered
 from rig.report.cert_doc import Block, Para, Table
 
 
@@ -30,7 +32,9 @@ def instrument_blocks(record: dict[str, Any]) -> list[Block]:
         )
     last = sessions[-1]
     equipment = last.get("equipment") or []
-    if equipment:
+    if any(e.get("role") for e in equipment):  # a register with roles: which items this result used
+        blocks += register_blocks(equipment, roles_for(record.get("procedure")))
+    elif equipment:
         blocks.append(
             Table(
                 ("equipment", "device", "serial", "certificate", "calibrated", "due", "status"),
@@ -53,6 +57,29 @@ def instrument_blocks(record: dict[str, Any]) -> list[Block]:
                 )
             )
     return blocks
+
+
+def register_blocks(equipment: list[dict[str, Any]], roles: tuple[str, ...]) -> list[Block]:
+    """The equipment register with each item's role and whether this result depends on it, then
+    the roles it depends on that no item covers (rig.instruments.roles_for)."""
+    rows = tuple(
+        (name, str(e.get("role") or e.get("device") or "—"), *rest, "yes" if _role(e) in roles else "no")
+        for e, (name, _, *rest) in zip(equipment, _items(equipment), strict=True)
+    )
+    header = ("equipment", "role", "serial", "certificate", "calibrated", "due", "status", "used")
+    missing = uncovered(equipment, roles)
+    if missing:
+        gap = "; ".join(f"{role} ({EQUIPMENT_ROLES.get(role, '?')})" for role in missing)
+        says = f"No item of the equipment register covers {len(missing)} of them: {gap}."
+    else:
+        says = "The equipment register covers each of them."
+    used = "This result depends on the instruments of these roles: " + ", ".join(roles) + ". " + says
+    return [Table(header, rows), Para(used)]
+
+
+def _role(e: dict[str, Any]) -> str | None:
+    role = e.get("role") or e.get("device")
+    return str(role) if role else None
 
 
 def _rows(devices: dict[str, Any]) -> tuple[tuple[str, ...], ...]:

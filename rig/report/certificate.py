@@ -41,6 +41,7 @@ from rig.report.cert_report import (
     report_id,
     seal_blocks,
 )
+from rig.report.cert_retest import retest_blocks
 from rig.report.cert_sections import budget_blocks, operator_blocks, shot_blocks
 
 FORMATS = ("md", "html")
@@ -121,6 +122,7 @@ def build(record: dict[str, Any], fig: dict[str, Figure]) -> list[Block]:
             ]
         ),
         *verdict_detail_blocks(record),
+        *retest_blocks(record),
         Heading("Bat"),
         bat_table(record),
         Heading("Rig and software"),

@@ -6,6 +6,7 @@ from typing import Any
 
 from rig.core import events as ev
 from rig.core.run_state import RunState, ShotEntry
+from rig.report.cert_retest import RETEST_KEY
 from rig.report.issue import report_facts
 from rig.store import Anchor, LogEntry, RecordRefused, Store, shown_status, status_word
 
@@ -56,6 +57,8 @@ def run_record(store: Store, run_id: str, anchor: Anchor | None = None) -> dict[
     created = next((e.payload.get("meta") for e in entries if e.kind == "RunCreated"), None)
     if isinstance(created, dict) and created.get("check_ack"):  # made under an acknowledged signal
         record["check_ack"] = created["check_ack"]
+    if isinstance(created, dict) and RETEST_KEY in created:  # a retest: the bat's earlier result
+        record[RETEST_KEY] = created[RETEST_KEY]
     record.update(report_facts(store, run_id, entries))  # none for a run recorded before them
     return record
 
