@@ -227,6 +227,33 @@ def deviation_rows(record: dict[str, Any]) -> list[tuple[str, str, str]]:
                     str(e.get("who")),
                 )
             )
+    return rows + _unasked(record)
+
+
+_UNASKED = {  # how a ring check was passed without being inspected on its own prompt (protocols.control)
+    "with": "ring checks passed with another prompt's answer (the lab's one key), not on their own prompt",
+    "script": "ring checks answered by the script: nobody was shown them",
+}
+
+
+def _unasked(record: dict[str, Any]) -> list[tuple[str, str, str]]:
+    """One row per way ring checks were passed without their own inspection, naming them."""
+    found: dict[str, list[dict[str, Any]]] = {}
+    for e in record.get("operator") or []:
+        if (
+            e.get("kind") == ev.OPERATOR_ANSWERED
+            and e.get("answer") is True
+            and str(e.get("prompt_id", "")).startswith("ring-")
+            and e.get("given") in _UNASKED
+        ):
+            found.setdefault(str(e["given"]), []).append(e)
+    rows = []
+    for given, answers in found.items():
+        named = ", ".join(
+            str(a.get("prompt_id")) + (f" (with {a.get('with_prompt')})" if given == "with" else "")
+            for a in answers
+        )
+        rows.append((f"{len(answers)} {_UNASKED[given]}", str(answers[0].get("t_utc") or ""), named))
     return rows
 
 

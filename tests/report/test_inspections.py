@@ -88,6 +88,10 @@ def test_a_scripted_run_records_every_answer_as_the_scripts(tmp_path: Path) -> N
     row = _row(md, "ring-before")
     assert row[3:6] == ["0", "0", str(rings["ring-before"])]  # none inspected by a person
     assert "nobody was shown the question" in md
+    # and the first page's deviations say so, once, naming every ring check the script passed
+    ring_ids = [p["prompt_id"] for p in answered if p["prompt_id"].startswith("ring-")]
+    row = _row(md, f"{len(ring_ids)} ring checks answered by the script: nobody was shown them")
+    assert row[2].split(", ") == ring_ids
 
 
 def test_one_key_answers_are_recorded_with_the_acceptance_and_listed(tmp_path: Path) -> None:
@@ -104,6 +108,12 @@ def test_one_key_answers_are_recorded_with_the_acceptance_and_listed(tmp_path: P
         row = _row(md, kind)
         assert row[3:6] == [str(by_kind[kind, ASKED]), str(by_kind[kind, WITH]), "0"], row
     assert "Answers given with another prompt's answer" in md
+    deviation = _row(
+        md,
+        f"{len(carried)} ring checks passed with another prompt's answer (the lab's one key), "
+        "not on their own prompt",
+    )
+    assert deviation[2].split(", ") == [f"{p['prompt_id']} (with {p['with_prompt']})" for p in carried]
     for p in carried:  # each listed with the key that gave it
         assert re.search(rf"\|\s*{p['prompt_id']}\s*\|[^\n]*\|\s*{p['with_prompt']}\s*\|", md), p["prompt_id"]
 
