@@ -227,7 +227,21 @@ def deviation_rows(record: dict[str, Any]) -> list[tuple[str, str, str]]:
                     str(e.get("who")),
                 )
             )
-    return rows + _unasked(record)
+    return _unnamed(record) + rows + _unasked(record)
+
+
+def _unnamed(record: dict[str, Any]) -> list[tuple[str, str, str]]:
+    """A run on a real rig whose operator gave no name: who performed the test is not on record."""
+    named = (record.get("tested_by") or {}).get("name")
+    if "tested_by" not in record or named or simulated(record):
+        return []
+    return [
+        (
+            "no operator named when the run started: who performed the test is not on record",
+            str(record.get("started_utc") or ""),
+            "rig certify --operator NAME, or the console's operator field, names them",
+        )
+    ]
 
 
 _UNASKED = {  # how a ring check was passed without being inspected on its own prompt (protocols.control)

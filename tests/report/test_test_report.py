@@ -340,3 +340,16 @@ def test_a_bat_file_without_the_new_fields_registers_as_before(tmp_path: Path) -
         "moi_u_kgm2",
         "balance_point_in",
     }
+
+
+def test_a_real_rig_run_without_an_operator_named_lists_it_as_a_deviation() -> None:
+    """Who performed the test is a report item (7.8.2.1): a run on a real rig that started without a
+    name says so among the deviations; a simulated run, a named operator and an older record do not."""
+    from rig.report.cert_report import deviation_rows
+
+    unnamed = {"tested_by": {"name": None, "answered_by": "script"}, "simulated": False, "started_utc": "T0"}
+    (row,) = deviation_rows(unnamed)
+    assert row[0].startswith("no operator named when the run started") and row[1] == "T0"
+    assert deviation_rows({**unnamed, "tested_by": {"name": "A. Tester", "answered_by": "script"}}) == []
+    assert deviation_rows({**unnamed, "simulated": True}) == []
+    assert deviation_rows({"simulated": False}) == []  # recorded before runs named their operator
