@@ -64,6 +64,7 @@ class LiveEvent(RunEvent):
 # -- persisted ---------------------------------------------------------------------------------
 ONE_SHOT_KIND = "shot"  # a one-shot run's procedure name in the store (rig shot), shown where a
 # certification shows its procedure
+CHECK_KIND = "check"  # a check run's (rig check): the reference bat again, never a bat of a population
 
 
 @dataclass(frozen=True)

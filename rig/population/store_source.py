@@ -8,6 +8,10 @@ runs of the chosen location (RunFinished). u_<metric> for the metric a run certi
 result's standard uncertainty (its U / k, the `u` RunFinished records); over several runs of a
 bat the mean of their u (the rig's systematic parts, common to the runs, dominate, so the runs'
 u are not averaged down as if independent). Bats with no hoop frequency are left out, with a note.
+
+Check runs (`rig check`, kind `check`) are not read: they strike the lab's reference bat again and
+again to watch the rig, and a bat is certified once. A bat whose only runs are check runs (the
+reference bat) is left out, with a note.
 """
 
 from __future__ import annotations
@@ -50,8 +54,11 @@ def bats_from_store(store: Store) -> tuple[list[PopulationBat], list[str]]:
     """The store's bats as population rows, and notes on those left out."""
     per_bat: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
     mois: dict[str, list[float]] = defaultdict(list)
+    checked: set[str] = set()
+    tested: set[str] = set()
     for run in store.runs():
-        if run.status != "finished":
+        (checked if run.procedure == ev.CHECK_KIND else tested).add(run.bat_id)
+        if run.status != "finished" or run.procedure == ev.CHECK_KIND:
             continue
         values, moi = _run_metrics(store, run.run_id)
         for name, vals in values.items():
@@ -60,6 +67,9 @@ def bats_from_store(store: Store) -> tuple[list[PopulationBat], list[str]]:
             mois[run.bat_id].append(moi)
     bats, notes = [], []
     for bat_id, spec in sorted(store.bats().items()):
+        if bat_id in checked - tested:
+            notes.append(f"bat {bat_id}: a check standard (only check runs, rig check): left out")
+            continue
         modal = latest_modal_result(store, bat_id)
         hoop = spec.get("hoop_hz") or (modal or {}).get("hoop_hz")
         if hoop is None:

@@ -6,5 +6,8 @@ certify (`RigQuality.refusal`). Comparisons (7.7.2, retained items): `scores` gi
 E_n, z and Algorithm A, `compare` pairs results bat by bat and finds retests (rig compare).
 """
 
-CHECK_KIND = "check"  # the store's kind of a check run (rig check)
+from rig.core.events import CHECK_KIND  # the store's kind of a check run (rig check)
+
+__all__ = ["ACK_KIND", "CHECK_KIND"]
+
 ACK_KIND = "CheckAcknowledged"  # lab-level: signals of a rig's charts acknowledged (rig check ack)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import shutil
 from pathlib import Path
 
 import pytest
@@ -121,3 +122,52 @@ def test_calibrate_store_refusals(
     assert rc == 2 and "\n" not in err and cause in err, err
     assert not (tmp_path / "cal.json").exists()
     assert not (tmp_path / "absent-records.db").exists()
+
+
+REF_BAT = """\
+[bat]
+id = "REF-CAL-1"
+length_in = 33.0
+weight_oz = 30.0
+barrel = "aluminium"
+hoop_hz = 3100.0
+balance_point_in = 22.0
+moi_kgm2 = 0.19
+moi_u_kgm2 = 0.0005
+"""
+
+
+def test_check_runs_are_not_a_population(
+    store: tuple[Path, dict[str, dict]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A store with check runs of a reference bat (rig check: the same bat again and again) gives the
+    same population rows and the same calibration as the store without them."""
+    db, _ = store
+    checked = tmp_path / "checked" / db.name  # the same name: a row names its store's file
+    checked.parent.mkdir()
+    shutil.copy(db, checked)  # the module's store, then check runs on a reference bat (with a hoop)
+    ref = tmp_path / "ref.toml"
+    ref.write_text(REF_BAT)
+    for _ in range(2):
+        argv = ["check", "--bat", str(ref), "--sim", "ideal", "--hits", "2", "--db", str(checked), "--json"]
+        assert main(argv) == 0
+    with Store.open(checked) as st:
+        kinds = [r.procedure for r in st.runs()]
+        with_checks, notes = bats_from_store(st)
+    assert kinds.count("check") == 2 and "REF-CAL-1" in Store.open(checked).bats()
+    with Store.open(db) as st:
+        without, _ = bats_from_store(st)
+    assert [b.model_dump() for b in with_checks] == [b.model_dump() for b in without]
+    assert notes == ["bat REF-CAL-1: a check standard (only check runs, rig check): left out"]
+    data = write_population_csv(population(n=10, seed=3), tmp_path / "pop.csv")
+    records = []
+    for source in (db, checked):
+        out = tmp_path / f"cal-{len(records)}.json"
+        argv = ["model", "calibrate", "--data", str(data), "--db", str(source), "--output", str(out)]
+        assert main(argv) == 0
+        record = json.loads(out.read_text())
+        for volatile in ("created_utc", "data_file"):  # when, and the store's name
+            record["provenance"].pop(volatile)
+        records.append(record)
+    assert records[0] == records[1] and records[0]["provenance"]["n_bats"] == 12
+    capsys.readouterr()
