@@ -1,4 +1,5 @@
-"""`rig check [--bat REF.toml]`, `rig check chart`, `rig check ack`: the check standard on control charts."""
+"""`rig check [--bat REF.toml]`, `rig check chart`, `rig check ack`, `rig check restart`: the check
+standard on control charts."""
 
 from __future__ import annotations
 
@@ -139,7 +140,12 @@ def _chart_dict(q: Any, bat: str, c: Any) -> dict[str, Any]:
     data = c.as_dict()
     for sig in data["signals"]:
         sig["acknowledged"] = sig["key"] not in open_keys
-    return {"rig": q.rig, "bat": bat, "metric": q.series[bat].metric, "state": q.state(), **data}
+    series = q.series[bat]
+    restart = None if series.restart is None else series.restart.as_dict()
+    return {
+        "rig": q.rig, "bat": bat, "metric": series.metric, "state": q.state(), "restart": restart,
+        "sessions_before_restart": series.earlier, **data,
+    }  # fmt: skip
 
 
 def _print_chart(q: Any, bat: str, c: Any) -> None:
@@ -170,6 +176,9 @@ def _print_chart(q: Any, bat: str, c: Any) -> None:
             f"action {lim['action_low']:.5f} - {lim['action_high']:.5f}; EWMA lambda {c.lam:g}, k {c.k:g} "
             f"(exact limits); s-chart sigma_w {num(c.sigma_within)} (mean s / c4)"
         )
+    restart = q.series[bat].restart
+    if restart is not None:
+        print(f"  {restart.describe()}; {q.series[bat].earlier} earlier session(s) not charted")
     for note in c.notes:
         print(f"  note: {note}")
     open_keys = {s.key for b, s in q.unacknowledged if b == bat}
@@ -201,6 +210,33 @@ def cmd_ack(args: argparse.Namespace) -> int:
         entry = acknowledge(store, quality, **signoff.as_dict())
     n = len(quality.unacknowledged)
     print(f"rig {rig}: {n} signal(s) acknowledged by {signoff.who} (seq {entry.seq})")
+    return 0
+
+
+def cmd_restart(args: argparse.Namespace) -> int:
+    """rig check restart: record (lab-level, hash-chained) that NAME starts a new phase I for a rig and
+    reference bat after a corrective action, and why; the charts and the gate on certification then
+    use only the check runs made after it (the first 20 of them are the new phase I)."""
+    from rig.quality.records import check_series, restart
+
+    signoff = signoff_from(args, "rig check restart")
+    args.create_db = False
+    with open_db(args) as store:
+        series = [
+            s for s in check_series(store)[0] if args.rig in (None, s.rig) and args.bat in (None, s.bat)
+        ]
+        if len(series) != 1:
+            named = ", ".join(f"--rig {s.rig} --bat {s.bat}" for s in series) or "none"
+            raise ConfigError(
+                f"give the rig and reference bat to restart ({len(series)} series of check runs match: "
+                f"{named})",
+                source="command line",
+            )
+        entry = restart(store, series[0], **signoff.as_dict())
+    print(
+        f"rig {series[0].rig}, reference bat {series[0].bat}: new phase I from the next check run, recorded "
+        f"by {signoff.who} (seq {entry.seq}); {len(series[0].sessions)} earlier session(s) no longer charted"
+    )
     return 0
 
 
@@ -243,3 +279,15 @@ def add_parsers(sub: Any) -> None:
     p.add_argument("--why", metavar="TEXT", help="why: the cause found and what was done (recorded)")
     p.add_argument("--db", metavar="FILE", help=DB_HELP)
     p.set_defaults(handler=cmd_ack)
+
+    p = csub.add_parser(
+        "restart",
+        help="start a new phase I for a rig and reference bat after a corrective action (recorded)",
+        description=cmd_restart.__doc__,
+    )
+    p.add_argument("--rig", metavar="NAME", help="the rig (default: the only one with check runs)")
+    p.add_argument("--bat", metavar="ID", help="the reference bat (default: the rig's only one)")
+    p.add_argument("--who", metavar="NAME", help="who restarts (recorded)")
+    p.add_argument("--why", metavar="TEXT", help="why: the corrective action (recorded)")
+    p.add_argument("--db", metavar="FILE", help=DB_HELP)
+    p.set_defaults(handler=cmd_restart)

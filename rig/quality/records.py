@@ -5,6 +5,12 @@ first), each a session of its RunFinished's hits. An acknowledgement is a lab-le
 `CheckAcknowledged` entry naming the rig, who, why and the signals it covers (their keys, rule and
 session); a signal no acknowledgement names blocks certification on that rig. A run created after
 an acknowledgement, before the rig's next check run, ran under it (RigQuality.under).
+
+A restart is a lab-level `CheckRestarted` entry (rig check restart: who, why, the rig and reference
+bat) after a corrective action: the series then holds only the check runs created after the latest
+restart, whose first sessions are a new phase I; the earlier ones are counted, not charted or judged.
+Entries are ordered by when they were first recorded (LogEntry.recorded_utc, the runs' start), so
+that a lab's store that rig sync filled orders them as the rig's store did.
 """
 
 from __future__ import annotations
@@ -15,11 +21,12 @@ from typing import Any
 
 from rig.core import events as ev
 from rig.core.outcomes import RunVerdict
-from rig.quality import ACK_KIND, CHECK_KIND
+from rig.quality import ACK_KIND, CHECK_KIND, RESTART_KIND
 from rig.quality.charts import PHASE_I, Charts, Session, Signal, build
 from rig.store import LogEntry, Store
 
 RUN_CREATED = "RunCreated"
+Order = tuple[str, int]  # (when first recorded, seq): entries and runs in the order they were made
 
 
 @dataclass(frozen=True)
@@ -30,6 +37,34 @@ class Series:
     bat: str
     metric: str
     sessions: tuple[Session, ...]
+    restart: Restart | None = None  # the latest restart: only the sessions after it are here
+    earlier: int = 0  # sessions before that restart (not charted)
+
+
+@dataclass(frozen=True)
+class Restart:
+    """A recorded new phase I for a rig and reference bat (rig check restart)."""
+
+    seq: int
+    rig: str
+    bat: str
+    who: str
+    why: str
+    t_utc: str  # when it was first recorded
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready view."""
+        return {"seq": self.seq, "rig": self.rig, "bat": self.bat, "who": self.who, "why": self.why,
+                "t_utc": self.t_utc}  # fmt: skip
+
+    @property
+    def order(self) -> Order:
+        """Its place among the runs and entries (rig.quality.records.Order)."""
+        return self.t_utc, self.seq
+
+    def describe(self) -> str:
+        """One line: when, who and why."""
+        return f"phase I restarted {self.t_utc} by {self.who}: {self.why}"
 
 
 @dataclass(frozen=True)
@@ -43,6 +78,11 @@ class Ack:
     t_utc: str
     keys: tuple[str, ...]
     texts: tuple[str, ...]
+
+    @property
+    def order(self) -> Order:
+        """Its place among the runs and entries (rig.quality.records.Order)."""
+        return self.t_utc, self.seq
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready view (as a run records what it ran under)."""
@@ -69,29 +109,54 @@ def rig_of(created: LogEntry | None) -> str:
     return name if isinstance(name, str) else ""
 
 
-def check_series(store: Store) -> tuple[list[Series], dict[str, int]]:
-    """Every (rig, bat) series of finished check runs, and the seq each rig's latest check run was
-    created at (whatever its end: a check started after an acknowledgement closes it)."""
-    grouped: dict[tuple[str, str], list[Session]] = defaultdict(list)
+def check_series(store: Store) -> tuple[list[Series], dict[str, Order]]:
+    """Every (rig, bat) series of finished check runs (after its latest restart), and when each rig's
+    latest check run was created (whatever its end: a check started after an acknowledgement
+    closes it)."""
+    grouped: dict[tuple[str, str], list[tuple[Order, Session]]] = defaultdict(list)
     metrics: dict[tuple[str, str], str] = {}
-    latest: dict[str, int] = {}
+    latest: dict[str, Order] = {}
     for run in store.runs():
         if run.procedure != CHECK_KIND:
             continue
         created = _created(store, run.run_id)
         rig = rig_of(created)
-        if created is not None:
-            latest[rig] = max(latest.get(rig, 0), created.seq)
+        made = (run.started_utc, created.seq if created else 0)
+        latest[rig] = max(latest.get(rig, made), made)
         if run.status != "finished":
             continue
         for entry in store.entries(run.run_id, kinds=[ev.RUN_FINISHED]):
             verdict = RunVerdict.from_payload(entry.payload, ev.RUN_FINISHED)
             if verdict.hits:
                 key = (rig, run.bat_id)
-                grouped[key].append(Session(run.run_id, tuple(verdict.hits), run.started_utc))
+                grouped[key].append((made, Session(run.run_id, tuple(verdict.hits), run.started_utc)))
                 metrics.setdefault(key, verdict.metric or "")
-    series = [Series(rig, bat, metrics[(rig, bat)], tuple(s)) for (rig, bat), s in grouped.items()]
+    last = {(r.rig, r.bat): r for r in restarts(store)}  # oldest first: the latest wins
+    series = []
+    for (rig, bat), made_sessions in grouped.items():
+        restart = last.get((rig, bat))
+        after = [s for made, s in made_sessions if restart is None or made > restart.order]
+        earlier = len(made_sessions) - len(after)
+        series.append(Series(rig, bat, metrics[(rig, bat)], tuple(after), restart, earlier))
     return series, latest
+
+
+def restarts(store: Store) -> list[Restart]:
+    """The recorded restarts of phase I, oldest first."""
+    found = []
+    for e in store.entries(None, kinds=[RESTART_KIND]):
+        p = e.payload
+        if e.run_id is None:
+            found.append(
+                Restart(e.seq, str(p.get("rig", "")), str(p.get("bat", "")), str(p.get("who", "")),
+                        str(p.get("why", "")), e.recorded_utc)
+            )  # fmt: skip
+    return sorted(found, key=lambda r: r.order)
+
+
+def restart(store: Store, series: Series, who: str, why: str) -> LogEntry:
+    """Record that `who` starts a new phase I for `series`' rig and reference bat, and why."""
+    return store.append(None, RESTART_KIND, {"rig": series.rig, "bat": series.bat, "who": who, "why": why})
 
 
 def acks(store: Store, rig: str | None = None) -> list[Ack]:
@@ -108,12 +173,12 @@ def acks(store: Store, rig: str | None = None) -> list[Ack]:
                 str(p.get("rig", "")),
                 str(p.get("who", "")),
                 str(p.get("why", "")),
-                e.t_utc,
+                e.recorded_utc,
                 tuple(str(s.get("key", "")) for s in signals),
                 tuple(str(s.get("text", "")) for s in signals),
             )
         )
-    return found
+    return sorted(found, key=lambda a: a.order)
 
 
 @dataclass(frozen=True)
@@ -150,7 +215,9 @@ class RigQuality:
             return f"SIGNAL, awaiting acknowledgement ({len(self.unacknowledged)})"
         if not any(c.ready for c in self.charts.values()):
             most = max(c.sessions for c in self.charts.values())
-            return f"building phase I ({most} of {next(iter(self.charts.values())).phase_i} check runs)"
+            since = " since the restart" if any(s.restart for s in self.series.values()) else ""
+            phase_i = next(iter(self.charts.values())).phase_i
+            return f"building phase I ({most} of {phase_i} check runs{since})"
         if self.under is not None:
             return f"signal acknowledged by {self.under.who}; in use until the next check run"
         return "in control"
@@ -167,7 +234,7 @@ def rig_quality(store: Store, rig: str, phase_i: int = PHASE_I) -> RigQuality:
         (bat, sig) for bat, c in charts.items() for sig in c.signals if sig.key not in covered
     )
     last = recorded[-1] if recorded else None
-    under = last if last is not None and last.seq > latest.get(rig, 0) else None
+    under = last if last is not None and last.order > latest.get(rig, ("", 0)) else None
     return RigQuality(rig, charts, mine, open_signals, recorded, under)
 
 

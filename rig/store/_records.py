@@ -25,6 +25,11 @@ RUN_SEALED = "RunSealed"
 RUN_SYNCED = "RunSynced"  # rig sync copied entries of a run from another store
 BALL_LOT_REGISTERED = "BallLotRegistered"  # lab-level: a ball lot (rig balls register)
 BALL_LAW_RECORDED = "BallLawRecorded"  # lab-level: a lot's fitted ball law (rig model fit-ball --db --lot)
+# Lab-level entries of the check standard's charts (rig.quality) that rig sync carries to the lab's store
+CHECK_ACKNOWLEDGED = "CheckAcknowledged"  # a rig's control-chart signals acknowledged (rig check ack)
+CHECK_RESTARTED = "CheckRestarted"  # a new phase I for a rig and reference bat (rig check restart)
+SYNCED_LAB_KINDS = (CHECK_ACKNOWLEDGED, CHECK_RESTARTED)
+COPIED_FROM = "copied_from"  # in such an entry rig sync copied: where and when it was first recorded
 RESERVED_KINDS = frozenset(
     {
         BAT_REGISTERED,
@@ -59,6 +64,14 @@ class LogEntry:
     def time(self) -> datetime:
         """t_utc as an aware datetime."""
         return datetime.fromisoformat(self.t_utc)
+
+    @property
+    def recorded_utc(self) -> str:
+        """When the entry was first recorded: t_utc, or for a lab-level entry rig sync copied from a
+        rig's store, the time it had there."""
+        copied = self.payload.get(COPIED_FROM)
+        first = copied.get("t_utc") if isinstance(copied, dict) else None
+        return first if isinstance(first, str) else self.t_utc
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ from typing import Any
 
 from rig.core.errors import RecordRefused, StoreError
 from rig.store._codec import canonical_json
-from rig.store._records import LogEntry
+from rig.store._records import COPIED_FROM, SYNCED_LAB_KINDS, LogEntry
 
 
 @dataclass(frozen=True)
@@ -28,12 +28,14 @@ class SyncReport:
     source: str
     target: str
     signatures_copied: int = 0  # RunSigned entries (and the rigs' key registrations they need)
+    lab_entries_copied: int = 0  # the control charts' acknowledgements and phase I restarts
 
     def __str__(self) -> str:
         return (
             f"{self.source} -> {self.target}: {self.entries_copied} entries of {self.runs_copied} runs "
             f"copied, {self.runs_up_to_date} runs already up to date, {self.bats_registered} bats "
-            f"registered, {self.signatures_copied} signatures copied"
+            f"registered, {self.signatures_copied} signatures copied, {self.lab_entries_copied} "
+            "control-chart entries (acknowledgements, restarts) copied"
         )
 
 
@@ -92,10 +94,11 @@ def sync(source: Any, target: Any) -> SyncReport:
         entries_copied += target.import_chain(run.run_id, entries, where)
         copied += 1
     signatures = _copy_signatures(source, target, {run.run_id for run in runs})
+    lab_entries = _copy_lab_entries(source, target)
     after = target.verify()
     if not after.ok:  # pragma: no cover - a bug: the copy broke what verified before
         raise StoreError(f"{to}: does not verify after the copy: {after.problems[0]}")
-    return SyncReport(copied, entries_copied, up_to_date, bats, where, to, signatures)
+    return SyncReport(copied, entries_copied, up_to_date, bats, where, to, signatures, lab_entries)
 
 
 def _copy_signatures(source: Any, target: Any, run_ids: set[str]) -> int:
@@ -118,6 +121,30 @@ def _copy_signatures(source: Any, target: Any, run_ids: set[str]) -> int:
         if (e.kind, canonical_json(e.payload)) not in have:
             target.append(None, e.kind, e.payload)
             copied += e.kind == RUN_SIGNED
+    return copied
+
+
+def _copy_lab_entries(source: Any, target: Any) -> int:
+    """The source's control-chart entries (SYNCED_LAB_KINDS) the target lacks, in the source's order.
+
+    The lab chain is each store's own, so an entry is appended anew; its payload keeps where and when
+    it was first recorded (COPIED_FROM: the source, its seq and time there; an entry copied before
+    keeps its first origin), which the charts order it by (LogEntry.recorded_utc). An entry is the
+    same as one the target holds when the payloads without COPIED_FROM are.
+    """
+
+    def same(e: LogEntry) -> tuple[str, str]:
+        return e.kind, canonical_json({k: v for k, v in e.payload.items() if k != COPIED_FROM})
+
+    have = {same(e) for e in target.entries(None, kinds=list(SYNCED_LAB_KINDS)) if e.run_id is None}
+    copied = 0
+    for e in source.entries(None, kinds=list(SYNCED_LAB_KINDS)):
+        if e.run_id is not None or same(e) in have:
+            continue
+        origin = e.payload.get(COPIED_FROM) or {"source": source.location, "seq": e.seq, "t_utc": e.t_utc}
+        target.append(None, e.kind, {**e.payload, COPIED_FROM: origin})
+        have.add(same(e))
+        copied += 1
     return copied
 
 

@@ -146,3 +146,85 @@ def test_the_plot_and_bad_input(lab: dict[str, object]) -> None:
         result = run_cli(argv, db)
         assert result.code == 2 and words in result.err and result.err.count("\n") == 1, result.err
         assert result.stray_runs == []
+
+
+def _refusal(db: Path) -> str | None:
+    from rig.quality.records import rig_quality
+    from rig.store import Store
+
+    with Store.open(db) as store:
+        return rig_quality(store, "sim-lab").refusal()
+
+
+def test_a_restart_starts_a_new_phase_i_for_the_chart_and_the_gate(lab: dict[str, object]) -> None:
+    """After a corrective action, `rig check restart` (recorded) makes the next check runs a new phase
+    I: the earlier sessions are neither charted nor judged, so their signals no longer block."""
+    root = lab["root"]
+    assert isinstance(root, Path)
+    db = root / "restart" / "lab.db"
+    db.parent.mkdir()
+    shutil.copy(lab["db"], db)
+    worn = str(root / "worn" / "lab.toml")
+    check = ["check", "--bat", str(root / "ref.toml"), "--db", str(db), "--hits", str(HITS), "--json"]
+    assert _json([*check, "--sim", worn])["signals"]  # the worn lot still: a new, open signal
+    assert "not acknowledged" in (_refusal(db) or "")
+    before = _chart_of(db)
+    assert before["restart"] is None and before["sessions_before_restart"] == 0
+    n = len(before["points"])
+    assert run_cli(["check", "restart", "--db", str(db), "--who", "Q. Manager"], db).code == 2  # no --why
+    done = run_cli(["check", "restart", "--db", str(db), "--who", "Q. Manager", "--why", "new lot"], db)
+    assert done.code == 0, done.err
+    assert _refusal(db) is None  # the gate judges the new phase I only: nothing yet
+    after = _chart_of(db)
+    assert after["points"] == [] and after["sessions_before_restart"] == n
+    assert after["restart"]["who"] == "Q. Manager" and after["restart"]["why"] == "new lot"
+    assert after["state"] == "building phase I (0 of 20 check runs since the restart)"
+    new = _json([*check, "--sim", "lab"])
+    assert new["state"] == "building phase I (1 of 20 check runs since the restart)"
+    points = _chart_of(db)["points"]
+    assert [p["session"] for p in points] == [new["run_id"]] and points[0]["phase"] == 1
+    assert main(["verify", "--db", str(db)]) == 0
+
+
+def _chart_of(db: Path) -> dict[str, object]:
+    charts = _json(["check", "chart", "--db", str(db), "--json"])
+    assert isinstance(charts, list) and len(charts) == 1
+    return charts[0]
+
+
+def test_sync_carries_acknowledgements_and_restarts_to_the_lab_store(lab: dict[str, object]) -> None:
+    """rig sync copies CheckAcknowledged and CheckRestarted with the runs: the lab's store charts,
+    gates and dates them as the rig's store does; a second sync adds nothing."""
+    from rig.quality.records import acks, restarts
+    from rig.store import Store
+
+    root = lab["root"]
+    assert isinstance(root, Path)
+    rig_db, lab_db = root / "sync" / "rig.db", root / "sync" / "central.db"
+    rig_db.parent.mkdir()
+    shutil.copy(lab["db"], rig_db)
+    if _refusal(rig_db):  # whatever the tests before left open: acknowledged here
+        assert run_cli(["check", "ack", "--db", str(rig_db), "--who", "A", "--why", "seen"], rig_db).code == 0
+    assert (
+        run_cli(["check", "restart", "--db", str(rig_db), "--who", "B", "--why", "re-based"], rig_db).code
+        == 0
+    )
+    assert _refusal(rig_db) is None
+    assert _json(["sync", "--from", str(rig_db), "--to", str(lab_db), "--json"])["lab_entries_copied"] >= 2
+    with Store.open(rig_db) as src, Store.open(lab_db) as dst:
+        assert [a.as_dict() | {"seq": 0} for a in acks(src)] == [a.as_dict() | {"seq": 0} for a in acks(dst)]
+        assert [(r.who, r.why, r.t_utc) for r in restarts(src)] == [
+            (r.who, r.why, r.t_utc) for r in restarts(dst)
+        ]
+        assert len(acks(dst)) >= 1 and len(restarts(dst)) == 1
+        entries = len(dst.entries())
+    assert _refusal(lab_db) is None
+    charted = [_chart_of(db) for db in (rig_db, lab_db)]
+    for chart in charted:
+        chart["restart"].pop("seq")  # each store's own lab chain numbers it
+    assert charted[0] == charted[1]  # the same series, restart (when, who, why) and state
+    again = _json(["sync", "--from", str(rig_db), "--to", str(lab_db), "--json"])
+    assert again["lab_entries_copied"] == 0
+    with Store.open(lab_db) as dst:
+        assert len(dst.entries()) == entries
+    assert main(["verify", "--db", str(lab_db)]) == 0
