@@ -103,6 +103,10 @@ def cmd_chart(args: argparse.Namespace) -> int:
     from rig.quality.records import check_series
 
     plot = output_file(args.plot, "--plot")
+    if args.crosscheck:
+        return _crosscheck_chart(args, plot)
+    if args.model is not None:
+        raise ConfigError("--model goes with --crosscheck", source="command line")
     with open_db(args, readonly=True) as store:
         series, _ = check_series(store)
         rigs = sorted({s.rig for s in series if args.rig in (None, s.rig)})
@@ -188,6 +192,75 @@ def _print_chart(q: Any, bat: str, c: Any) -> None:
         )
 
 
+def _crosscheck_chart(args: argparse.Namespace, plot: Any) -> int:
+    """rig check chart --crosscheck: the model cross-check's standardised residuals of the certified
+    runs, per bat model and calibration, on the individuals and EWMA charts (standard values 0, 1)."""
+    from rig.quality.crosscheck import residual_series
+
+    if args.bat is not None:
+        raise ConfigError(
+            "--bat names a reference bat; with --crosscheck give --model SERIES", source="--bat"
+        )
+    with open_db(args, readonly=True) as store:
+        series, notes = residual_series(store, args.rig)
+    shown = [s for s in series if args.model is None or s.key.startswith(args.model) or s.model == args.model]
+    if args.model is not None and not shown:
+        named = "; ".join(s.key for s in series) or "none"
+        raise ConfigError(f"no cross-check series {args.model!r} (series: {named})", source="--model")
+    if plot is not None:
+        if len(shown) != 1:
+            raise ConfigError(
+                f"--plot draws one series; {len(shown)} match: give --model (a series' name, or its start)",
+                source="--plot",
+            )
+        from rig.report.quality_plots import plot_charts
+
+        only = shown[0]
+        plot_charts(only.charts, f"model cross-check: {only.key}", plot, "z", unit="certified run")
+    if args.json:
+        payload = {"series": [s.as_dict() for s in shown], "notes": notes}
+        json.dump(payload, sys.stdout, indent=2, allow_nan=False)
+        sys.stdout.write("\n")
+        return 0
+    if not shown:
+        print("no certified run with a calibrated model cross-check in this store")
+    for s in shown:
+        _print_residuals(s)
+    for note in notes:
+        print(f"note: {note}")
+    return 0
+
+
+def _print_residuals(s: Any) -> None:
+    from rig.quality.crosscheck import NO_MODEL
+
+    c = s.charts
+    table = new_table(title=f"model cross-check, {s.key}: {len(c.signals)} signal(s)", show_header=True)
+    add_columns(table, "#", "run", "bat", "rig")
+    add_columns(table, "z", "EWMA", "EWMA limits", "signal", justify="right")
+    flagged: dict[int, list[str]] = {}
+    for sig in c.signals:
+        flagged.setdefault(sig.index, []).append(sig.rule)
+    for p, r in zip(c.points, s.residuals, strict=True):
+        limits = f"{p.ewma_low:.3f} - {p.ewma_high:.3f}"
+        table.add_row(
+            str(p.index), r.run_id[:12], r.bat_id, r.rig, f"{r.z:.3f}", f"{p.ewma:.3f}", limits,
+            ", ".join(flagged.get(p.index, [])),
+        )  # fmt: skip
+    out().print(table)
+    sigma = s.observed_sigma()
+    print(
+        f"  z = (measured - predicted) / u, u the prediction's combined standard uncertainty; standard "
+        f"values: centre 0, sigma 1, action +-3, warning +-2, EWMA lambda {c.lam:g}, k {c.k:g} (exact "
+        f"limits), no phase I; the residuals' own sigma (moving range / 1.128): "
+        f"{'-' if sigma is None else f'{sigma:.2f}'}"
+    )
+    grouped = f"bat model {s.model}" if s.model else NO_MODEL
+    print(f"  calibration {s.calibration} ({s.calibration_path}); {grouped}")
+    for sig in c.signals:
+        print(f"  signal: {s.describe(sig)} (shown, does not block certification: investigate)")
+
+
 def cmd_ack(args: argparse.Namespace) -> int:
     """rig check ack: record (lab-level, hash-chained) that NAME acknowledges a rig's open control-chart
     signals, and why; certification on that rig is allowed again until a check run signals anew."""
@@ -267,6 +340,12 @@ def add_parsers(sub: Any) -> None:
     p.add_argument(
         "--phase-i", type=positive_int, default=20, metavar="M", help="sessions in phase I (default 20)"
     )
+    p.add_argument(
+        "--crosscheck",
+        action="store_true",
+        help="the model cross-check's residuals of the certified runs, per bat model and calibration",
+    )
+    p.add_argument("--model", metavar="SERIES", help="with --crosscheck: one series (its name, or its start)")
     p.add_argument("--db", metavar="FILE", help=DB_HELP)
     p.add_argument("--json", action="store_true", help="print JSON")
     p.set_defaults(handler=cmd_chart)

@@ -14,7 +14,10 @@ Each check session (one `rig check` run) gives n hits of the metric. Three chart
   (unbiased; equal n: s-bar / c4), centre c4(n) sigma_w, limits B3(n) and B4(n) times that centre.
 
 Phase I is the first M sessions (default 20): their centre and sigmas are the chart's; phase II
-sessions are judged against them (phase I points are shown, not judged). Signals: a phase II
+sessions are judged against them (phase I points are shown, not judged). With standard values
+given (`standard=(centre, sigma)`, as for the model cross-check's standardised residuals, whose
+centre 0 and sigma 1 the calibration states), there is no phase I: every point is judged, the EWMA
+starts at the first. Signals: a phase II
 mean beyond an action limit, an EWMA outside its limits, an s above its upper limit. A sigma of 0
 (constant phase I data) makes the limits the centre itself: any departure from it signals.
 
@@ -157,6 +160,7 @@ class Charts:
     points: tuple[Point, ...]
     signals: tuple[Signal, ...]
     notes: tuple[str, ...] = field(default_factory=tuple)
+    given: bool = False  # centre and sigma given (standard values), not estimated in a phase I
 
     @property
     def ready(self) -> bool:
@@ -185,7 +189,7 @@ class Charts:
             "sessions": self.sessions,
             "centre": self.centre,
             "sigma": self.sigma,
-            "sigma_method": SIGMA_NOTE,
+            "sigma_method": "standard values given" if self.given else SIGMA_NOTE,
             "sigma_within": self.sigma_within,
             "ewma": {
                 "lambda": self.lam,
@@ -200,9 +204,15 @@ class Charts:
 
 
 def build(
-    sessions: Sequence[Session], *, phase_i: int = PHASE_I, lam: float = LAMBDA, k: float = K
+    sessions: Sequence[Session],
+    *,
+    phase_i: int = PHASE_I,
+    lam: float = LAMBDA,
+    k: float = K,
+    standard: tuple[float, float] | None = None,
 ) -> Charts:
-    """The individuals, EWMA and s charts of `sessions` (oldest first), phase I the first `phase_i`."""
+    """The individuals, EWMA and s charts of `sessions` (oldest first), phase I the first `phase_i`;
+    with `standard` (centre, sigma) given, no phase I and every session judged."""
     if not isinstance(phase_i, int) or phase_i < 2:
         raise ParameterError("phase I sessions", phase_i, "must be a whole number of at least 2")
     if not 0.0 < lam <= 1.0:
@@ -211,18 +221,27 @@ def build(
         raise ParameterError("k", k, "must lie in (0, 6]")
     means = [s.mean for s in sessions]
     notes: list[str] = []
-    if len(sessions) < phase_i:
+    if standard is not None:
+        centre, sigma = standard
+        if not (math.isfinite(centre) and math.isfinite(sigma) and sigma > 0.0):
+            raise ParameterError("standard (centre, sigma)", standard, "needs finite values, sigma above 0")
+        phase_i = 0
+        notes.append(
+            f"standard values given: centre {centre:g}, sigma {sigma:g}; no phase I, every point judged"
+        )
+    elif len(sessions) < phase_i:
         notes.append(f"phase I: {len(sessions)} of {phase_i} sessions; no limits yet, nothing judged")
         shown = tuple(_point(i, s, 1) for i, s in enumerate(sessions))
         return Charts(phase_i, len(sessions), None, None, None, lam, k, shown, (), tuple(notes))
-    first = means[:phase_i]
-    centre = first[0] + math.fsum(m - first[0] for m in first) / phase_i  # equal means: exactly theirs
-    sigma = math.fsum(abs(b - a) for a, b in itertools.pairwise(first)) / (phase_i - 1) / D2
+    else:
+        first = means[:phase_i]
+        centre = first[0] + math.fsum(m - first[0] for m in first) / phase_i  # equal means: exactly theirs
+        sigma = math.fsum(abs(b - a) for a, b in itertools.pairwise(first)) / (phase_i - 1) / D2
     ratios = [s.s / c4(s.n) for s in sessions[:phase_i] if s.s is not None]
     sigma_w = math.fsum(ratios) / len(ratios) if ratios else None
     if sigma == 0.0:
         notes.append("phase I means do not vary (sigma 0): any departure from the centre signals")
-    if sigma_w is None:
+    if sigma_w is None and standard is None:
         notes.append("no phase I session has two hits: no s-chart")
     points: list[Point] = []
     signals: list[Signal] = []
@@ -238,8 +257,9 @@ def build(
         points.append(point)
         signals += _judged(point, centre, sigma)
     return Charts(
-        phase_i, len(sessions), centre, sigma, sigma_w, lam, k, tuple(points), tuple(signals), tuple(notes)
-    )
+        phase_i, len(sessions), centre, sigma, sigma_w, lam, k, tuple(points), tuple(signals), tuple(notes),
+        standard is not None,
+    )  # fmt: skip
 
 
 def _point(

@@ -175,3 +175,15 @@ def test_a_design_outside_its_range_is_refused() -> None:
     for kwargs in ({"phase_i": 1}, {"lam": 0.0}, {"k": -1.0}):
         with pytest.raises(ParameterError):
             build(HAND, **kwargs)  # type: ignore[arg-type]
+
+
+def test_standard_values_judge_every_point_and_refuse_a_bad_sigma() -> None:
+    sessions = [Session(f"r{i}", (x,)) for i, x in enumerate([0.5, -3.5, 0.0])]
+    c = build(sessions, standard=(0.0, 1.0))
+    assert c.given and c.phase_i == 0 and [p.phase for p in c.points] == [2, 2, 2]
+    z1 = 0.2 * 0.5
+    assert c.points[0].ewma == pytest.approx(z1) and c.points[1].ewma == pytest.approx(0.2 * -3.5 + 0.8 * z1)
+    assert [(s.rule, s.index) for s in c.signals] == [("action limit", 2)]
+    for bad in ((0.0, 0.0), (0.0, float("nan")), (float("inf"), 1.0)):
+        with pytest.raises(ParameterError):
+            build(sessions, standard=bad)
