@@ -116,6 +116,7 @@ class DeviceReport:
     gates: GateConfig | None = None
     environment: Environment | None = None
     errors: tuple[str, ...] = ()
+    checks: tuple[str, bool] | None = None  # the rig's control-chart state, and whether it refuses runs
 
 
 def read_devices(config: RigConfig, lock: threading.Lock) -> DeviceReport:
@@ -146,3 +147,28 @@ def read_devices(config: RigConfig, lock: threading.Lock) -> DeviceReport:
         return DeviceReport(cannon, clamp, gates, environment, tuple(errors))
     finally:
         lock.release()
+
+
+def chart_state(db: Path, config: RigConfig) -> tuple[str, bool]:
+    """The rig's control-chart state for the set-up screen (the rig is the one chosen above it), and
+    whether it refuses a new run (blocking: reads the store; a store not made yet has no check runs)."""
+    rig = config.identity_name()
+    if not db.exists():
+        return "no check runs yet", False
+    with LOADING:
+        from rig.quality.records import rig_quality
+        from rig.store import Store
+    try:
+        with Store.open(db, create=False, readonly=True) as store:
+            quality = rig_quality(store, rig)
+    except RigError as exc:
+        return f"control charts not read: {exc}", False
+    if quality.unacknowledged:
+        _, first = quality.unacknowledged[0]
+        more = len(quality.unacknowledged) - 1
+        return (
+            f"SIGNAL awaiting acknowledgement: {first.describe()}"
+            f"{f' (and {more} more)' if more else ''}; certification refused until `rig check ack`",
+            True,
+        )
+    return quality.state(), False

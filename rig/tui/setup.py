@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import TYPE_CHECKING, ClassVar
 
 from rich.text import Text
@@ -14,7 +15,16 @@ from textual.widgets import Button, Footer, Header, Input, Label, Select, Static
 
 from rig.core.errors import ConfigError, RigError
 from rig.tui.messages import OpenHistory, StartRun
-from rig.tui.rigs import LOADING, PROCEDURES, ConsoleSettings, DeviceReport, RigChoice, RunJob, read_devices
+from rig.tui.rigs import (
+    LOADING,
+    PROCEDURES,
+    ConsoleSettings,
+    DeviceReport,
+    RigChoice,
+    RunJob,
+    chart_state,
+    read_devices,
+)
 
 if TYPE_CHECKING:  # the bat model (pydantic) and the renderings load after the first paint
     from rig.core.bat import BatSpec
@@ -202,6 +212,7 @@ class SetupScreen(Screen[None]):
             config = self._status_configs.get(choice.key) or choice.config()
             self._status_configs[choice.key] = config
             report = read_devices(config, self.settings.device_lock)
+            report = replace(report, checks=chart_state(self.settings.db, config))
         except RigError as exc:
             report = DeviceReport(errors=(str(exc),))
         self.app.call_from_thread(self._show_devices, report)
@@ -227,6 +238,10 @@ class SetupScreen(Screen[None]):
         if report.environment is not None:
             e = report.environment
             text.append(f"lab     {e.temperature_c:.1f} C, {e.humidity_pct:.0f} % RH\n")
+        if report.checks is not None:
+            line, refused = report.checks
+            text.append("checks  ")
+            text.append(f"{line}\n", style="bold red" if refused else "")
         for err in report.errors:
             text.append(f"{err}\n", style="bold red")
         text.rstrip()
