@@ -65,6 +65,8 @@ class LiveEvent(RunEvent):
 ONE_SHOT_KIND = "shot"  # a one-shot run's procedure name in the store (rig shot), shown where a
 # certification shows its procedure
 CHECK_KIND = "check"  # a check run's (rig check): the reference bat again, never a bat of a population
+CHECK_ACKNOWLEDGED = "CheckAcknowledged"  # lab-level: a rig's chart signals acknowledged (rig check ack)
+CHECK_RESTARTED = "CheckRestarted"  # lab-level: a new phase I for a rig and reference bat (rig check restart)
 
 
 @dataclass(frozen=True)

@@ -8,8 +8,8 @@ items): `scores` gives ISO 13528's E_n, z and Algorithm A, `compare` pairs resul
 finds retests (rig compare).
 """
 
+from rig.core.events import CHECK_ACKNOWLEDGED as ACK_KIND  # lab-level: signals acknowledged (rig check ack)
 from rig.core.events import CHECK_KIND  # the store's kind of a check run (rig check)
-from rig.store import CHECK_ACKNOWLEDGED as ACK_KIND  # lab-level: signals acknowledged (rig check ack)
-from rig.store import CHECK_RESTARTED as RESTART_KIND  # lab-level: a new phase I (rig check restart)
+from rig.core.events import CHECK_RESTARTED as RESTART_KIND  # lab-level: a new phase I (rig check restart)
 
 __all__ = ["ACK_KIND", "CHECK_KIND", "RESTART_KIND"]

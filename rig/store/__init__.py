@@ -11,8 +11,6 @@ from rig.store._integrity import StoreDamaged
 from rig.store._lock import RunLock, RunLocked
 from rig.store._pg import is_url, safe_url
 from rig.store._records import (
-    CHECK_ACKNOWLEDGED,
-    CHECK_RESTARTED,
     RESERVED_KINDS,
     RUN_STATUSES,
     Anchor,
@@ -27,8 +25,6 @@ from rig.store._status import SHOWN_STATUSES, shown_status, status_word
 from rig.store._store import DEFAULT_LEASE_S, EntrySpec, Store
 
 __all__ = [
-    "CHECK_ACKNOWLEDGED",
-    "CHECK_RESTARTED",
     "DEFAULT_LEASE_S",
     "GENESIS_HASH",
     "RESERVED_KINDS",

@@ -8,6 +8,7 @@ from datetime import datetime
 from typing import Any, Literal
 
 from rig.core.errors import RecordRefused
+from rig.core.events import CHECK_ACKNOWLEDGED, CHECK_RESTARTED
 
 _HEX64 = re.compile(r"[0-9a-fA-F]{64}")
 
@@ -26,8 +27,6 @@ RUN_SYNCED = "RunSynced"  # rig sync copied entries of a run from another store
 BALL_LOT_REGISTERED = "BallLotRegistered"  # lab-level: a ball lot (rig balls register)
 BALL_LAW_RECORDED = "BallLawRecorded"  # lab-level: a lot's fitted ball law (rig model fit-ball --db --lot)
 # Lab-level entries of the check standard's charts (rig.quality) that rig sync carries to the lab's store
-CHECK_ACKNOWLEDGED = "CheckAcknowledged"  # a rig's control-chart signals acknowledged (rig check ack)
-CHECK_RESTARTED = "CheckRestarted"  # a new phase I for a rig and reference bat (rig check restart)
 SYNCED_LAB_KINDS = (CHECK_ACKNOWLEDGED, CHECK_RESTARTED)
 COPIED_FROM = "copied_from"  # in such an entry rig sync copied: where and when it was first recorded
 RESERVED_KINDS = frozenset(
