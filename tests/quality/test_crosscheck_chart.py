@@ -183,10 +183,25 @@ def test_the_plot_and_bad_input(lab: dict[str, Any]) -> None:
     assert result.code == 2 and "--model goes with --crosscheck" in result.err
 
 
-def test_a_bat_model_is_the_maker_and_model_the_run_recorded() -> None:
+def test_a_bat_model_is_the_maker_and_model_the_run_recorded(lab: dict[str, Any], tmp_path: Path) -> None:
     """Records whose RunStarted bat names a maker and model (bat files that give them) are charted
     per bat model; records that name neither are grouped by the calibration alone."""
     from rig.quality.crosscheck import _model
+
+    db = tmp_path / "steady.db"
+    shutil.copy(lab["steady"], db)
+    named = tmp_path / "named.toml"
+    named.write_text(
+        lab["bats"][1].read_text().replace("[bat]\n", '[bat]\nmaker = "Acme"\nmodel = "A1 33/30"\n')
+    )
+    record = _certify(lab["root"], [named], "lab", db)[0]
+    shown = _json(["check", "chart", "--crosscheck", "--db", str(db), "--json"])["series"]
+    by_model = {s["bat_model"]: s for s in shown}
+    assert set(by_model) == {None, "Acme A1 33/30"}
+    acme = by_model["Acme A1 33/30"]
+    assert acme["series"].startswith("bat model Acme A1 33/30, calibration ")
+    assert [r["run_id"] for r in acme["residuals"]] == [record["run_id"]]
+    assert len(by_model[None]["residuals"]) == STEADY
 
     assert _model({"bat": {"id": "B1", "maker": "Acme", "model": "X-1 33/30"}}) == "Acme X-1 33/30"
     assert _model({"bat": {"id": "B1", "model": "X-1"}}) == "X-1"
