@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from rig.core import events as ev
 from rig.quality.scores import EN_LIMIT, assess_en, en_score
 from rig.report.cert_doc import Block, Heading, Para, Table
 from rig.store import Store
@@ -30,7 +31,7 @@ def earlier_result(store: Store, procedure: str, bat_id: str) -> dict[str, Any] 
     or None if it has none: a result has a finite mean and a U above zero."""
     runs = [r for r in store.runs() if (r.procedure, r.bat_id, r.status) == (procedure, bat_id, "finished")]
     for run in reversed(runs):
-        finished = store.entries(run.run_id, kinds=["RunFinished"])
+        finished = store.entries(run.run_id, kinds=[ev.RUN_FINISHED])
         if not finished:
             continue
         payload = finished[-1].payload
