@@ -6,8 +6,9 @@ built-in files (protocols/*.toml) with its status.
 
 from __future__ import annotations
 
+from datetime import date
 from pathlib import Path
-from typing import Annotated, Literal, TypeVar
+from typing import Annotated, Any, Literal, TypeVar
 
 from pydantic import (
     AfterValidator,
@@ -22,10 +23,10 @@ from pydantic import (
 
 from rig.core.errors import ConfigError
 from rig.core.tomlfile import read_toml, table, validate
-from rig.measure.registry import BUILTIN_METRICS, Metric, metric
+from rig.measure.registry import BUILTIN_PROCEDURES, Metric, metric, resolve
 
 BUILTIN_DIR = Path(__file__).parent
-BUILTIN = BUILTIN_METRICS  # each built-in metric's procedure is protocols/<name>.toml
+BUILTIN = tuple(name for _, name in BUILTIN_PROCEDURES)  # each is protocols/<name>.toml
 M = TypeVar("M", bound=BaseModel)
 
 
@@ -101,6 +102,8 @@ class Ball(_Model):
     # at each shot, the lab's air within this of the lot's conditioning temperature / humidity
     air_window_c: Annotated[float, Field(gt=0.0, le=30.0)] | None = None
     air_window_pct: Annotated[float, Field(gt=0.0, le=100.0)] | None = None
+    # a softball's class, COR/compression (lbf): "44/375" is COR .44, 375 lbf (ASTM F1887, F1888)
+    ball_class: Annotated[str, Field(pattern=r"^\.?[0-9]{2}/[0-9]{3}$")] | None = None
 
 
 class EnvironmentLimits(_Model):
@@ -152,6 +155,8 @@ class Procedure(_Model):
     name: str
     standard: MetricName  # which metric decides the verdict
     edition: str
+    # the date the followed edition took force; a dated standard (usas_bbs) chooses its edition by it
+    edition_date: date | None = None
     limit: float  # bounded by the metric in _limit_fits_metric
     limit_note: str = ""
     target_speed_m_s: Annotated[float, Field(gt=10.0, lt=80.0)] = 60.8
@@ -168,6 +173,36 @@ class Procedure(_Model):
     # the model calibration (rig model calibrate) the cross-check uses; relative to this file
     calibration: Annotated[str, Field(min_length=1, max_length=4096)] | None = None
     cross_check_coverage: Annotated[float, Field(gt=0.5, lt=1.0)] = 0.95  # of the prediction interval
+
+    @model_validator(mode="before")
+    @classmethod
+    def _choose_edition(cls, data: Any) -> Any:
+        # a dated family names one edition's metric by the edition date; that edition's cannon
+        # speed is the target unless the file gives one (checked against it in _speed_fits_metric)
+        if not isinstance(data, dict) or not isinstance(data.get("standard"), str):
+            return data
+        on = data.get("edition_date")
+        try:
+            name = resolve(data["standard"], on if isinstance(on, date) else None)
+        except ConfigError as exc:
+            raise ValueError(exc.reason) from None
+        if name == data["standard"]:
+            return data
+        chosen = {**data, "standard": name}
+        speed = metric(name).test_speed_m_s
+        if speed is not None and "target_speed_m_s" not in data:
+            chosen["target_speed_m_s"] = round(speed, 4)
+        return chosen
+
+    @model_validator(mode="after")
+    def _speed_fits_metric(self) -> Procedure:
+        speed = self.metric.test_speed_m_s
+        if speed is not None and abs(self.target_speed_m_s - speed) > self.speed_tolerance_m_s:
+            raise ValueError(
+                f"target_speed_m_s {self.target_speed_m_s:g} is not the {self.standard} test speed "
+                f"{speed:.4g} m/s (within the speed tolerance)"
+            )
+        return self
 
     @field_validator("limit")
     @classmethod

@@ -14,9 +14,12 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from datetime import date
 from types import MappingProxyType
 
 from rig.core.errors import ConfigError
+from rig.core.units import MPH
+from rig.measure import softball
 
 
 @dataclass(frozen=True)
@@ -53,6 +56,7 @@ class Metric(Quantity):
     # rig.population.dataset, and a metric affine in e_A); the uncalibrated prediction needs neither
     cross_check: bool = False
     needs_length: bool = False  # depends on the bat's length (the swing model)
+    test_speed_m_s: float | None = None  # the speed its standard fires at; a procedure must match it
 
     def scale(self, terms: MetricTerms) -> float:
         """The factor from the budget output's u to the metric's u (1 when it is the metric)."""
@@ -77,6 +81,27 @@ def besr(e_a: float) -> float:
 def bbs(e_a: float, v_pitch: float, v_bat: float) -> float:
     """BBS = V_pitch e_A + V_bat (e_A + 1) (founding paper, Eq. 4)."""
     return v_pitch * e_a + v_bat * (e_a + 1.0)
+
+
+def _softball_bbs(ed: softball.SoftballEdition) -> Metric:
+    """One USA Softball edition's BBS (rig.measure.softball): BBS with its constants, from e_A."""
+    return Metric(
+        ed.metric_name,
+        f"BBS (USA Softball {ed.key})",
+        "m/s",
+        f"BBS = V_pitch e_A + V_bat (e_A + 1), USA Softball edition of {ed.effective.isoformat()}: "
+        f"{ed.note}; V_bat = V_bat(BESR swing) x {ed.bat_speed_m_s / MPH:g} / 66 "
+        "(the same swing geometry [U]; founding paper, Eq. 4)",
+        value=lambda e_a, t: ed.bbs(e_a, t.v_bat),
+        e_a_of=lambda v, t: (v - ed.bat_speed(t.v_bat)) / (ed.pitch_speed_m_s + ed.bat_speed(t.v_bat)),
+        limit_range=(0.0, 100.0),  # a ball speed, as BBS
+        budget_output="e_a",
+        u_scale=lambda t: ed.pitch_speed_m_s + ed.bat_speed(t.v_bat),
+        u_scale_text="dBBS/de_A = V_pitch + V_bat (USA Softball constants)",
+        title=f"USA Softball BBS ({ed.key})",
+        needs_length=True,
+        test_speed_m_s=ed.cannon_speed_m_s,
+    )
 
 
 _QUANTITIES: dict[str, Quantity] = {
@@ -141,6 +166,7 @@ _QUANTITIES: dict[str, Quantity] = {
             cross_check=True,
             needs_length=True,
         ),
+        *(_softball_bbs(e) for e in softball.EDITIONS),
         Quantity(
             "v_bat",
             "V_bat",
@@ -150,6 +176,16 @@ _QUANTITIES: dict[str, Quantity] = {
     )
 }
 BUILTIN_METRICS = tuple(n for n, q in _QUANTITIES.items() if isinstance(q, Metric))
+# the built-in procedure files, protocols/<name>.toml, as a chooser names them (title, name); the
+# USA Softball one names the family whose edition its date chooses (rig.measure.softball)
+BUILTIN_PROCEDURES: tuple[tuple[str, str], ...] = (
+    *(
+        (m.title or m.label, m.name)
+        for m in _QUANTITIES.values()
+        if m.name in ("bbcor", "besr", "bbs") and isinstance(m, Metric)
+    ),
+    ("USA Softball BBS", "softball-bbs"),
+)
 _DEFINITIONS: dict[str, str] = {}
 DEFINITIONS: MappingProxyType[str, str] = MappingProxyType(_DEFINITIONS)  # a live view of every formula
 
@@ -160,6 +196,16 @@ def _refresh() -> None:
 
 
 _refresh()
+
+
+def resolve(name: str, on: date | None) -> str:
+    """A procedure's `standard`: a metric's name, or a dated family's (usas_bbs) resolved to the
+    edition in force on `on` (ConfigError without a date or before the first edition)."""
+    if name != softball.FAMILY:
+        return name
+    if on is None:
+        raise ConfigError(f"{name!r} needs the procedure's edition_date to choose its edition")
+    return softball.edition_on(on).metric_name
 
 
 def metrics() -> tuple[Metric, ...]:

@@ -116,6 +116,7 @@ def build(record: dict[str, Any], fig: dict[str, Figure]) -> list[Block]:
             [
                 ("run", str(record.get("run_id"))),
                 ("procedure", f"{proc.get('name', '?')} (standard: {proc.get('standard', '?')})"),
+                *_dated(proc),
                 *own_plan(record),
                 ("started (UTC)", str(record.get("started_utc") or "?")),
                 ("record status", str(record.get("status"))),
@@ -145,6 +146,13 @@ def build(record: dict[str, Any], fig: dict[str, Figure]) -> list[Block]:
         Para(f"End of report {report_id(record)}.", strong=True),
     ]
     return blocks
+
+
+def _dated(proc: dict[str, Any]) -> list[tuple[str, str]]:
+    """The edition's date and the ball's class where the procedure states them (older ones do not)."""
+    ball = proc.get("ball") or {}
+    rows = [("edition in force from", proc.get("edition_date")), ("ball class", ball.get("ball_class"))]
+    return [(k, str(v)) for k, v in rows if v]
 
 
 def _decimals(record: dict[str, Any]) -> int:

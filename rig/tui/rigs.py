@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, TypeVar
 
 from rig.core.errors import RigError
-from rig.measure.registry import BUILTIN_METRICS, metric
+from rig.measure.registry import BUILTIN_PROCEDURES
 
 if TYPE_CHECKING:  # the session, the drivers and the procedures load when a rig is first used
     from rig.core.bat import BatSpec
@@ -25,7 +25,7 @@ if TYPE_CHECKING:  # the session, the drivers and the procedures load when a rig
 SCENES = ("ideal", "lab", "faulty")
 T = TypeVar("T")
 # the built-in procedures (protocols/<metric>.toml), named as the metric registry titles them
-PROCEDURES = tuple((metric(name).title or metric(name).label, name) for name in BUILTIN_METRICS)
+PROCEDURES = BUILTIN_PROCEDURES
 # Held while the console loads the heavy part it left until after the first paint (the session,
 # the procedures, the run screen, the report): one thread at a time, so no thread ever sees a
 # module another is still initialising (a cycle between two importing threads allows that).
