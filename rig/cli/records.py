@@ -30,7 +30,7 @@ from rig.cli.common import (
 )
 from rig.cli.common import console as out
 from rig.core.dbpath import DB_HELP
-from rig.measure.registry import BUILTIN_METRICS
+from rig.measure.registry import BUILTIN_PROCEDURES
 
 
 def _resume_command(store: Any, run_id: str, args: argparse.Namespace) -> str:
@@ -431,7 +431,9 @@ def _verify_json(report: Any) -> dict[str, Any]:
 def add_parsers(sub: Any) -> None:
     """`rig certify|runs|report|verify|tui`, in this order: the everyday tasks lead `rig --help`."""
     p = sub.add_parser("certify", help="certify a bat (BBCOR, BESR, BBS)", description=cmd_certify.__doc__)
-    p.add_argument("--procedure", help=f"{', '.join(BUILTIN_METRICS)}, or a procedure TOML file")
+    p.add_argument(
+        "--procedure", help=f"{', '.join(n for _, n in BUILTIN_PROCEDURES)}, or a procedure TOML file"
+    )
     p.add_argument("--bat", metavar="BAT.toml", help="bat file (table [bat])")
     add_rig_options(p)
     p.add_argument("--db", metavar="FILE", help=DB_HELP)
@@ -534,5 +536,8 @@ def add_parsers(sub: Any) -> None:
     add_rig_options(p)
     p.add_argument("--db", metavar="FILE", help=DB_HELP)
     p.add_argument("--bat", metavar="BAT.toml", help="preselect this bat file")
-    p.add_argument("--procedure", help=f"preselect {', '.join(BUILTIN_METRICS)} or a procedure TOML file")
+    p.add_argument(
+        "--procedure",
+        help=f"preselect {', '.join(n for _, n in BUILTIN_PROCEDURES)} or a procedure TOML file",
+    )
     p.set_defaults(handler=cmd_tui)
