@@ -161,6 +161,45 @@ def cmd_modal_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_modal_tap(args: argparse.Namespace) -> int:
+    """rig modal tap: the hoop frequency from a one-channel WAV of taps on the barrel (no force signal)."""
+    from rig.modal.tap import analyze_tap
+    from rig.modal.wav import read_wav
+
+    output_file(args.plot, "--plot")
+    result = analyze_tap(read_wav(args.file))
+    payload = result.as_dict()
+    if args.plot:
+        from rig.report.modal_plots import plot_tap
+
+        for path in plot_tap(result, args.plot):
+            print(f"wrote {path}", file=sys.stderr)
+    if args.json:
+        json.dump(payload, sys.stdout, indent=2, allow_nan=False)
+        sys.stdout.write("\n")
+        return 0
+    table = new_table(title=f"Modes of {args.file} ({payload['n_taps']} taps, {result.window_s:.3g} s each)")
+    for col in ("kind", "f (Hz)", "U (Hz, k=2)", "damping", "amplitude"):
+        table.add_column(col, justify="left" if col == "kind" else "right")
+    for m in result.modes:
+        table.add_row(
+            m.kind,
+            f"{m.frequency_hz:.1f}",
+            f"{m.expanded_uncertainty_hz:.2g}",
+            f"{m.damping_ratio:.4f}",
+            f"{m.amplitude:.2f}",
+        )
+    console = out()
+    console.print(table)
+    hoop = result.hoop
+    console.print(
+        f"first hoop frequency: {hoop.frequency_hz:.1f} ± {hoop.expanded_uncertainty_hz:.2g} Hz (k=2)"
+    )
+    for w in result.warnings:
+        console.print(f"note: {w}")
+    return 0
+
+
 def add_parsers(sub: Any) -> None:
     """`rig modal analyze|simulate`."""
     modal = sub.add_parser("modal", help="modal analysis of impact tests (hoop frequency)")
@@ -169,7 +208,9 @@ def add_parsers(sub: Any) -> None:
         "analyze", help="hoop and bending modes of a recording", description=cmd_modal_analyze.__doc__
     )
     p.add_argument(
-        "file", metavar="FILE", help="recording: .csv (time_s,force_N,accel1_ms2,accel2_ms2) or .uff"
+        "file",
+        metavar="FILE",
+        help="recording: .csv (time_s,force_N,accel1_ms2,accel2_ms2), .uff, or .wav (force, response)",
     )
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("--plot", metavar="FILE", help="plot FRFs, coherence and modes (PNG and SVG)")
@@ -195,6 +236,14 @@ def add_parsers(sub: Any) -> None:
         help="highest frequency searched (where the hammer's spectrum drops)",
     )
     p.set_defaults(handler=cmd_modal_analyze)
+
+    p = msub.add_parser(
+        "tap", help="hoop frequency from a WAV of taps on the barrel", description=cmd_modal_tap.__doc__
+    )
+    p.add_argument("file", metavar="REC.wav", help="one-channel WAV: three or more taps, 50 ms or more apart")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("--plot", metavar="FILE", help="plot the taps' spectrum with the modes (PNG and SVG)")
+    p.set_defaults(handler=cmd_modal_tap)
 
     p = msub.add_parser(
         "simulate", help="write a simulated impact test", description=cmd_modal_simulate.__doc__

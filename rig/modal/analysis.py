@@ -29,7 +29,7 @@ Uncertainty of a mode's frequency (standard, k = 1; `U` is k = 2):
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -40,6 +40,7 @@ from rig.modal.errors import LowCoherence, RecordTooShort
 from rig.modal.hits import QUIET_MIN, Hits, check_channels, pulse_guard, segment
 from rig.modal.modes import PoleFit, find_mode_peaks
 from rig.modal.multipole import ModeFit, fit_modes
+from rig.modal.output_only import output_only_kinds
 from rig.modal.recording import Recording
 
 RESOLUTION_SHARE = 0.1
@@ -289,6 +290,13 @@ def analyze_hits(rec: Recording, hits: Hits, settings: ModalSettings) -> ModalRe
             blends.append(modes[-1])
     modes.sort(key=lambda m: m.frequency_hz)
     modes = _without_mains(modes, warnings)
+    if rec.responses == 1:  # one response (a two-channel WAV): no magnitude ratio to classify by
+        kinds = output_only_kinds([m.frequency_hz for m in modes], [m.damping_ratio for m in modes])
+        modes = [replace(m, kind=k, accelerometers=("accel1",)) for m, k in zip(modes, kinds, strict=True)]
+        warnings.append(
+            "one response: the hoop mode is told from bending modes by its position and damping"
+            " (rig.modal.output_only), not by two accelerometers 90 degrees apart"
+        )
     _check_noise_peaks(name, noise_peaks, modes, s, warnings)
     if buried:
         warnings.append(

@@ -67,3 +67,9 @@ class NoHoopMode(ModalError):
     """No mode where the two accelerometers' FRFs overlay: no hoop frequency to report."""
 
     code = "NO_HOOP_MODE"
+
+
+class TooQuiet(ModalError):
+    """The taps stand too little above the recording's noise floor."""
+
+    code = "TOO_QUIET"

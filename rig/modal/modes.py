@@ -132,7 +132,7 @@ def _basis(pole: complex, s: np.ndarray, dt: float, x: np.ndarray) -> np.ndarray
 def fit_pole(
     h: np.ndarray, s: np.ndarray, dt: float, guess: complex, df: float
 ) -> tuple[complex, tuple[complex, complex], float] | None:
-    """Fit one pole to the FRFs h (2, K) sampled at s (K,); returns pole, residues, u(f_n) or None."""
+    """Fit one pole to the FRFs h (2 or more, K) sampled at s (K,); returns pole, residues, u(f_n) or None."""
     w0 = abs(guess)
     omega = s.imag
     x = (omega - omega.mean()) / w0
@@ -167,7 +167,7 @@ def fit_pole(
     pole = complex(-sigma, wd)
     _, coefs = solve(out.x)
     residues = (complex(coefs[0][0], coefs[0][1]), complex(coefs[1][0], coefs[1][1]))
-    m, n_par = out.fun.size, 2 + 2 * 6
+    m, n_par = out.fun.size, 2 + 6 * len(h)  # the pole, and 6 linear terms per channel
     u_fn = df / math.sqrt(12.0)
     if m > n_par:
         s2 = 2.0 * out.cost / (m - n_par)

@@ -12,8 +12,13 @@ from rig.modal.recording import Recording, read_csv
 
 
 def read_recording(path: str | Path) -> Recording:
-    """A recording from a .csv file or a Universal File (.uff, .unv: dataset 58 time records)."""
+    """A recording from a .csv file, a Universal File (.uff, .unv: dataset 58 time records) or a
+    two-channel .wav file (force, response)."""
     path = Path(path)
+    if path.suffix.lower() == ".wav":
+        from rig.modal.wav import impact_recording, read_wav
+
+        return impact_recording(read_wav(path))
     if path.suffix.lower() in (".uff", ".unv"):
         from rig.modal.uff import read_uff
 

@@ -49,6 +49,7 @@ class Recording:
     accel2: np.ndarray
     source: str = ""
     step_s: float | None = None  # the sampling interval fitted by Recording.build
+    responses: int = 2  # 1: one response recorded (a two-channel WAV), copied into both accel columns
 
     @classmethod
     def build(

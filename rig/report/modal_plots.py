@@ -11,6 +11,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from rig.modal.analysis import ModalResult
+from rig.modal.tap import TapResult
 from rig.report.model_plots import figure_paths
 
 KIND_STYLE = {"hoop": ("C3", "hoop"), "bending": ("C0", "bending"), "unclassified": ("0.5", "unclassified")}
@@ -59,6 +60,35 @@ def plot_modal(result: ModalResult, path: str | Path) -> list[Path]:
     axc.set_ylabel("coherence")
     axc.set_xlabel("frequency (Hz)")
     axc.grid(alpha=0.3)
+    for p in paths:
+        fig.savefig(p, dpi=120)
+    plt.close(fig)
+    return paths
+
+
+def plot_tap(result: TapResult, path: str | Path) -> list[Path]:
+    """The taps' summed power spectrum (log scale), the modes marked by kind, the first hoop named."""
+    paths = figure_paths(path)
+    paths[0].parent.mkdir(parents=True, exist_ok=True)
+    freq, power = result.spectrum
+    sel = freq > 0
+    fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
+    ax.semilogy(freq[sel], np.sqrt(power[sel]), color="C1", lw=1.0, label="taps' spectrum (summed power)")
+    seen: set[str] = set()
+    for m in result.modes:
+        color, label = KIND_STYLE.get(m.kind, KIND_STYLE["unclassified"])
+        ax.axvline(m.frequency_hz, color=color, lw=0.9, ls="--", label=None if label in seen else label)
+        seen.add(label)
+    hoop = result.hoop
+    ax.set_title(
+        f"Tap test, {len(result.tap_times_s)} taps: first hoop {hoop.frequency_hz:.1f}"
+        f" ± {hoop.expanded_uncertainty_hz:.2g} Hz (k=2)",
+        fontsize=10,
+    )
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("|X| (full scale)")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8, loc="upper right")
     for p in paths:
         fig.savefig(p, dpi=120)
     plt.close(fig)
