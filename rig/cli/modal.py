@@ -55,6 +55,19 @@ def _modal_settings(args: argparse.Namespace) -> Any:
     return ModalSettings(**{k: v for k, v in given.items() if v is not None})
 
 
+def _modes_table(title: str, extra: tuple[str, ...], rows: list[tuple[Any, ...]]) -> Any:
+    """Print a table of modes (kind, f, U, damping and `extra` columns); return the console."""
+    table = new_table(title=title)
+    for col in ("kind", "f (Hz)", "U (Hz, k=2)", "damping", *extra):
+        table.add_column(col, justify="left" if col == "kind" else "right")
+    for m, *cells in rows:
+        u = f"{m.expanded_uncertainty_hz:.2g}"
+        table.add_row(m.kind, f"{m.frequency_hz:.1f}", u, f"{m.damping_ratio:.4f}", *cells)
+    console = out()
+    console.print(table)
+    return console
+
+
 def cmd_modal_analyze(args: argparse.Namespace) -> int:
     """rig modal analyze: hoop and bending frequencies from an impact test (CSV or UFF recording)."""
     from rig.modal import analyze, read_recording
@@ -93,22 +106,11 @@ def cmd_modal_analyze(args: argparse.Namespace) -> int:
         json.dump(payload, sys.stdout, indent=2, allow_nan=False)
         sys.stdout.write("\n")
         return 0
-    table = new_table(
-        title=f"Modes of {args.file} ({result.n_hits} hits, resolution {result.resolution_hz:.3g} Hz)"
+    console = _modes_table(
+        f"Modes of {args.file} ({result.n_hits} hits, resolution {result.resolution_hz:.3g} Hz)",
+        ("|H1|/|H2|", "coherence"),
+        [(m, f"{m.magnitude_ratio:.3g}", f"{m.coherence:.3f}") for m in result.modes],
     )
-    for col in ("kind", "f (Hz)", "U (Hz, k=2)", "damping", "|H1|/|H2|", "coherence"):
-        table.add_column(col, justify="left" if col == "kind" else "right")
-    for m in result.modes:
-        table.add_row(
-            m.kind,
-            f"{m.frequency_hz:.1f}",
-            f"{m.expanded_uncertainty_hz:.2g}",
-            f"{m.damping_ratio:.4f}",
-            f"{m.magnitude_ratio:.3g}",
-            f"{m.coherence:.3f}",
-        )
-    console = out()
-    console.print(table)
     hoop = result.hoop
     console.print(
         "first hoop frequency: "
@@ -178,19 +180,11 @@ def cmd_modal_tap(args: argparse.Namespace) -> int:
         json.dump(payload, sys.stdout, indent=2, allow_nan=False)
         sys.stdout.write("\n")
         return 0
-    table = new_table(title=f"Modes of {args.file} ({payload['n_taps']} taps, {result.window_s:.3g} s each)")
-    for col in ("kind", "f (Hz)", "U (Hz, k=2)", "damping", "amplitude"):
-        table.add_column(col, justify="left" if col == "kind" else "right")
-    for m in result.modes:
-        table.add_row(
-            m.kind,
-            f"{m.frequency_hz:.1f}",
-            f"{m.expanded_uncertainty_hz:.2g}",
-            f"{m.damping_ratio:.4f}",
-            f"{m.amplitude:.2f}",
-        )
-    console = out()
-    console.print(table)
+    console = _modes_table(
+        f"Modes of {args.file} ({payload['n_taps']} taps, {result.window_s:.3g} s each)",
+        ("amplitude",),
+        [(m, f"{m.amplitude:.2f}") for m in result.modes],
+    )
     hoop = result.hoop
     console.print(
         f"first hoop frequency: {hoop.frequency_hz:.1f} ± {hoop.expanded_uncertainty_hz:.2g} Hz (k=2)"
