@@ -31,8 +31,8 @@ from rig.core.ball import BALL_TESTS
 from rig.core.outcomes import RunVerdict
 from rig.quality import CHECK_KIND
 from rig.quality.charts import D2, Charts, Session, Signal, build
-from rig.quality.records import RUN_CREATED, rig_of
-from rig.store import Store
+from rig.quality.records import rig_of
+from rig.store import RUN_CREATED, Store
 
 STANDARD = (0.0, 1.0)  # the standardised residual's centre and sigma, as the calibration states them
 NO_MODEL = "the record names no bat model: grouped by the calibration"

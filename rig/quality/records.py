@@ -23,9 +23,8 @@ from rig.core import events as ev
 from rig.core.outcomes import RunVerdict
 from rig.quality import ACK_KIND, CHECK_KIND, RESTART_KIND
 from rig.quality.charts import PHASE_I, Charts, Session, Signal, build
-from rig.store import LogEntry, Store
+from rig.store import RUN_CREATED, LogEntry, Store
 
-RUN_CREATED = "RunCreated"
 Order = tuple[str, int]  # (when first recorded, seq): entries and runs in the order they were made
 
 

@@ -12,12 +12,11 @@ from datetime import UTC, datetime
 from typing import Any
 
 from rig.core.errors import ConfigError, RecordRefused
-from rig.store import LogEntry, Store, run_seal
+from rig.store import RUN_CREATED, LogEntry, Store, run_seal
 
 REPORT_ISSUED = "ReportIssued"  # lab-level: {run_id, report_id, issued, by}
 SIMULATED_MARK = "SIMULATED - NOT A CERTIFICATION"
 DRAFT_MARK = "DRAFT - NOT ISSUED"
-RUN_CREATED = "RunCreated"
 
 
 def default_report_id(run_id: str) -> str:
@@ -34,13 +33,18 @@ def issues(store: Store, run_id: str) -> list[dict[str, Any]]:
     ]
 
 
+def created_meta(entries: list[LogEntry]) -> dict[str, Any]:
+    """What the run's creation recorded beside the run (RunCreated's meta; {} if none)."""
+    created = next((e for e in entries if e.kind == RUN_CREATED), None)
+    meta = created.payload.get("meta") if created is not None else None
+    return meta if isinstance(meta, dict) else {}
+
+
 def report_facts(store: Store, run_id: str, entries: list[LogEntry]) -> dict[str, Any]:
     """The record's report keys: for a run created with them (RunCreated's meta 'report'), the lab,
     who tested, whether simulated, the report id and the seal; for any issued run, its issue.
     A run recorded before them gets none (its JSON record stays as it was)."""
-    created = next((e for e in entries if e.kind == RUN_CREATED), None)
-    meta = created.payload.get("meta") if created is not None else None
-    report = meta.get("report") if isinstance(meta, dict) else None
+    report = created_meta(entries).get("report")
     facts: dict[str, Any] = {}
     if isinstance(report, dict):
         simulated = bool(report.get("simulated"))

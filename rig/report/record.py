@@ -7,7 +7,7 @@ from typing import Any
 from rig.core import events as ev
 from rig.core.run_state import RunState, ShotEntry
 from rig.report.cert_retest import RETEST_KEY
-from rig.report.issue import report_facts
+from rig.report.issue import created_meta, report_facts
 from rig.store import Anchor, LogEntry, RecordRefused, Store, shown_status, status_word
 
 SHOT_KINDS = ev.SHOT_KINDS
@@ -54,10 +54,10 @@ def run_record(store: Store, run_id: str, anchor: Anchor | None = None) -> dict[
         if e.kind in ev.BY_KIND:
             st.apply(ev.parse_entry(e), e.t_utc, e.seq)
     _fill(record, st, [e for e in entries if e.kind == RUN_LOCK_BROKEN])
-    created = next((e.payload.get("meta") for e in entries if e.kind == "RunCreated"), None)
-    if isinstance(created, dict) and created.get("check_ack"):  # made under an acknowledged signal
+    created = created_meta(entries)
+    if created.get("check_ack"):  # made under an acknowledged signal
         record["check_ack"] = created["check_ack"]
-    if isinstance(created, dict) and RETEST_KEY in created:  # a retest: the bat's earlier result
+    if RETEST_KEY in created:  # a retest: the bat's earlier result
         record[RETEST_KEY] = created[RETEST_KEY]
     record.update(report_facts(store, run_id, entries))  # none for a run recorded before them
     return record

@@ -12,6 +12,7 @@ from rig.store._lock import RunLock, RunLocked
 from rig.store._pg import is_url, safe_url
 from rig.store._records import (
     RESERVED_KINDS,
+    RUN_CREATED,
     RUN_STATUSES,
     Anchor,
     LogEntry,
@@ -28,6 +29,7 @@ __all__ = [
     "DEFAULT_LEASE_S",
     "GENESIS_HASH",
     "RESERVED_KINDS",
+    "RUN_CREATED",
     "RUN_STATUSES",
     "SCHEMA_VERSION",
     "SHOWN_STATUSES",
