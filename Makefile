@@ -49,10 +49,12 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_certify.py
 	$(BIN)/python benchmarks/bench_serve.py --repeat 2
 	$(BIN)/python benchmarks/bench_crosscheck.py --populations 5
+	$(BIN)/python benchmarks/bench_calibrate.py
 	$(BIN)/python benchmarks/bench_lab_store.py
 	$(BIN)/python benchmarks/bench_ball_truth.py --bats 40
 	$(BIN)/python benchmarks/bench_fit_ball.py --seeds 40
 	$(BIN)/python benchmarks/bench_instruments.py --repeat 3
+	$(BIN)/python benchmarks/bench_modal.py --speed
 
 accuracy: $(STAMP)
 	$(BIN)/python benchmarks/accuracy_doc.py

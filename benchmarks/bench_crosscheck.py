@@ -41,7 +41,7 @@ from rig.population.store_source import bats_from_store
 from rig.simulators.scene import Scene
 from rig.store import Store
 from studies.cli import main as study_main
-from studies.population.lab import best_scan_location, measured_population, true_metric
+from studies.population.lab import Variation, best_scan_location, measured_population, true_metric
 from studies.population.simulated import SimulatedBat, simulated_population
 
 ALTERATIONS = (0.01, 0.02, 0.025, 0.03)
@@ -132,10 +132,13 @@ def certified_tier(scene: Scene, n: int, seed: int) -> tuple[float, float]:
     return statistics.stdev(err), statistics.median(us)
 
 
-def one_population(scene: Scene, seed: int, n: int, noise: float, u: float, tally: Tally) -> None:
+def one_population(
+    scene: Scene, seed: int, n: int, noise: float, u: float, tally: Tally, vary: Variation | None = None
+) -> None:
     """Calibrate on n legal bats, cross-check n fresh legal bats and their altered twins."""
     rng = np.random.default_rng([seed, 7])
-    train = measured_population(scene, simulated_population(n, seed), best_scan_location, noise, rng, u=u)
+    bats = simulated_population(n, seed)
+    train = measured_population(scene, bats, best_scan_location, noise, rng, u=u, vary=vary)
     t0 = time.perf_counter()
     try:
         cal = calibrate(train, "bbcor")
@@ -147,7 +150,7 @@ def one_population(scene: Scene, seed: int, n: int, noise: float, u: float, tall
     tally.variants.append(record.variant)
     tally.loo_rmse.append(record.loo_rmse)
     fresh_bats = simulated_population(n, seed + 100_000)
-    fresh = measured_population(scene, fresh_bats, best_scan_location, noise, rng, u=u)
+    fresh = measured_population(scene, fresh_bats, best_scan_location, noise, rng, u=u, vary=vary)
     checks = crosscheck_bats(record, fresh)
     tally.n_legal += len(checks)
     tally.false_flags += sum(bool(c.flagged) for c in checks)
@@ -257,6 +260,12 @@ def main() -> None:
     p.add_argument(
         "--spread", type=float, default=None, help="bat-to-bat spread, BBCOR (default: the lab scene's)"
     )
+    p.add_argument(
+        "--vary-k1", type=float, default=0.0, help="each bat's contact stiffness x 1 + U(-v, v) (Monte Carlo)"
+    )
+    p.add_argument(
+        "--vary-m2", type=float, default=0.0, help="each bat's hoop mass m2 x 1 + U(-v, v) (Monte Carlo)"
+    )
     p.add_argument("--figure", type=Path, default=None, help="write crosscheck-power.svg/png here")
     a = p.parse_args()
     scene = Scene.load("lab")
@@ -269,10 +278,12 @@ def main() -> None:
     tally = Tally()
     for r in range(a.populations):
         before = len(tally.refused)
-        one_population(scene, a.seed + r, a.bats, noise, u, tally)
+        one_population(scene, a.seed + r, a.bats, noise, u, tally, Variation(a.vary_k1, a.vary_m2))
         ok = len(tally.refused) == before
         done = f"{tally.variants[-1]}, LOO RMSE {tally.loo_rmse[-1]:.4f}" if ok else "calibration refused"
         print(f"  population {r + 1}/{a.populations}: {done}", flush=True)
+    if a.vary_k1 or a.vary_m2:
+        print(f"each bat's barrel varies: k1 x 1 +- {a.vary_k1:g}, m2 x 1 +- {a.vary_m2:g} (uniform)")
     report(tally, a.populations, a.bats, noise, u, spread)
     if a.figure:
         for path in figure(tally, a.figure, noise):

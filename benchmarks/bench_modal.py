@@ -5,9 +5,10 @@ simulated bats (random first hoop frequency 1400-2800 Hz and hoop damping, fixed
 analysed; the table gives the hoop frequency's error (RMS and largest), the stated expanded
 uncertainty U (k = 2) and how often it covers the error, the coherence at the hoop mode, what the
 lab spends (n T of recording) and the analysis wall time. A second table varies the noise at one
-setting, a third shows the noise-free error against the resolution 1/T. Every figure is measured
-in this run. Run:  python benchmarks/bench_modal.py [--quick] [--write-doc]
-(--write-doc replaces the results section of docs/modal.md).
+setting, a third shows the noise-free error against the resolution 1/T. A last section times the
+analysis against a plain scipy H1 of the same recordings (benchmarks/modal_speed.py, issue 26).
+Every figure is measured in this run. Run:  python benchmarks/bench_modal.py [--quick] [--write-doc]
+(--write-doc replaces the results section of docs/modal.md); --speed runs the timing alone.
 """
 
 from __future__ import annotations
@@ -29,6 +30,8 @@ import scipy
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks.modal_cases
 from benchmarks.modal_cases import cases, run_case
 from benchmarks.modal_cases import table as case_table
+from benchmarks.modal_speed import measure as measure_speed
+from benchmarks.modal_speed import settled
 from rig.modal import (
     ModalError,
     ModalResult,
@@ -44,7 +47,6 @@ from rig.modal.analysis import RESOLUTION_SHARE
 DOC = Path(__file__).resolve().parents[1] / "docs" / "modal.md"
 BEGIN, END = "<!-- bench_modal:begin -->", "<!-- bench_modal:end -->"
 NOISE = 3e-3
-QUIET_S = 0.005  # quiet lead-in of each block before its hit
 BENDING_HZ = 175.0  # bat_modes' first bending mode
 
 
@@ -81,20 +83,6 @@ class Cell(ErrorStats):
     def coverage(self) -> float:
         pairs = zip(self.errors, self.u_expanded, strict=True)
         return sum(abs(e) <= u for e, u in pairs) / self.ok if self.ok else float("nan")
-
-
-def settled(hits: int, window_s: float, noise: float, seed: int, modes: tuple[SimMode, ...]) -> SimSettings:
-    """A simulated test of one block per hit, each `window_s` long after a quiet lead-in: the bat at
-    rest before every hit."""
-    return SimSettings(
-        hits=hits,
-        hit_interval_s=window_s + QUIET_S,
-        first_hit_s=QUIET_S,
-        settle=True,
-        noise=noise,
-        seed=seed,
-        modes=modes,
-    )
 
 
 def timed_analysis(sim: SimSettings, modal: ModalSettings, cell: Cell | CloseCell) -> ModalResult | None:
@@ -298,7 +286,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="fewer bats and settings (a smoke run)")
     parser.add_argument("--bats", type=int, default=12, help="simulated bats per setting")
     parser.add_argument("--write-doc", action="store_true", help="write the results into docs/modal.md")
+    parser.add_argument("--speed", action="store_true", help="only time the analysis against a plain H1")
     args = parser.parse_args(argv)
+    if args.speed:
+        print("\n".join(measure_speed(bats=args.bats).lines()))
+        return 0
     bats = 3 if args.quick else args.bats
     windows = (0.025, 0.1, 0.4) if args.quick else (0.025, 0.05, 0.1, 0.2, 0.4, 0.8)
     hit_counts = (1, 4) if args.quick else (1, 2, 4, 8)
@@ -315,6 +307,7 @@ def main(argv: list[str] | None = None) -> int:
     bias_cells = [run_cell(w, 1, 0.0, bats, 900 + i) for i, w in enumerate(windows)]
     hard = [run_case(c, bats, 700) for c in cases()]  # the same bats in every case
     close_cells = close_mode_cells(bats, quick=args.quick)
+    speed = measure_speed(bats=bats)
     took = time.perf_counter() - started
 
     by = {(c.window_s, c.hits): c for c in cells}
@@ -350,6 +343,10 @@ def main(argv: list[str] | None = None) -> int:
     lines += close_summary(close_cells)
     lines.append("")
     lines += close_table(close_cells)
+    lines.append("")
+    lines.append("#### Speed: the analysis against a plain scipy H1 of the same recording")
+    lines.append("")
+    lines += speed.lines()
     lines.append("")
     lines.append(
         f"Machine: Python {platform.python_version()}, NumPy {np.__version__}, SciPy {scipy.__version__};"

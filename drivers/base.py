@@ -24,6 +24,7 @@ class LineDriver:
 
     NAME: ClassVar[str] = "device"
     SPECS: ClassVar[Mapping[str, CommandSpec]] = {}
+    OPTIONS: ClassVar[Mapping[str, type]] = {}  # the [devices.KIND] options a subclass takes (by type)
 
     def __init__(
         self,
@@ -41,8 +42,8 @@ class LineDriver:
 
     @classmethod
     def from_context(cls, context: DriverContext) -> Self:
-        """The `rig-line` driver of a rig config: our line protocol at `address` (it takes no options)."""
-        context.only_options({})
+        """The `rig-line` driver of a rig config: our line protocol at `address` (options: OPTIONS)."""
+        context.only_options(cls.OPTIONS)
         return cls(
             context.address,
             name=context.kind,

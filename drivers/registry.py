@@ -3,7 +3,8 @@
 A name is looked up in this order: the built-in table below (one line per driver), the entry
 points of the `bat_rig.drivers` group (a lab's own package: `name = "package.module:factory"`), an
 import path `package.module:factory`. A factory takes a `DriverContext` and returns an open device
-that satisfies the interface of its kind (rig.core.devices.Cannon, Gates or Clamp) and can be
+that satisfies the interface of its kind (rig.core.devices.Cannon, Gates, Clamp or
+CompressionTester) and can be
 closed. A built-in driver is imported only when a rig names it, so a lab without Modbus needs no
 pymodbus loaded.
 """
@@ -16,8 +17,8 @@ from dataclasses import dataclass, field
 from importlib.metadata import entry_points
 from typing import Any, Protocol, runtime_checkable
 
-from rig.core.config import DEVICE_KINDS, DeviceSpec, Timeouts
-from rig.core.devices import Cannon, Clamp, Gates
+from rig.core.config import DEVICE_KINDS, OPTIONAL_KINDS, DeviceSpec, Timeouts
+from rig.core.devices import Cannon, Clamp, CompressionTester, Gates
 from rig.core.errors import ConfigError, RigError
 from rig.drivers.traffic import TrafficRecord
 
@@ -54,9 +55,18 @@ BUILTIN: Mapping[str, Builtin] = {
         {"cannon": "rig.drivers.modbus.cannon:ModbusCannon.from_context"},
         twin="rig.simulators.instruments.modbus_plc:ModbusPlcTwin",
     ),
+    "scpi-compression": Builtin(
+        {"compression": "rig.drivers.scpi.compression:ScpiCompressionTester.from_context"},
+        twin="rig.simulators.instruments.compression_tester:CompressionTesterTwin",
+    ),
 }
 
-INTERFACES: Mapping[str, type] = {"cannon": Cannon, "gates": Gates, "clamp": Clamp}
+INTERFACES: Mapping[str, type] = {
+    "cannon": Cannon,
+    "gates": Gates,
+    "clamp": Clamp,
+    "compression": CompressionTester,
+}
 
 
 @runtime_checkable
@@ -122,8 +132,9 @@ def known_drivers(kind: str) -> list[str]:
 
 def factory_for(kind: str, spec: DeviceSpec, source: str = "rig config") -> Callable[[DriverContext], Any]:
     """The factory `spec.driver` names for device `kind`; ConfigError (one line) if there is none."""
-    if kind not in DEVICE_KINDS:
-        raise ConfigError(f"no device kind {kind!r} (kinds: {', '.join(DEVICE_KINDS)})", source=source)
+    if kind not in (*DEVICE_KINDS, *OPTIONAL_KINDS):
+        kinds = ", ".join((*DEVICE_KINDS, *OPTIONAL_KINDS))
+        raise ConfigError(f"no device kind {kind!r} (kinds: {kinds})", source=source)
     name = spec.driver
     found = [ep for ep in entry_points(group=ENTRY_POINT_GROUP) if ep.name == name]
     if found and name in BUILTIN:

@@ -1,6 +1,7 @@
 """A ball test as data (TOML, [procedure]): `ccor` on the rigid cylinder, `ball-cor` on the rigid plate.
 
-The built-ins are protocols/ccor.toml and protocols/ball-cor.toml; each value is tagged there as
+The built-ins are protocols/ccor.toml, protocols/ball-cor.toml (baseballs) and
+protocols/ball-cor-fastpitch.toml (the fastpitch BPF's 47/375 softballs); each value is tagged there as
 the bat procedures' are ([C] confirmed, [C2] second hand, [U] unknown: our documented default).
 A test fires `balls_per_speed` fresh balls of the lot at each speed, `hits_per_ball` times each,
 so the shot schedule (speed, ball, hit) is fixed by the procedure and a resumed run goes on with
@@ -20,7 +21,7 @@ from rig.core.devices import STAGE_RANGE_MM
 from rig.protocols.procedure import Ball, Decision, EnvironmentLimits, Hits, _Model, load_table
 
 BUILTIN_DIR = Path(__file__).parent
-BALL_BUILTIN = ("ccor", "ball-cor")
+BALL_BUILTIN = ("ccor", "ball-cor", "ball-cor-fastpitch")
 CCOR_SPAN_M_S = (25.0, 60.0)  # the speeds a CCOR test must span at least (issue 20)
 CCOR_MIN_SPEEDS = 5  # the founding paper's five inbound speeds
 
@@ -109,7 +110,7 @@ class BallProcedure(_Model):
 
     @classmethod
     def load(cls, name_or_path: str | Path) -> BallProcedure:
-        """A built-in ball test by name (ccor, ball-cor) or a TOML file; errors name the field."""
+        """A built-in ball test by name (BALL_BUILTIN) or a TOML file; errors name the field."""
         return load_table(cls, name_or_path, BALL_BUILTIN, "ball test")[0]
 
 

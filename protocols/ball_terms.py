@@ -45,6 +45,14 @@ class BallTerms(BaseModel):
     wear_measured: bool = False  # True: wear and spread measured on this lot (ball-cor) -> wear corrected
     conditions_measured: bool = False  # True: the air sensitivities were measured -> corrected
     plate_cor: float | None = None  # the lot's COR on the plate at 60 mph, if measured
+    # the lot's latest ball-cor result as it measured it (COR, its standard u, its run): the ball COR
+    # a BPF divides by (rig.measure.bpf); None in runs recorded before BPF or without a result
+    wall_cor: float | None = None
+    wall_cor_u: float | None = Field(None, ge=0.0)
+    wall_cor_run: str | None = None
+    wall_cor_hit: float | None = None  # the mean hit count behind it (1: a new ball's first hit)
+    wall_cor_temp_c: float | None = None  # the lab's mean air over its hits
+    wall_cor_rh_pct: float | None = None
     wear_per_hit: float = Field(-0.0003, description="plate COR change per hit of a ball")
     wear_per_hit_u: float = Field(0.0003, ge=0.0)
     sd_between_balls: float = Field(0.003, ge=0.0, description="plate COR SD between the lot's balls")
@@ -201,6 +209,12 @@ def terms_from_lot(lot: Any, results: list[Any], law: dict[str, float] | None = 
     values: dict[str, Any] = {
         "wear_measured": True,
         "plate_cor": cor[-1].mean,
+        "wall_cor": cor[-1].mean,
+        "wall_cor_u": cor[-1].u,
+        "wall_cor_run": cor[-1].run_id,
+        "wall_cor_hit": cor[-1].mean_hit,
+        "wall_cor_temp_c": cor[-1].temp_c,
+        "wall_cor_rh_pct": cor[-1].rh_pct,
         "wear_per_hit": wear[0],
         "wear_per_hit_u": wear[1],
         "sd_between_balls": (

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import threading
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Protocol, runtime_checkable
 
+from rig.core import events as ev
 from rig.core.errors import RigError
 
 ASKED = "asked"  # a person answered this prompt's own question
 WITH = "with"  # given by the key that answered another prompt (Answer.with_prompt)
-SCRIPT = "script"  # a script answered: nobody was shown the question
+SCRIPT = ev.BY_SCRIPT  # a script answered: nobody was shown the question
 GIVEN = (ASKED, WITH, SCRIPT)
 
 
@@ -30,6 +31,35 @@ class Answer:
             raise ValueError("an answer given with another names that prompt, and only then")
 
 
+@dataclass(frozen=True)
+class Rolling:
+    """A rolling step as the operator reports it (accelerated break-in): what was done and by whom,
+    how the report was given (as Answer), and the hoop frequency if it was measured after (Hz, u)."""
+
+    depth_in: float
+    passes: int
+    who: str
+    given: str = ASKED
+    hoop_hz: float | None = None
+    hoop_u_hz: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.given not in GIVEN:
+            raise ValueError(f"a rolling is given {', '.join(GIVEN)}, not {self.given!r}")
+        if not (0.0 <= self.depth_in <= 0.5 and 0 <= self.passes <= 1000 and self.who.strip()):
+            raise ValueError(
+                f"a rolling needs a depth of 0-0.5 in, 0-1000 passes and who: not "
+                f"{self.depth_in!r} in, {self.passes!r}, {self.who!r}"
+            )
+
+
+@runtime_checkable
+class RollingOperator(Protocol):
+    """An operator who rolls a barrel when asked (depth and passes asked for) and says what was done."""
+
+    def roll(self, prompt_id: str, text: str, depth_in: float, passes: int) -> Rolling: ...
+
+
 class Operator(Protocol):
     """Answers the operator prompts (ring check, ball replacement): an Answer, or a bare bool
     when the operator does not say how it was given (recorded as not stated)."""
@@ -47,6 +77,10 @@ class ScriptedOperator:
     def ask(self, prompt_id: str, text: str) -> Answer:
         """Return the scripted answer, marked as given by the script (no inspection was made)."""
         return Answer(self.answer, SCRIPT)
+
+    def roll(self, prompt_id: str, text: str, depth_in: float, passes: int) -> Rolling:
+        """Report the rolling asked for, marked as given by the script (nobody said it was done)."""
+        return Rolling(depth_in, passes, self.who, SCRIPT)
 
 
 class RunControl:

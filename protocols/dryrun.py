@@ -16,7 +16,14 @@ from typing import Any
 from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
-from rig.core.devices import STAGE_RANGE_MM, Environment, GateConfig, GateCrossing, PendulumPeriod
+from rig.core.devices import (
+    STAGE_RANGE_MM,
+    BarrelCompression,
+    Environment,
+    GateConfig,
+    GateCrossing,
+    PendulumPeriod,
+)
 from rig.core.errors import ConfigError, DeviceError, RigError
 from rig.core.events import RunEvent
 from rig.core.outcomes import RunVerdict, ShotOutcome, Verdict
@@ -125,6 +132,17 @@ class CheckingRig:
             reasons=[],
             aim_factor=ctx.state.aim_factor,
             dry_run=True,
+        )
+
+    def compression(self) -> BarrelCompression:
+        """A nominal reading that never changes (so a rehearsed break-in rolls its most)."""
+        return BarrelCompression(force_lbf=240.0, displacement_in=0.040)
+
+    def decide_stage(self, ctx: PlanContext, purpose: str, hoop_hz: float | None) -> RunVerdict:
+        """A nominal stage below the limit."""
+        p = ctx.procedure
+        return RunVerdict(
+            verdict=Verdict.PASS, metric=p.standard, limit=p.limit, mean=0.9 * p.limit, U=0.0, dry_run=True
         )
 
     def decide(self, ctx: PlanContext) -> RunVerdict:

@@ -25,7 +25,15 @@ from rig.protocols.procedure import Procedure
 from rig.protocols.run_inputs import NOMINAL_AIR, air_density, drag_inputs, uncertainty_model
 from rig.protocols.shot import ShotRecord
 from rig.protocols.state import RunState
-from rig.protocols.verdict import UNCALIBRATED, cross_check, drag_summary, run_calibration, verdict
+from rig.protocols.verdict import (
+    UNCALIBRATED,
+    cross_check,
+    drag_summary,
+    run_calibration,
+    stage_verdict,
+    verdict,
+    wall_cor,
+)
 
 
 def _metric_u(p: Procedure, bud: dict[str, Any], terms: MetricTerms) -> float:
@@ -93,7 +101,8 @@ def shot(
         )
         hit_budget = budget(inputs, uncertainty_model(p, config, state, air))
         v_in_hit, v_out_hit = hit_budget.value("v_in"), hit_budget.value("v_out")  # at the impact point
-        m = compute_metrics(v_in_hit, v_out_hit, q, moi, p.ball.mass_kg, bat.length_m)
+        ball_cor = wall_cor(state)[0] if p.metric.needs_ball_cor else None  # a BPF's: the lot's COR
+        m = compute_metrics(v_in_hit, v_out_hit, q, moi, p.ball.mass_kg, bat.length_m, ball_cor=ball_cor)
         out["inbound_at_impact_m_s"], out["rebound_at_impact_m_s"] = v_in_hit, v_out_hit
         bud = hit_budget.as_dict()
         value = m.value(p.standard)
@@ -116,6 +125,7 @@ __all__ = [
     "drag_summary",
     "run_calibration",
     "shot",
+    "stage_verdict",
     "uncertainty_model",
     "verdict",
 ]

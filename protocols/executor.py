@@ -1,6 +1,6 @@
 """Carries out a plan (rig.protocols.plan): run control, persistence, prompts, and the devices behind them.
 
-The executor keeps the run's folded state current (every Record goes to `emit`, is committed,
+The executor keeps the run's folded state current (every Record goes to `emit`, is recorded,
 then folded), so a plan resumes from a killed run's record exactly. What the devices do is a
 backend's business: `LiveRig` drives the real (or simulated) cannon, gates and clamp;
 rig.protocols.dryrun's `CheckingRig` answers from checking fakes. A shot requested in this session
@@ -11,15 +11,17 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
-from typing import Any, Protocol, TypeVar
+from typing import Any, Protocol, TypeVar, runtime_checkable
 
 from rig.core import events as ev
 from rig.core.config import RigConfig
 from rig.core.devices import (
     BallLoader,
+    BarrelCompression,
     Cannon,
     CannonState,
     Clamp,
+    CompressionTester,
     Environment,
     GateConfig,
     GateCrossing,
@@ -32,15 +34,27 @@ from rig.core.outcomes import RunVerdict, ShotOutcome
 from rig.core.run_phase import refuse, shot_refuse
 from rig.measure.realtime import InboundKnown, ReboundKnown, ShotTracker
 from rig.protocols import evaluate
-from rig.protocols.control import Answer, Operator, PlanError, RunAborted, RunControl, ScriptedOperator
+from rig.protocols.control import (
+    Answer,
+    Operator,
+    PlanError,
+    Rolling,
+    RollingOperator,
+    RunAborted,
+    RunControl,
+    ScriptedOperator,
+)
 from rig.protocols.plan import (
     Ask,
+    AskRolling,
     Checkpoint,
     ClearFault,
     Decide,
+    DecideStage,
     Evaluate,
     Fire,
     Fired,
+    MeasureCompression,
     Move,
     Msg,
     Plan,
@@ -80,11 +94,35 @@ class Backend(Protocol):
     def problem(self, text: str) -> None: ...
 
 
+@runtime_checkable
+class BreakInBackend(Protocol):
+    """What an accelerated break-in needs besides: the compression tester, a stage's verdict."""
+
+    def compression(self) -> BarrelCompression: ...
+    def decide_stage(self, ctx: PlanContext, purpose: str, hoop_hz: float | None) -> RunVerdict: ...
+
+
 class LiveRig:
     """The devices of a rig session: every message becomes device commands."""
 
-    def __init__(self, cannon: Cannon, gates: Gates, clamp: Clamp) -> None:
+    def __init__(
+        self, cannon: Cannon, gates: Gates, clamp: Clamp, compression: CompressionTester | None = None
+    ) -> None:
         self.cannon, self.gates, self.clamp = cannon, gates, clamp
+        self.compression_tester = compression
+
+    def compression(self) -> BarrelCompression:
+        """The compression tester's reading; a rig without one stops the run (resumable)."""
+        if self.compression_tester is None:
+            raise RunAborted(
+                "this rig has no barrel-compression tester: name one in the rig config "
+                "([devices.compression], docs/instruments.md)"
+            )
+        return self.compression_tester.measure_compression()
+
+    def decide_stage(self, ctx: PlanContext, purpose: str, hoop_hz: float | None) -> RunVerdict:
+        """A break-in stage's verdict (rig.protocols.evaluate.stage_verdict)."""
+        return evaluate.stage_verdict(ctx.procedure, ctx.bat, ctx.state, ctx.config, purpose, hoop_hz)
 
     def clear_fault(self) -> None:
         """Reset a fault left by the previous session (its tank is vented)."""
@@ -219,7 +257,7 @@ class Executor:
 
     # -- persistence ------------------------------------------------------------------------
     def emit(self, event: RunEvent) -> None:
-        """Record a fact (persisted ones are committed first, if the run table takes them in the run's
+        """Record a fact (persisted ones are recorded first, if the run table takes them in the run's
         phase: PlanError if not), then fold it into the state."""
         refused = refuse(event.kind, self.state.phase) if event.persisted else None
         if refused is not None:
@@ -292,6 +330,15 @@ class Executor:
             return self.backend.clear_fault()
         if isinstance(msg, Problem):
             return self.backend.problem(msg.text)
+        if isinstance(msg, MeasureCompression | DecideStage):
+            backend = self.backend
+            if not isinstance(backend, BreakInBackend):
+                raise PlanError(f"{type(msg).__name__}: this backend has no compression tester nor stages")
+            if isinstance(msg, MeasureCompression):
+                return backend.compression()
+            return backend.decide_stage(self.ctx, msg.purpose, msg.hoop_hz)
+        if isinstance(msg, AskRolling):
+            return self._ask_rolling(msg)
         raise TypeError(f"the executor has no handler for {type(msg).__name__}")
 
     def _check_request(self, event: ev.ShotRequested) -> None:
@@ -330,6 +377,28 @@ class Executor:
             )
         )
         return answer
+
+    def _ask_rolling(self, msg: AskRolling) -> Rolling:
+        """Ask for a rolling step; the prompt and what the operator reports are recorded."""
+        self.emit(ev.OperatorPrompted(prompt_id=msg.prompt_id, text=msg.text))
+        if not isinstance(self.operator, RollingOperator):
+            raise RunAborted(
+                "the operator cannot report a rolling step (depth, passes, who): "
+                "run the break-in with an operator that can (docs/standards.md, ABI)"
+            )
+        said = self.operator.roll(msg.prompt_id, msg.text, msg.depth_in, msg.passes)
+        self.emit(
+            ev.BarrelRolled(
+                stage=msg.stage,
+                depth_in=said.depth_in,
+                passes=said.passes,
+                who=said.who,
+                given=said.given,
+                hoop_hz=said.hoop_hz,
+                hoop_u_hz=said.hoop_u_hz,
+            )
+        )
+        return said
 
     def _move(self, loc_in: float) -> None:
         """Command the stage to `loc_in` and wait for it there; only then is the position known."""

@@ -37,7 +37,8 @@ class Msg:
 
 @dataclass(frozen=True)
 class Record(Msg):
-    """Persist an event (committed before the plan goes on) and fold it into the state. -> None"""
+    """Persist an event (recorded before the plan goes on; committed at its commit point) and fold it
+    into the state. -> None"""
 
     event: RunEvent
 
@@ -126,6 +127,32 @@ class Evaluate(Msg):
 @dataclass(frozen=True)
 class Decide(Msg):
     """The verdict from the valid hits at the chosen location. -> RunVerdict"""
+
+
+@dataclass(frozen=True)
+class MeasureCompression(Msg):
+    """Read the barrel-compression tester (accelerated break-in). -> rig.core.devices.BarrelCompression"""
+
+
+@dataclass(frozen=True)
+class AskRolling(Msg):
+    """Ask the operator to roll the barrel `passes` passes at `depth_in` (prompt and the reported
+    rolling are recorded: OperatorPrompted, BarrelRolled with `stage`). -> rig.protocols.control.Rolling"""
+
+    prompt_id: str
+    text: str
+    stage: int
+    depth_in: float
+    passes: int
+
+
+@dataclass(frozen=True)
+class DecideStage(Msg):
+    """An accelerated break-in stage's BBCOR from its valid hits (`purpose`), the cross-check at
+    `hoop_hz`. -> RunVerdict"""
+
+    purpose: str
+    hoop_hz: float | None
 
 
 @dataclass

@@ -158,6 +158,9 @@ class Procedure(_Model):
     # the date the followed edition took force; a dated standard (usas_bbs) chooses its edition by it
     edition_date: date | None = None
     limit: float  # bounded by the metric in _limit_fits_metric
+    # the bat's constraint its BBCOR assumes, where the file states it: the metric's must be it
+    # (rig.measure.bpf: ASTM F1890-23 pivoted, F2219-23 unconstrained)
+    basis: Literal["pivoted", "unconstrained"] | None = None
     limit_note: str = ""
     target_speed_m_s: Annotated[float, Field(gt=10.0, lt=80.0)] = 60.8
     speed_tolerance_m_s: Annotated[float, Field(gt=0.0, lt=10.0)] = 0.447  # 1 mph
@@ -202,6 +205,14 @@ class Procedure(_Model):
                 f"target_speed_m_s {self.target_speed_m_s:g} is not the {self.standard} test speed "
                 f"{speed:.4g} m/s (within the speed tolerance)"
             )
+        return self
+
+    @model_validator(mode="after")
+    def _basis_fits_metric(self) -> Procedure:
+        own = self.metric.basis.split(" ", 1)[0].rstrip(":")
+        if self.basis is not None and own != self.basis:
+            said = f"the {own} one" if own else "none stated"
+            raise ValueError(f"basis {self.basis!r}: the {self.standard} metric's basis is {said}")
         return self
 
     @field_validator("limit")

@@ -26,10 +26,11 @@ from rig.measure.metrics import compute_metrics, recorded_terms
 from rig.measure.model import OUTPUTS, ShotInputs, outputs
 from rig.measure.tradeoff import tradeoff_table
 from rig.measure.uncertainty import budget, u_with_scatter
-from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat, predict_bat
+from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat, predict_bat, rigid_cor
 from rig.population.calfile import CalibrationFile, read_calibration
 from rig.population.crosscheck import crosscheck_at
 from rig.protocols.ball_terms import BallAdjustment, BallTerms, adjust, hit_balls, law_params, ratio
+from rig.protocols.bpf_verdict import bpf_result
 from rig.protocols.procedure import Procedure
 from rig.protocols.run_inputs import air_density, uncertainty_model
 from rig.protocols.state import RunState, ShotEntry
@@ -57,17 +58,24 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> R
     name = p.metric.budget_output  # BBS's is e_A's, scaled below
     q = bat.impact_from_pivot_m(loc) if loc is not None else config.impact_from_pivot_m
     moi = float(state.moi.moi_kgm2) if state.moi else float(bat.moi_kgm2 or 0.0)
-    ball = ball_part(p, bat, state, hits, q, moi)
+    by_ball = "bbcor" if p.metric.needs_ball_cor else p.standard  # a BPF's ball terms act on its BBCOR
+    ball = ball_part(p, bat, state, hits, q, moi, by_ball)
     observed = [float(recorded_metrics(m)[name]) for m in measured]
-    if ball is not None and name == p.standard:  # the scatter of what is averaged: corrected hits
+    if ball is not None and name == by_ball:  # the scatter of what is averaged: corrected hits
         observed = [v + c for v, c in zip(observed, ball.corrections, strict=True)]
     u = u_with_scatter(per_bat, observed, name) if n >= 2 else per_bat.u_of(name)
-    u *= p.metric.scale(recorded_terms(recorded_metrics(measured[0])))  # 1 unless it is not the metric's
-    u_measured = u
-    if ball is not None:
-        values = [v + c for v, c in zip(values, ball.corrections, strict=True)]
-        mean = sum(values) / n
-        u = math.hypot(u, ball.u)
+    normalised = None
+    if p.metric.needs_ball_cor:  # BBCOR and the lot's COR at the nominal ball; the COR's u taken once
+        bbcor_hits = [float(recorded_metrics(m)["bbcor"]) for m in measured]
+        values, normalised = bpf_result(p.metric.basis, bbcor_hits, u, ball, state, hits)
+        mean, u_measured, u = sum(values) / n, u / normalised["ball_cor"], normalised["u"]
+    else:
+        u *= p.metric.scale(recorded_terms(recorded_metrics(measured[0])))  # 1 unless it is not the metric's
+        u_measured = u
+        if ball is not None:
+            values = [v + c for v, c in zip(values, ball.corrections, strict=True)]
+            mean = sum(values) / n
+            u = math.hypot(u, ball.u)
     k = p.decision.coverage_k
     big_u = k * u
     if p.decision.rule == "guarded":
@@ -100,12 +108,26 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> R
         edition=p.edition,
         budget=per_bat.as_dict(),
         ball={**ball.as_dict(), "u_measurement": u_measured} if ball is not None else None,
+        bpf=normalised,
         drag=drag_summary(config, state, inputs, name, per_bat.value(name)),
         cross_check=cross_check(p, bat, v_in_mean, q, moi, mean, u, state.calibration, law),
         tradeoff=[
             r.as_dict() for r in tradeoff_table(per_hit, name, max_hits=12, cycle_s=config.cannon_cycle_s)
         ],
     )
+
+
+def wall_cor(state: RunState) -> tuple[float, float, str, str]:
+    """The run's ball COR on the rigid wall, its standard u, the ball-cor run and the lot it came
+    from (the ball terms RunStarted recorded); RigError if the run has none (a BPF needs it)."""
+    terms = (state.setup or {}).get("ball") or {}
+    cor, u = terms.get("wall_cor"), terms.get("wall_cor_u")
+    if cor is None or u is None:
+        raise RigError(
+            "a BPF run needs its ball COR: the lot's ball-cor result (rig certify --ball-lot LOT), "
+            "which this run did not record"
+        )
+    return float(cor), float(u), str(terms.get("wall_cor_run") or ""), str(terms.get("lot") or "")
 
 
 def recorded_metrics(outcome: ShotOutcome) -> dict[str, float]:
@@ -206,8 +228,12 @@ def _uncalibrated(
     hoop = None if bat.barrel is Barrel.WOOD else bat.hoop_hz
     params = CollisionParams.build(**{**DEFAULT_PARAMS.model_dump(), "m1": p.ball.mass_kg, **(law or {})})
     pred = predict_bat(params, v_in, hoop, PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q))
-    m = compute_metrics(v_in, pred.e_a * v_in, q, moi, p.ball.mass_kg, bat.length_m)
+    # a BPF's prediction: the model ball's BBCOR over the same model ball's COR on a rigid wall
+    own_cor = rigid_cor(params, p.target_speed_m_s) if p.metric.needs_ball_cor else None
+    m = compute_metrics(v_in, pred.e_a * v_in, q, moi, p.ball.mass_kg, bat.length_m, ball_cor=own_cor)
     predicted = m.value(p.standard)
+    if own_cor is not None:
+        note += f"; predicted BPF = the model's BBCOR / its ball's rigid-wall COR {own_cor:.4f}"
     return {
         "calibrated": False,
         "predicted": predicted,
@@ -224,14 +250,23 @@ def _uncalibrated(
 
 
 def ball_part(
-    p: Procedure, bat: BatSpec, state: RunState, hits: list[ShotEntry], q: float, moi: float
+    p: Procedure,
+    bat: BatSpec,
+    state: RunState,
+    hits: list[ShotEntry],
+    q: float,
+    moi: float,
+    metric: str | None = None,
 ) -> BallAdjustment | None:
-    """The ball's corrections and budget terms, for a run that recorded its ball terms (else None)."""
+    """The ball's corrections and budget terms, for a run that recorded its ball terms (else None),
+    in units of `metric` (default the procedure's)."""
     recorded = (state.setup or {}).get("ball")
     if recorded is None or moi <= 0.0:
         return None
     terms = BallTerms.model_validate(recorded)
-    g = ratio(law_params(terms, p.ball.mass_kg), p.standard, p.target_speed_m_s, q, moi, bat.length_m)
+    g = ratio(
+        law_params(terms, p.ball.mass_kg), metric or p.standard, p.target_speed_m_s, q, moi, bat.length_m
+    )
     return adjust(terms, hit_balls(hits, state.environment, terms), g)
 
 
@@ -307,3 +342,14 @@ def cross_check(
         },
         "note": note,
     }
+
+
+def stage_verdict(
+    p: Procedure, bat: BatSpec, state: RunState, config: RigConfig, purpose: str, hoop_hz: float | None
+) -> RunVerdict:
+    """The verdict of the valid hits of `purpose` at the chosen location (an accelerated break-in's
+    stage), decided as the run's own, with the cross-check at the stage's hoop frequency."""
+    hits = [replace(s, purpose="valid") for s in state.shots if s.purpose == purpose]
+    view = replace(state, shots=hits)
+    stage_bat = bat if hoop_hz is None else bat.model_copy(update={"hoop_hz": hoop_hz})
+    return verdict(p, stage_bat, view, config)

@@ -61,14 +61,18 @@ class RigSpec:
     config: RigConfig | None = None
     overrides: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
 
-    def config_for(self, bat: BatSpec) -> RigConfig:
-        """The rig config; a simulated bat takes `bat`'s properties as its true ones."""
+    def config_for(self, bat: BatSpec, procedure: Procedure | None = None) -> RigConfig:
+        """The rig config; a simulated bat takes `bat`'s properties as its true ones, and a simulated
+        lab loads the balls `procedure` names (its ball class) and aims as low as its speed."""
         if self.config is not None:
             return self.config
         from rig.session import sim_config
 
         assert self.scene is not None
-        return _override(sim_config(self.scene, bat=bat), self.overrides, self.source)
+        balls = None if procedure is None else procedure.ball.ball_class
+        speed = None if procedure is None else procedure.target_speed_m_s
+        config = sim_config(self.scene, bat=bat, ball_class=balls, speed_m_s=speed)
+        return _override(config, self.overrides, self.source)
 
 
 def _override(config: RigConfig, overrides: Mapping[str, Any], source: str) -> RigConfig:
@@ -198,7 +202,7 @@ def certify(
         proc,
         spec,
         lambda measured: calibrated(
-            rig.config_for(measured), calibration, "script"
+            rig.config_for(measured, proc), calibration, "script"
         ),  # with its measured hoop
         run_id=run_id,
         operator=operator or ScriptedOperator(who="script (rig.certify)"),

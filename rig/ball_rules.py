@@ -49,6 +49,50 @@ def qualify(lot: BallLot, results: list[LotResult], procedure: Procedure) -> lis
     return cor
 
 
+BALL_MASS_REL_TOL = 0.05  # [U] a ball test's nominal mass within 5 % of the procedure's: the same ball
+
+
+def same_balls(store: Any, lot_id: str, run_id: str, procedure: Procedure) -> None:
+    """The lot's latest ball-cor test must have fired the balls `procedure` names: the same class
+    (a softball's COR/compression, none for a baseball) and nominal mass; else one ConfigError.
+
+    Its COR (a BPF divides by it), wear and spread are those balls' own: another ball's would be
+    silently wrong. What the test fired is its RunStarted procedure's [procedure.ball]."""
+    started = store.entries(run_id, kinds=[ev.RUN_STARTED])
+    tested = ((started[0].payload.get("procedure") or {}).get("ball") or {}) if started else {}
+    ours = procedure.ball
+    theirs_class = str(tested.get("ball_class") or "").lstrip(".") or None
+    ours_class = (ours.ball_class or "").lstrip(".") or None
+    mass = tested.get("mass_kg")
+    if (
+        theirs_class != ours_class
+        or not isinstance(mass, int | float)
+        or (abs(mass - ours.mass_kg) > BALL_MASS_REL_TOL * ours.mass_kg)
+    ):
+        raise ConfigError(
+            f"lot {lot_id}'s ball-cor test (run {run_id[:12]}) fired balls of "
+            f"{_balls(theirs_class, mass)}; {procedure.name} names "
+            f"{_balls(ours_class, ours.mass_kg)}: test the lot with the procedure's balls "
+            f"({_which_test(ours_class)})",
+            source=f"--ball-lot {lot_id}",
+        )
+
+
+def _which_test(ball_class: str | None) -> str:
+    """The built-in ball-cor test firing balls of `ball_class`, or how to write one."""
+    if ball_class is None:
+        return "rig balls test --procedure ball-cor"
+    if ball_class == "47/375":
+        return "rig balls test --procedure ball-cor-fastpitch"
+    return f'a ball-cor TOML file with [procedure.ball] ball_class = "{ball_class}"'
+
+
+def _balls(ball_class: str | None, mass: Any) -> str:
+    return (
+        f"{'class ' + ball_class if ball_class else 'no ball class'}, {mass if mass is not None else '?'} kg"
+    )
+
+
 def lot_terms(
     store: Any,
     lot_id: str,
@@ -64,6 +108,7 @@ def lot_terms(
     """
     lot, results = store.ball_lot(lot_id)
     cor = qualify(lot, results, procedure)
+    same_balls(store, lot.id, cor[-1].run_id, procedure)
     law_from = f"--ball {law_file}" if law_file else "--ball"
     if law is None:
         recorded = lot_law(store, lot_id)

@@ -1,7 +1,7 @@
 """Test a ball lot on the rig: store, devices, the ball test's plan and its executor wired together.
 
 Run like a certification (rig.certification): rehearsed first (a dry run of what is left), every
-persisted event committed before the plan goes on, one runner per run, any error recorded as
+persisted event committed at its commit point (rig.store.RunWriter), one runner per run, any error recorded as
 the run's interruption (resumable at the next slot), the run sealed and signed at its end. What the
 clamp holds comes from the procedure (its [target]), never from the simulator: a `--sim` rig is
 built with that target clamped (rig.session.sim_config), a real rig is told by the operator.
@@ -157,6 +157,15 @@ DERIVED_TERMS = (
     "rh_pct",
 )
 
+WALL_TERMS = (
+    "wall_cor",
+    "wall_cor_u",
+    "wall_cor_run",
+    "wall_cor_hit",
+    "wall_cor_temp_c",
+    "wall_cor_rh_pct",
+)  # the ball COR a BPF divides by, since BPF
+
 
 def ball_terms_problems(store: Store) -> list[str]:
     """Every certification whose recorded ball terms are not what its lot's results give.
@@ -214,9 +223,10 @@ def _terms_problem(
         if terms.law_sha256 not in laws:
             return f"its ball law (sha256 {terms.law_sha256[:12]}) is not one lot {lot.id} had recorded"
     again = terms_from_lot(lot, before, recorded.get("law"))
-    want = terms.model_dump(mode="json", include=set(DERIVED_TERMS))
-    got = again.model_dump(mode="json", include=set(DERIVED_TERMS))
-    bad = [k for k in DERIVED_TERMS if not _same(got[k], want[k])]
+    derived = DERIVED_TERMS + tuple(k for k in WALL_TERMS if k in recorded)  # older runs lack them
+    want = terms.model_dump(mode="json", include=set(derived))
+    got = again.model_dump(mode="json", include=set(derived))
+    bad = [k for k in derived if not _same(got[k], want[k])]
     if bad:
         return (
             f"its recorded ball terms are not what lot {lot.id}'s results give"

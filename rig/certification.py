@@ -2,9 +2,11 @@
 
 A certification is asked for with one request (rig.request.CertifyRequest), rehearsed once
 (`prepare`) and then recorded and run (`run_prepared`); the API, the CLI and the console all go
-this way. Every persisted event is appended to the store (committed) before the plan goes on, so a run
-killed at any moment resumes from its record: no shot lost, none fired twice. Any error during a
-run (a device fault, a signal, a bug) ends the session with a RunInterrupted entry naming it.
+this way. Every persisted event is recorded before the plan goes on and committed at its commit
+point (rig.store.RunWriter: a shot's intent before FIRE, its raw record, traffic and outcome in one
+transaction), so a run killed at any moment resumes from its record: at most the shot in flight
+lost, and recorded lost, none fired twice. Any error during a run (a device fault, a signal, a
+bug) ends the session with a RunInterrupted entry naming it.
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ from rig.quality.records import rig_quality
 from rig.report.cert_retest import retest_meta
 from rig.request import CertifyRequest, Prepared, Signoff
 from rig.session import RigSession
-from rig.store import RunLocked, Store, StoreDamaged, StoreGone
+from rig.store import RunLocked, RunWriter, Store, StoreDamaged, StoreGone
 
 log = logging.getLogger(__name__)
 
@@ -158,6 +160,7 @@ def prepare(store: Store, request: CertifyRequest, *, gated: bool = True) -> Pre
     if run_id is not None:
         _running(store, run_id, "--resume")
     else:
+        needs_ball_cor(request)
         bat = with_measured_hoop(store, bat)  # hoop_hz from the bat's linked modal result, if any
     config = request.config_for(bat)
     if gated and run_id is None:
@@ -174,6 +177,17 @@ def prepare(store: Store, request: CertifyRequest, *, gated: bool = True) -> Pre
         named = lab_file(request.lab, config.identity.lab)
         lab = None if named is None else load_lab(named)  # a bad lab file stops us here
     return Prepared(request, bat, config, rehearsal, lab)
+
+
+def needs_ball_cor(request: CertifyRequest) -> None:
+    """A BPF divides by the lot's ball COR: a new BPF run without a lot's ball-cor result is refused."""
+    p = request.procedure
+    if p.metric.needs_ball_cor and (request.ball or {}).get("wall_cor") is None:
+        raise ConfigError(
+            f"{p.standard} is BBCOR / ball COR: name the lot the balls come from, with a ball-cor "
+            "result (rig balls test --procedure ball-cor --lot LOT, then --ball-lot LOT)",
+            source="--ball-lot",
+        )
 
 
 def run_prepared(store: Store, prepared: Prepared, *, kind: str | None = None) -> Outcome:
@@ -294,7 +308,7 @@ def live_executor(
     rig: Backend | None = None,
 ) -> Executor:
     """The executor of a plan on a session's devices (`rig`: a backend of its own over them)."""
-    backend = rig or LiveRig(session.cannon, session.gates, session.clamp)
+    backend = rig or LiveRig(session.cannon, session.gates, session.clamp, session.compression)
     return Executor(ctx, backend, emit, operator, control, _traffic_drain(session))
 
 
@@ -365,8 +379,9 @@ def drive(
     identified: RunEvent | None = None,
     override: dict[str, str] | None = None,
 ) -> Outcome:
-    """Run one recorded run on the rig under its lock: every persisted event committed before the
-    plan goes on, any error recorded as the run's interruption (resumable), the run sealed (and
+    """Run one recorded run on the rig under its lock: every persisted event recorded before the
+    plan goes on (committed at its commit point), any error recorded as the run's interruption
+    (resumable), the run sealed (and
     signed) at its end. `start` builds the runner from the open session, the record and `emit`, and
     returns it with the call that runs it to its verdict. `session`: a new run's devices, opened
     before the run was created (open_before_run); None: opened here, under the lock.
@@ -378,10 +393,11 @@ def drive(
     run's instruments (instruments_or_close); None: identified here once the devices open, and an
     instrument the run may not use (`override` aside) interrupts it, resumable."""
     verdicts: list[RunEvent] = []  # RunFinished: shown once sealed and read back, never before
+    writer = RunWriter(store, run_id)  # entries that may wait go with the next commit point
 
     def emit(event: RunEvent) -> None:
         if event.persisted:
-            store.append(run_id, event.kind, event.data)
+            writer.record(event.kind, event.data, commit=event.commits)
         if event.kind == ev.RUN_FINISHED:
             verdicts.append(event)
             return
@@ -391,8 +407,7 @@ def drive(
     opened = session  # a new run's devices: closed below however the lock goes (close is idempotent)
     try:
         outcome = _drive(
-            store,
-            run_id,
+            writer,
             config,
             emit,
             signer,
@@ -422,8 +437,7 @@ def drive(
 
 
 def _drive(
-    store: Store,
-    run_id: str,
+    writer: RunWriter,
     config: RigConfig,
     emit: Emit,
     signer: Signer | None,
@@ -438,6 +452,7 @@ def _drive(
 ) -> Outcome:
     # One runner per run: a second one is refused here (RunLocked), before it opens a device (a new
     # run's are open already: no other runner can know the run yet).
+    store, run_id = writer.store, writer.run_id
     with store.run_lock(run_id):
         _checked(store, run_id)  # never record into a store that verify would call damaged
         if named is not None:
@@ -470,12 +485,16 @@ def _drive(
             try:
                 verdict = run()
                 driven.control.settled = True
+                writer.commit()  # nothing held is left out of the sealed run
             except BaseException as exc:
                 driven.control.settled = True  # stop signals from now on would only tear the record up
                 if not isinstance(exc, Exception | KeyboardInterrupt):
+                    with contextlib.suppress(Exception):
+                        writer.commit()  # a stop that is not a crash keeps what was held
                     raise  # SystemExit and the like: not an interruption of the run
                 ended = driven.state.verdict
                 if driven.state.phase is RunPhase.FINISHED and ended is not None:  # a failed ring check
+                    writer.commit()
                     _seal(store, run_id, "finished", ended.verdict, signer)
                     return Outcome(run_id, RunPhase.FINISHED, ended, str(exc))
                 reason, budget = _reason(exc), isinstance(exc, BudgetExceeded)

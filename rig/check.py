@@ -1,7 +1,7 @@
 """Run the lab's check procedure on its reference bat: a certification's machinery, its own plan.
 
 A check session (rig.protocols.check) is asked, rehearsed and recorded as a certification is
-(rig.certification: one request, one rehearsal, every event committed before the plan goes on,
+(rig.certification: one request, one rehearsal, every event committed at its commit point,
 sealed and signed), with the run's kind `check` so that the control charts (rig.quality) find it.
 It is never refused by the charts' signals: the check is how a lab sees whether the rig is back.
 """

@@ -15,7 +15,7 @@ from datetime import UTC, date, datetime
 from typing import Any
 
 from rig.core import events as ev
-from rig.core.config import DEVICE_KINDS, Equipment, RigConfig
+from rig.core.config import DEVICE_KINDS, OPTIONAL_KINDS, Equipment, RigConfig
 from rig.core.devices import Identifiable, InstrumentIdentity
 from rig.core.errors import ConfigError, DeviceError
 
@@ -41,7 +41,8 @@ def identify(
     day = today or today_utc()
     devices: dict[str, Any] = {}
     refusals: list[str] = []
-    for kind in DEVICE_KINDS:
+    present = [k for k in OPTIONAL_KINDS if getattr(session, k, None) is not None]  # a compression tester
+    for kind in (*DEVICE_KINDS, *present):
         spec = config.device(kind)
         said = _identity(kind, getattr(session, kind))
         devices[kind] = {

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 from urllib.parse import quote
 
 from rig.core.bat import BatSpec
-from rig.core.config import DEVICE_KINDS, RigConfig
+from rig.core.config import DEVICE_KINDS, OPTIONAL_KINDS, RigConfig
 from rig.core.units import INCH
 from rig.drivers.registry import DriverContext, open_device
 from rig.drivers.traffic import TrafficRecord
@@ -41,6 +41,8 @@ def sim_config(
     target: tuple[str, float | None] | None = None,
     effects: Mapping[str, Mapping[str, Any]] | None = None,
     session: str | None = None,
+    ball_class: str | None = None,
+    speed_m_s: float | None = None,
 ) -> RigConfig:
     """A rig config whose ports are simulated devices of `scene` (a built-in name or a TOML path).
 
@@ -53,6 +55,9 @@ def sim_config(
     reaches down to ball-test speeds. `effects` replaces fields of the scene's effects by kind (e.g.
     `air_starting_at(900.0)`: the hour a ball test is run at). `session` names this run of the
     simulated lab (Scene.run_key): another session draws other noise, the same one repeats it.
+    `ball_class` (a procedure's "44/375"): the cannon fires softballs of that class, as the lab loads
+    the balls its procedure names (Scene.with_ball_class). `speed_m_s`: the speed the run fires at;
+    below the default aim table's reach (a BPF's 60 mph), the aim table reaches down as a ball test's.
     """
     from rig.instruments import today_utc
     from rig.simulators.register import sample_register
@@ -66,20 +71,27 @@ def sim_config(
         loaded = scene_with_bat(loaded, bat)
     if target is not None:
         loaded = loaded.with_target(*target)
+    softball = loaded.with_ball_class(ball_class)
+    changed = softball is not loaded
+    loaded = softball
     for kind, values in (effects or {}).items():
         loaded = loaded.with_effect(kind, **values)
     if session:
         loaded = loaded.model_copy(update={"session": session})
-    if bat is not None or target is not None or effects or session:
+    if bat is not None or target is not None or effects or session or changed:
         install_world(rig, scene, loaded)
     ports = {dev: f"sim://{dev}?scene={quote(scene, safe='')}&rig={rig}" for dev in DEVICE_KINDS}
-    fragment = loaded.rig_config_fragment(BALL_AIM_PRESSURES_KPA) if target else loaded.rig_config_fragment()
+    low = target is not None or (speed_m_s is not None and speed_m_s < loaded.cannon.muzzle_speed(150.0))
+    fragment = loaded.rig_config_fragment(BALL_AIM_PRESSURES_KPA) if low else loaded.rig_config_fragment()
+    balls = f", softballs {loaded.ball_class}" if loaded.ball_class else ""
     data = {
-        "name": f"simulated rig ({loaded.name})",
+        "name": f"simulated rig ({loaded.name}{balls})",
         "ports": ports,
         **fragment,
         "equipment": sample_register(today_utc()),  # a sample register, one item per role, in date
     }
+    if not loaded.reports_recoil():  # as a lab states a clamp without an encoder: no recoil waited for
+        data["devices"] = {"clamp": {"options": {"recoil_encoder": False}}}
     return RigConfig.from_dict(data, source=f"scene {scene}")
 
 
@@ -117,6 +129,7 @@ class RigSession:
     clamp: Any  # rig.core.devices.Clamp, closable
     traffic: list[tuple[str, TrafficRecord]] = field(default_factory=list)
     closed: bool = field(default=False, init=False)
+    compression: Any = None  # rig.core.devices.CompressionTester, closable; None: the rig has none
 
     @classmethod
     def open(cls, config: RigConfig, source: str = "rig config") -> RigSession:
@@ -131,8 +144,9 @@ class RigSession:
         def log(name: str) -> Callable[[TrafficRecord], None]:
             return lambda rec: traffic.append((name, rec))
 
+        kinds = [*DEVICE_KINDS, *(k for k in OPTIONAL_KINDS if getattr(config.devices, k) is not None)]
         try:
-            for kind in DEVICE_KINDS:
+            for kind in kinds:
                 spec = config.device(kind)
                 context = DriverContext(
                     kind=kind,
@@ -150,8 +164,11 @@ class RigSession:
                 with contextlib.suppress(Exception):
                     dev.close()
             raise
-        cannon, gates, clamp = opened
-        return cls(config, cannon, gates, clamp, traffic)
+        cannon, gates, clamp, *optional = opened
+        session = cls(config, cannon, gates, clamp, traffic)
+        for kind, device in zip(kinds[len(DEVICE_KINDS) :], optional, strict=True):
+            setattr(session, kind, device)
+        return session
 
     def close(self) -> None:
         """Leave the cannon safe (vent), then close every port; a second call does nothing."""
@@ -161,8 +178,9 @@ class RigSession:
         # Closing must go on even when the cannon's port is already gone.
         with contextlib.suppress(Exception):
             self.cannon.vent()
-        for dev in (self.cannon, self.gates, self.clamp):
-            dev.close()
+        for dev in (self.cannon, self.gates, self.clamp, self.compression):
+            if dev is not None:
+                dev.close()
 
     def __enter__(self) -> RigSession:
         return self

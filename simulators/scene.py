@@ -196,9 +196,22 @@ class Scene(BaseModel):
     lot: SimBallLot = SimBallLot()
     cannon: CannonModel = CannonModel()
     effects: tuple[EffectSpec, ...] = ()
+    # the softball class the cannon fires ("44/375": rig.simulators.ball_class), None for the
+    # scene's own ball (a baseball); a scene file giving it without a [ball] table fires that class
+    ball_class: str | None = Field(None, pattern=r"^\.?[0-9]{2}/[0-9]{3}$")
     # which run of the lab this is, as the host names it (e.g. the store's count of runs): two
     # runs of one scene with another session draw other noise; "" for a scene used on its own
     session: str = ""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _softball(cls, data: Any) -> Any:
+        if not isinstance(data, dict) or not isinstance(data.get("ball_class"), str) or "ball" in data:
+            return data
+        try:
+            return softball_data(data, data["ball_class"], CollisionParams())
+        except ConfigError as exc:
+            raise ValueError(exc.reason) from None
 
     @model_validator(mode="after")
     def _check(self) -> Scene:
@@ -256,6 +269,18 @@ class Scene(BaseModel):
             where = f"simulated rig {self.name!r} with this target"
             raise ConfigError(error.reason, source=where, field=error.field) from None
 
+    def with_ball_class(self, key: str | None) -> Scene:
+        """This scene firing softballs of class `key` (rig.simulators.ball_class), as a lab loads the
+        balls its procedure names: the scene's ball law with the class's mass, stiffness and COR,
+        the drag effect's diameter the class's. None (or the class it fires already): unchanged."""
+        if key is None or key.lstrip(".") == (self.ball_class or "").lstrip("."):
+            return self
+        data = softball_data(self.model_dump(exclude_unset=True), key, self.ball)
+        try:
+            return self.model_validate(data)
+        except ValidationError as exc:
+            raise _config_error(f"simulated rig {self.name!r} with {key} softballs", exc) from None
+
     def with_alteration(self, bbcor: float) -> Scene:
         """This scene with its bat altered: `bbcor` more BBCOR (trampoline effect's alteration_bbcor)."""
         if not any(e.kind == "trampoline" for e in self.effects):
@@ -307,6 +332,10 @@ class Scene(BaseModel):
             "air": self._air_fragment(),
         }
 
+    def reports_recoil(self) -> bool:
+        """Whether the simulated clamp reports a recoil after each impact (the recoil effect, on a bat)."""
+        return not self.target.rigid and any(e.slot == "recoil" for e in self.active_effects())
+
     def _air_fragment(self) -> dict[str, float]:
         """The ball's Cd as a lab that measured it would state it: the drag effect's, else none."""
         drag = next((e for e in self.active_effects() if e.kind == "drag"), None)
@@ -348,6 +377,20 @@ class Scene(BaseModel):
             return cls.model_validate(data)
         except ValidationError as exc:
             raise _config_error(source, exc) from None
+
+
+def softball_data(data: dict[str, Any], key: str, base: CollisionParams) -> dict[str, Any]:
+    """Scene data firing class `key`: its ball from `base` (rig.simulators.ball_class), its class
+    recorded, each drag effect's ball diameter the class's; ConfigError for an unknown class."""
+    from rig.simulators.ball_class import ball_class  # scipy's root finder: only for softballs
+
+    chosen = ball_class(key)
+    effects = [
+        {**e, "ball_diameter_m": chosen.diameter_m} if isinstance(e, dict) and e.get("kind") == "drag" else e
+        for e in (data.get("effects") or ())
+    ]
+    out = {**data, "ball_class": chosen.key, "ball": chosen.params(base).model_dump()}
+    return out | ({"effects": effects} if "effects" in data else {})
 
 
 def _config_error(source: str, exc: ValidationError) -> ConfigError:

@@ -21,6 +21,7 @@ from rig.simulators.cannon import SimCannon
 from rig.simulators.clamp import SimClamp
 from rig.simulators.device import SimDevice
 from rig.simulators.effects import CHAINED_HOOKS, Effect, overrides
+from rig.simulators.effects.softening import BarrelSoftening
 from rig.simulators.gates import SimGates
 from rig.simulators.physics import (
     Collision,
@@ -76,6 +77,8 @@ class SimWorld:
         self.ticker: Ticks = slots.get("ticks") or RoundingTicks(scene.rig.tick_ns * 1e-9)
         self.recoil_sensor: RecoilSensor | None = None if scene.target.rigid else slots.get("recoil")
         self.lab: EnvironmentSensor = slots.get("environment") or NominalEnvironment()
+        # a barrel that rolling softens (ABI), if the scene has one
+        self.barrel = next((e for e in self.effects if isinstance(e, BarrelSoftening)), None)
         self.door = True
         self.estop = True
         self._pending_ilk: list[tuple[float, str, bool]] = []
@@ -89,6 +92,18 @@ class SimWorld:
         self.devices: dict[str, SimDevice] = {"cannon": self.cannon, "gates": self.gates, "clamp": self.clamp}
         # other front ends on this world (instrument twins): each is told every shot's beam breaks
         self.crossing_listeners: list[Callable[[list[Crossing], tuple[tuple[int, int], ...], int], None]] = []
+
+    def roll(self, depth_in: float, passes: int) -> float:
+        """Roll the bat's barrel (accelerated break-in): it softens, its hoop frequency falls and the
+        collision is told; returns the new hoop frequency, Hz. ValueError without a softening barrel."""
+        with self.lock:
+            if self.barrel is None:
+                raise ValueError("this scene's barrel does not soften (no barrel_softening effect)")
+            self.barrel.roll(depth_in, passes)
+            tell = getattr(self.collision, "set_hoop_hz", None)
+            if tell is not None:
+                tell(self.barrel.hoop_hz)
+            return self.barrel.hoop_hz
 
     # -- virtual time -----------------------------------------------------------------------
     def at(self, time_s: float, apply: Callable[[], None], tag: str | None = None) -> None:

@@ -6,13 +6,15 @@ by the command's OK, which only means the command was accepted.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from typing import Any, ClassVar
 
 from rig.core.devices import ClampStatus, PendulumPeriod, Recoil
 from rig.core.errors import DeviceError, DeviceTimeout
 from rig.drivers.base import LineDriver
 from rig.drivers.clamp import codec
 from rig.drivers.codec import flag
+from rig.drivers.registry import DriverContext
 from rig.drivers.transport import SerialLike, TrafficRecord
 from rig.drivers.wire import Event
 
@@ -22,6 +24,7 @@ class ClampDriver(LineDriver):
 
     NAME = "clamp"
     SPECS = codec.SPECS
+    OPTIONS: ClassVar[Mapping[str, type]] = {"recoil_encoder": bool}
 
     def __init__(
         self,
@@ -34,6 +37,7 @@ class ClampDriver(LineDriver):
         swing_timeout_s: float = 10.0,
         swing_cycle_timeout_s: float = 3.0,
         position_tolerance_mm: float = 0.5,
+        recoil_encoder: bool = True,
         on_traffic: Callable[[TrafficRecord], None] | None = None,
         reopen: Callable[[], SerialLike] | None = None,
     ) -> None:
@@ -45,6 +49,12 @@ class ClampDriver(LineDriver):
         self.swing_timeout_s = swing_timeout_s  # SWING n -> `! PERIOD`: this plus n cycles
         self.swing_cycle_timeout_s = swing_cycle_timeout_s
         self.position_tolerance_mm = position_tolerance_mm
+        self.recoil_encoder = recoil_encoder  # False: a clamp with no pivot encoder sends no `! RECOIL`
+
+    @classmethod
+    def _context_kwargs(cls, context: DriverContext) -> dict[str, Any]:
+        """[devices.clamp] options: recoil_encoder = false for a clamp that reports no recoil."""
+        return {"recoil_encoder": bool(context.options.get("recoil_encoder", True))}
 
     def status(self) -> ClampStatus:
         """A fresh STATUS: lock, stage position, moving, pivot angle."""
@@ -76,7 +86,10 @@ class ClampDriver(LineDriver):
         return self._parse(codec.parse_period, event, "PERIOD event")
 
     def next_recoil(self, timeout_s: float) -> Recoil | None:
-        """The next recoil the encoder reports after an impact, or None within `timeout_s`."""
+        """The next recoil the encoder reports after an impact, or None within `timeout_s` (at once for
+        a clamp configured without an encoder: nothing is waited for that cannot come)."""
+        if not self.recoil_encoder:
+            return None
         try:
             event = self.transport.wait_event("RECOIL", timeout_s)
         except DeviceTimeout:

@@ -15,10 +15,11 @@ import time
 from collections.abc import Iterator, Sequence
 from typing import Any, Self
 
-from rig.core.devices import GateConfig, GateCrossing, InstrumentIdentity
-from rig.core.errors import DeviceError, DeviceRefused, GarbledReply, UnexpectedMessage
+from rig.core.devices import GateConfig, GateCrossing
+from rig.core.errors import DeviceError, GarbledReply, UnexpectedMessage
 from rig.drivers.registry import DriverContext
 from rig.drivers.scpi import counter_codec as codec
+from rig.drivers.scpi.instrument import ScpiInstrument
 from rig.drivers.scpi.visa import VisaLink
 
 SELF_TEST_TIMEOUT_S = 30.0  # [assumed] *TST? of a counter takes seconds; the maker's figure was not read
@@ -35,7 +36,7 @@ OPTIONS: dict[str, type | tuple[type, ...]] = {
 }
 
 
-class ScpiCounterGates:
+class ScpiCounterGates(ScpiInstrument):
     """Three light screens OR-ed into channel 1 of a 53230A-class counter, time-stamping edges."""
 
     DRIVER = "scpi-counter"
@@ -71,18 +72,7 @@ class ScpiCounterGates:
             raise context.refuse(f"fetch_timeout_s {fetch} outside 0.05-600 s")
         link = VisaLink(context.address, device=context.name, timeout_s=context.timeouts.reply_s,
                         on_traffic=context.on_traffic)  # fmt: skip
-        device = cls(link, setup, fetch_timeout_s=fetch, gate_positions_m=context.gate_positions_m)
-        try:
-            device.identify()  # a raw socket opens even where nothing listens: ask before any run
-        except BaseException:
-            device.close()
-            raise
-        return device
-
-    def identify(self) -> InstrumentIdentity:
-        """`*IDN?`: maker, model, serial number, firmware."""
-        identity: InstrumentIdentity = self._parse(codec.parse_idn, self.link.query("*IDN?"), "*IDN?")
-        return identity
+        return cls(link, setup, fetch_timeout_s=fetch, gate_positions_m=context.gate_positions_m).checked()
 
     def config(self) -> GateConfig:
         """Three gates; ticks of the counter's resolution, 48 bits (stamps never wrap in a shot)."""
@@ -154,18 +144,3 @@ class ScpiCounterGates:
     def reconnect(self) -> None:
         """Open the VISA resource again (after DeviceGone)."""
         self.link.reconnect()
-
-    def close(self) -> None:
-        """Close the VISA resource."""
-        self.link.close()
-
-    def _check_errors(self, after: str) -> None:
-        code, text = self._parse(codec.parse_error, self.link.query("SYST:ERR?"), "SYST:ERR?")
-        if code != 0:
-            raise DeviceRefused(self.name, after, str(code), text)
-
-    def _parse(self, parse: Any, reply: str, what: str) -> Any:
-        try:
-            return parse(reply)
-        except ValueError as exc:
-            raise GarbledReply(self.name, f"{what} reply: {exc}") from None

@@ -264,13 +264,14 @@ class ScpiCommand:
     argument: str
 
 
-def parse_command(line: str) -> ScpiCommand | None:
-    """The known command `line` is, or None (the device answers -113 "Undefined header")."""
+def parse_command(line: str, headers: Sequence[str] = HEADERS) -> ScpiCommand | None:
+    """The known command `line` is (one of `headers`, spelt as HEADERS spells them), or None (the
+    device answers -113 "Undefined header")."""
     text = line.strip()
     head, _, argument = text.partition(" ")
     query = head.endswith("?")
     nodes = head.rstrip("?").lstrip(":").split(":")
-    for known in HEADERS:
+    for known in headers:
         if known.endswith("?") != query:
             continue
         suffix = _match_nodes(nodes, known.rstrip("?").split(":"))

@@ -12,7 +12,20 @@ import json
 import sys
 from collections.abc import Callable, Sequence
 
-from rig.cli import balls, check, compare, equipment, export, keys, modal, model, records, rig_cmds, sync
+from rig.cli import (
+    balls,
+    check,
+    compare,
+    equipment,
+    export,
+    keys,
+    modal,
+    model,
+    records,
+    rig_cmds,
+    screen,
+    sync,
+)
 from rig.core.dbpath import DB_ENV, DEFAULT_DB_NAME
 from rig.core.errors import ParameterError, RigError
 
@@ -43,6 +56,7 @@ def build_parser() -> argparse.ArgumentParser:
         rig_cmds,
         model,
         modal,
+        screen,
     ):  # task order in --help
         part.add_parsers(sub)
     return parser

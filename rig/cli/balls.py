@@ -132,7 +132,8 @@ def _rig_config(args: argparse.Namespace, procedure: Any, session: str) -> Any:
 
         at = None if args.sim_start is None else air_starting_at(args.sim_start)
         target = (procedure.target.kind, procedure.target.diameter_m)
-        return sim_config(args.sim, target=target, effects=at, session=session)
+        balls = procedure.ball.ball_class  # softballs of that class, as the lab loads them
+        return sim_config(args.sim, target=target, effects=at, session=session, ball_class=balls)
     if args.sim_start is not None:
         raise ConfigError("--sim-start is for a simulated rig (--sim)", source="command line")
     if args.config:
@@ -276,7 +277,9 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(handler=cmd_register)
 
     p = bsub.add_parser("test", help="run a ball test on a registered lot", description=cmd_test.__doc__)
-    p.add_argument("--procedure", help="ccor, ball-cor, or a ball-test TOML file")
+    p.add_argument(
+        "--procedure", help="ccor, ball-cor, ball-cor-fastpitch (47/375 softballs), or a ball-test TOML file"
+    )
     p.add_argument("--lot", metavar="LOT", help="the registered lot's id")
     add_rig_options(p)
     p.add_argument("--db", metavar="FILE", help=DB_HELP)

@@ -78,6 +78,14 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         law, sha = load_ball(args.ball)
         ball = ball_record(law, sha, args.ball)
         kwargs["base"] = law.apply(PAPER_BASE)
+    from rig.population.budget import Budget
+
+    show = sys.stderr.isatty() if args.progress is None else args.progress
+
+    def progress(line: str) -> None:
+        print(line, file=sys.stderr, flush=True)
+
+    kwargs["budget"] = Budget(max_seconds=args.max_seconds, progress=progress if show else None)
     cal = calibrate(bats, metric=args.metric, **kwargs)
     record = calibration_record(cal, blob, names, ball=ball)
     write_calibration(record, output)
@@ -137,6 +145,7 @@ def _print(record: dict[str, Any]) -> None:
 
 def add_parser(msub: Any) -> None:
     """`rig model calibrate` under the `rig model` subcommands."""
+    from rig.population.budget import DEFAULT_MAX_SECONDS
     from rig.population.limits import DEFAULT_LOCATION_IN, MIN_BATS, MIN_HOOP_SPAN_HZ
 
     p = msub.add_parser(
@@ -149,7 +158,9 @@ def add_parser(msub: Any) -> None:
             " certified runs of a record store (--db), or both (bat ids must not repeat)."
             " Needs hoop_hz, moi_kgm2, length_in"
             f" and the metric for at least {MIN_BATS} bats spanning {MIN_HOOP_SPAN_HZ:.0f} Hz; location_in"
-            f" defaults to {DEFAULT_LOCATION_IN:g} in from the barrel end."
+            f" defaults to {DEFAULT_LOCATION_IN:g} in from the barrel end. Refused (exit 2) when the"
+            " residuals of the best fit show structure the model family cannot take up (a trend with"
+            " hoop frequency, two groups of bats), and stopped at the time limit (--max-seconds)."
         ),
     )
     p.add_argument("--data", metavar="POPULATION", help="population file (.csv or .toml)")
@@ -161,5 +172,27 @@ def add_parser(msub: Any) -> None:
         metavar="BALL.json",
         help="a fitted ball (rig model fit-ball): its m1, k1, c1, a, b replace the paper's; recorded",
     )
+    p.add_argument(
+        "--max-seconds",
+        type=_seconds,
+        default=DEFAULT_MAX_SECONDS,
+        help=f"stop (exit 2) when the calibration has run this long (default {DEFAULT_MAX_SECONDS:g} s)",
+    )
+    p.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="progress lines on stderr (default: when stderr is a terminal)",
+    )
     p.add_argument("--json", action="store_true", help="print the calibration record as JSON")
     p.set_defaults(handler=cmd_calibrate)
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+    if not value > 0.0 or value == float("inf"):
+        raise argparse.ArgumentTypeError(f"{text!r}: give a time limit above 0 s")
+    return value

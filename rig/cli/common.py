@@ -127,18 +127,23 @@ def check_flags(args: argparse.Namespace, bounds: Bounds) -> None:
                 raise ParameterError(name, v, f"must lie within {low:g}-{high:g} {unit}".rstrip())
 
 
-def rig_config(args: argparse.Namespace, bat: Any = None, session: str | None = None) -> Any:
+def rig_config(
+    args: argparse.Namespace, bat: Any = None, session: str | None = None, procedure: Any = None
+) -> Any:
     """The rig config from --sim, --config or (where the command has them) the three port URLs.
 
     With `bat`, a simulated bat takes the bat file's properties as its true ones; `session` names
-    this run of a simulated lab (its own noise, rig.session.sim_config).
+    this run of a simulated lab (its own noise, rig.session.sim_config); `procedure`: a simulated
+    lab loads the balls it names (its ball class) and aims as low as its speed.
     """
     from rig.core.config import RigConfig
 
     if args.sim is not None:
         from rig.session import sim_config
 
-        return sim_config(args.sim, bat=bat, session=session)
+        ball_class = None if procedure is None else procedure.ball.ball_class
+        speed = None if procedure is None else procedure.target_speed_m_s
+        return sim_config(args.sim, bat=bat, session=session, ball_class=ball_class, speed_m_s=speed)
     if args.config:
         return RigConfig.load(args.config)
     if not hasattr(args, "cannon"):

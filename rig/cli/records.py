@@ -122,6 +122,8 @@ def cmd_certify(args: argparse.Namespace) -> int:
             given = Procedure.load(args.procedure) if args.procedure else None
             recorded = recorded_inputs(store, run_id, given)  # never started: what its RunCreated names
             procedure, bat, started = recorded.procedure, recorded.bat, recorded.started
+            if args.bat:  # the same bat's file: a simulated rig takes its [simulated] truth again
+                bat = _same_bat(BatSpec.load(args.bat), bat, args.bat)
             if started and (args.ball_lot or args.ball):
                 raise ConfigError(
                     "a resumed run keeps the balls it recorded: drop --ball-lot and --ball", source="--resume"
@@ -150,7 +152,9 @@ def cmd_certify(args: argparse.Namespace) -> int:
             bat,
             # built once the bat has its measured hoop: a simulated bat takes it as its own
             lambda measured: calibrated(
-                rig_config(args, bat=measured, session=sim_session(store)), args.calibration, "command line"
+                rig_config(args, bat=measured, session=sim_session(store), procedure=procedure),
+                args.calibration,
+                "command line",
             ),
             run_id=run_id,
             operator=ScriptedOperator(who="script (--sim or scripted run)"),
@@ -190,6 +194,16 @@ def cmd_certify(args: argparse.Namespace) -> int:
     if outcome.status != "finished":
         return _interrupted(outcome, args, resume)
     return 0 if outcome.verdict and outcome.verdict.passed else 1
+
+
+def _same_bat(given: Any, recorded: Any, path: str) -> Any:
+    """The bat file (a BatSpec) given with --resume: the recorded bat (else ConfigError), with its truth."""
+    if given != recorded:  # equality leaves the [simulated] truth aside: it is not the bat's record
+        raise ConfigError(
+            f"{path} is not the bat the run recorded ({recorded.id}): a resumed run keeps its bat",
+            source="--bat",
+        )
+    return given
 
 
 def _ball_terms(store: Any, args: argparse.Namespace, procedure: Any) -> dict[str, Any] | None:
@@ -434,7 +448,12 @@ def add_parsers(sub: Any) -> None:
     p.add_argument(
         "--procedure", help=f"{', '.join(n for _, n in BUILTIN_PROCEDURES)}, or a procedure TOML file"
     )
-    p.add_argument("--bat", metavar="BAT.toml", help="bat file (table [bat])")
+    p.add_argument(
+        "--bat",
+        metavar="BAT.toml",
+        help="bat file (table [bat]); with --resume, the recorded bat's own file, whose [simulated] "
+        "truth a simulated rig takes again (the record keeps only the bat)",
+    )
     add_rig_options(p)
     p.add_argument("--db", metavar="FILE", help=DB_HELP)
     p.add_argument("--resume", metavar="RUN", help="resume an interrupted run")

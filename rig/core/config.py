@@ -22,6 +22,8 @@ class _Model(BaseModel):
 
 
 DEVICE_KINDS = ("cannon", "gates", "clamp")
+# devices a rig may have besides: a procedure that needs one says so (the ABI: a compression tester)
+OPTIONAL_KINDS = ("compression",)
 Address = Annotated[str, Field(min_length=1, max_length=1024)]
 
 
@@ -90,6 +92,7 @@ class Devices(_Model):
     cannon: DeviceSpec | None = None
     gates: DeviceSpec | None = None
     clamp: DeviceSpec | None = None
+    compression: DeviceSpec | None = None  # a barrel-compression tester (optional: the ABI needs one)
 
 
 # A cannon rig is a few metres long (muzzle to bat about 1.5-3 m): no gate sits farther than 5 m
@@ -338,7 +341,7 @@ class RigConfig(_Model):
     def device(self, kind: str) -> DeviceSpec:
         """The driver, address and options of device `kind` ([devices] first, else [ports] with rig-line)."""
         spec: DeviceSpec | None = getattr(self.devices, kind)
-        port: str | None = getattr(self.ports, kind)
+        port: str | None = getattr(self.ports, kind, None)
         if spec is None:
             return DeviceSpec(address=port)
         return spec if spec.address is not None else spec.model_copy(update={"address": port})

@@ -191,3 +191,23 @@ class Clamp(Protocol):
     def move_to(self, mm: float) -> None: ...
     def measure_period(self, cycles: int) -> PendulumPeriod: ...
     def next_recoil(self, timeout_s: float) -> Recoil | None: ...
+
+
+@dataclass(frozen=True)
+class BarrelCompression:
+    """One barrel-compression reading: the load cell's force with the anvils at a fixed displacement."""
+
+    force_lbf: float
+    displacement_in: float
+
+    @property
+    def stiffness_lbf_per_in(self) -> float:
+        """Force over displacement: the barrel's diametral stiffness at the tested location."""
+        return self.force_lbf / self.displacement_in
+
+
+@runtime_checkable
+class CompressionTester(Protocol):
+    """A barrel-compression tester: squeezes the barrel to its fixed displacement, reads the force."""
+
+    def measure_compression(self) -> BarrelCompression: ...

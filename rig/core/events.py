@@ -2,7 +2,8 @@
 
 Every event is a frozen dataclass with its `kind` as a class constant (an evaluated shot's kind
 says its validity: ShotMeasured or ShotRejected). Persisted kinds are written to the record store
-(in order, each committed before the run goes on); the others are for live display only and can be
+(in order; a commit point at once with those held before it, the others held until the next one:
+RunEvent.commits, rig.store.RunWriter); the others are for live display only and can be
 recomputed from persisted ones.
 
 The log's JSON payload of an event is its typed fields; an event that carries a typed record
@@ -46,7 +47,16 @@ class RunEvent:
     persisted: ClassVar[bool] = True
     RECORD: ClassVar[str | None] = None
     WRITTEN: ClassVar[frozenset[str]] = frozenset()
+    WAITS: ClassVar[bool] = False  # may wait for the next commit point: see `commits`
     extra: Mapping[str, Any] = field(default_factory=dict, kw_only=True)
+
+    @property
+    def commits(self) -> bool:
+        """A commit point: written at once, with the entries held before it, in one transaction.
+        An event that waits (WAITS) is one a resumed run makes again (a start, a prompt, a location,
+        a scripted answer), or part of the shot in flight (its raw record and traffic, written with
+        its outcome); a crash loses only such entries (rig.store.RunWriter, docs/records.md)."""
+        return not self.WAITS
 
     @cached_property
     def data(self) -> dict[str, Any]:
@@ -67,6 +77,7 @@ ONE_SHOT_KIND = "shot"  # a one-shot run's procedure name in the store (rig shot
 CHECK_KIND = "check"  # a check run's (rig check): the reference bat again, never a bat of a population
 CHECK_ACKNOWLEDGED = "CheckAcknowledged"  # lab-level: a rig's chart signals acknowledged (rig check ack)
 CHECK_RESTARTED = "CheckRestarted"  # lab-level: a new phase I for a rig and reference bat (rig check restart)
+BY_SCRIPT = "script"  # OperatorAnswered.given when a script answered (rig.protocols.control.SCRIPT)
 
 
 @dataclass(frozen=True)
@@ -74,6 +85,7 @@ class RunStarted(RunEvent):
     """The run's procedure, bat and rig as run (extra: software, calibration)."""
 
     kind: ClassVar[str] = "RunStarted"
+    WAITS: ClassVar[bool] = True
     procedure: dict[str, Any]
     bat: dict[str, Any]
     rig: dict[str, Any]
@@ -100,12 +112,14 @@ class InstrumentsIdentified(RunEvent):
 @dataclass(frozen=True)
 class RunResumed(RunEvent):
     kind: ClassVar[str] = "RunResumed"
+    WAITS: ClassVar[bool] = True
     shots_so_far: int
 
 
 @dataclass(frozen=True)
 class EnvironmentChecked(RunEvent):
     kind: ClassVar[str] = "EnvironmentChecked"
+    WAITS: ClassVar[bool] = True
     temperature_c: float
     humidity_pct: float
     ok: bool
@@ -123,6 +137,7 @@ class MoiMeasured(RunEvent):
 @dataclass(frozen=True)
 class OperatorPrompted(RunEvent):
     kind: ClassVar[str] = "OperatorPrompted"
+    WAITS: ClassVar[bool] = True
     prompt_id: str
     text: str
 
@@ -139,10 +154,16 @@ class OperatorAnswered(RunEvent):
     given: str | None = None
     with_prompt: str | None = None  # the prompt whose answer gave this one
 
+    @property
+    def commits(self) -> bool:
+        """A person's answer is written at once; a script's waits for the next commit point."""
+        return self.given != BY_SCRIPT
+
 
 @dataclass(frozen=True)
 class LocationSet(RunEvent):
     kind: ClassVar[str] = "LocationSet"
+    WAITS: ClassVar[bool] = True
     from_barrel_end_in: float
     impact_from_pivot_m: float | None = None
 
@@ -168,12 +189,13 @@ class ShotRequested(RunEvent):
 
 @dataclass(frozen=True)
 class ShotFired(RunEvent):
-    """The raw record of a fired shot, committed before anything is derived from it: the gate
+    """The raw record of a fired shot, committed with (never after) what is derived from it: the gate
     events, the gates' configuration and positions, the recoil, the device data and the ball. The
     speeds derived from it are the evaluation's (ShotEvaluated); older records held them here too
     (in `extra`). A shot nothing came back from has no crossings."""
 
     kind: ClassVar[str] = "ShotFired"
+    WAITS: ClassVar[bool] = True
     WRITTEN: ClassVar[frozenset[str]] = frozenset({"recoil_rad_s"})
     index: int
     crossings: list[Any] | None = None
@@ -230,6 +252,7 @@ class ShotOverruled(RunEvent):
 @dataclass(frozen=True)
 class BallReplaced(RunEvent):
     kind: ClassVar[str] = "BallReplaced"
+    WAITS: ClassVar[bool] = True
     ball_number: int
     ball: str | None = None  # a ball test's ball id
 
@@ -237,6 +260,7 @@ class BallReplaced(RunEvent):
 @dataclass(frozen=True)
 class LocationChosen(RunEvent):
     kind: ClassVar[str] = "LocationChosen"
+    WAITS: ClassVar[bool] = True
     from_barrel_end_in: float
     mean_metric: float | None = None
     scan: dict[str, float] | None = None
@@ -286,9 +310,47 @@ class ScanExtended(RunEvent):
     """A location added beyond the scan to bracket the maximum."""
 
     kind: ClassVar[str] = "ScanExtended"
+    WAITS: ClassVar[bool] = True
     from_barrel_end_in: float
     impact_from_pivot_m: float | None = None
     reason: str | None = None
+
+
+@dataclass(frozen=True)
+class CompressionMeasured(RunEvent):
+    """A barrel-compression reading of the accelerated break-in (stage 0: the new bat)."""
+
+    kind: ClassVar[str] = "CompressionMeasured"
+    stage: int
+    force_lbf: float
+    displacement_in: float
+    location_in: float
+
+
+@dataclass(frozen=True)
+class BarrelRolled(RunEvent):
+    """A rolling step of the accelerated break-in, as the operator reported it (`given`: as an
+    OperatorAnswered's); `hoop_hz` (with its standard u) if the operator measured it after rolling."""
+
+    kind: ClassVar[str] = "BarrelRolled"
+    stage: int
+    depth_in: float
+    passes: int
+    who: str | None = None
+    given: str | None = None
+    hoop_hz: float | None = None
+    hoop_u_hz: float | None = None
+
+
+@dataclass(frozen=True)
+class AbiStageMeasured(RunEvent):
+    """One stage's BBCOR of the accelerated break-in: a RunVerdict's payload (mean, U, cross-check
+    from the stage's hoop frequency), and that hoop frequency where measured."""
+
+    kind: ClassVar[str] = "AbiStageMeasured"
+    stage: int
+    result: dict[str, Any]
+    hoop_hz: float | None = None
 
 
 @dataclass(frozen=True)
@@ -296,6 +358,7 @@ class Traffic(RunEvent):
     """Device traffic, base64 chunks, attached to a shot (index) or to none."""
 
     kind: ClassVar[str] = "Traffic"
+    WAITS: ClassVar[bool] = True
     index: int | None
     chunks: list[dict[str, Any]]
 
@@ -370,6 +433,9 @@ EVENT_TYPES: tuple[type[RunEvent], ...] = (
     RigChecked,
     RunEnded,
     ScanExtended,
+    CompressionMeasured,
+    BarrelRolled,
+    AbiStageMeasured,
     Traffic,
     GateCrossed,
     InboundMeasured,
@@ -416,6 +482,11 @@ RUN_INTERRUPTED = RunInterrupted.kind
 RIG_CHECKED = RigChecked.kind
 RUN_ENDED = RunEnded.kind
 SCAN_EXTENDED = ScanExtended.kind
+COMPRESSION_MEASURED = CompressionMeasured.kind
+BARREL_ROLLED = BarrelRolled.kind
+ABI_STAGE_MEASURED = AbiStageMeasured.kind
+ABI_KINDS = (COMPRESSION_MEASURED, BARREL_ROLLED, ABI_STAGE_MEASURED)
+ABI_DAMAGE_PROMPT = "abi-intact-"  # an ABI stage's inspection prompt: its id, then the stage
 TRAFFIC = Traffic.kind
 GATE_CROSSED = GateCrossed.kind
 INBOUND_MEASURED = InboundMeasured.kind

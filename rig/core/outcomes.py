@@ -201,6 +201,7 @@ class RunVerdict(PayloadRecord):
     edition: str | None = None
     budget: dict[str, Any] | None = None
     ball: dict[str, Any] | None = None
+    bpf: dict[str, Any] | None = None  # a BPF's parts: mean BBCOR, the ball COR (lot, u), u(BPF)
     drag: dict[str, Any] | None = None
     cross_check: dict[str, Any] | None = None
     tradeoff: list[Any] | None = None

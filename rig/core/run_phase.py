@@ -63,6 +63,9 @@ RUN_TABLE: dict[str, dict[RunPhase, RunPhase]] = {
     ev.BALL_REPLACED: _IN_RUN,
     ev.LOCATION_CHOSEN: _IN_RUN,
     ev.SCAN_EXTENDED: _IN_RUN,
+    ev.COMPRESSION_MEASURED: _IN_RUN,
+    ev.BARREL_ROLLED: _IN_RUN,
+    ev.ABI_STAGE_MEASURED: _IN_RUN,
     ev.RIG_CHECKED: _IN_RUN,
     ev.TRAFFIC: {_N: _N, _R: _R, _I: _I},  # whenever a session has the devices open
     ev.RUN_FINISHED: {_N: _F, _R: _F},

@@ -98,6 +98,7 @@ class RunState:
     extra_locations: list[float] = field(default_factory=list)  # scan extensions, in order
     invalid_at_last_check: int = 0  # invalid shots already counted when the rig was last checked
     ended: ev.RunEnded | None = None  # ended on the operator's word, no verdict
+    abi: list[Noted] = field(default_factory=list)  # an accelerated break-in's record, in order
 
     @property
     def finished(self) -> bool:
@@ -197,6 +198,10 @@ class RunState:
                 self.ended = e
         if e.kind in ev.STOP_KINDS:
             self.stops.append(noted)
+        if e.kind in ev.ABI_KINDS or (
+            isinstance(e, ev.OperatorAnswered) and e.prompt_id.startswith(ev.ABI_DAMAGE_PROMPT)
+        ):
+            self.abi.append(noted)
 
 
 def fold(events: Iterable[RunEvent]) -> RunState:

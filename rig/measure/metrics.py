@@ -108,6 +108,7 @@ class MetricSet:
             "bbs": self.bbs,
             "k": self.k,
             "v_bat": self.v_bat,
+            **({} if self.terms.ball_cor is None else {"ball_cor": self.terms.ball_cor}),
             **self.added,
         }
 
@@ -118,9 +119,14 @@ class MetricSet:
 
 
 def recorded_terms(metrics: Mapping[str, Any]) -> MetricTerms:
-    """A shot's MetricTerms from its recorded metrics: k, V_bat, and the default swing's pitch speed
-    (the one every shot's metrics are computed with)."""
-    return MetricTerms(k=metrics["k"], v_bat=metrics["v_bat"], v_pitch=DEFAULT_SWING.pitch_speed_m_s)
+    """A shot's MetricTerms from its recorded metrics: k, V_bat, the default swing's pitch speed
+    (the one every shot's metrics are computed with) and the run's ball COR where it had one."""
+    return MetricTerms(
+        k=metrics["k"],
+        v_bat=metrics["v_bat"],
+        v_pitch=DEFAULT_SWING.pitch_speed_m_s,
+        ball_cor=metrics.get("ball_cor"),
+    )
 
 
 class _ShotValues(BaseModel):
@@ -142,9 +148,11 @@ def compute_metrics(
     ball_mass_kg: float,
     bat_length_m: float,
     swing: SwingModel = DEFAULT_SWING,
+    ball_cor: float | None = None,
 ) -> MetricSet:
     """All metrics of a stationary-bat shot (speeds m/s, Q m, I kg m^2, mass kg, length m), each
-    registered metric by its registry formula."""
+    registered metric by its registry formula; those divided by the ball's COR (BPF) only with
+    `ball_cor`, the run's ball COR on the rigid wall."""
     try:
         _ShotValues(
             v_in=v_in,
@@ -163,8 +171,10 @@ def compute_metrics(
         eq3: float | None = besr_eq3(v_in, v_out, v_bat)
     except ParameterError:
         eq3 = None
-    terms = MetricTerms(k=k, v_bat=v_bat, v_pitch=swing.pitch_speed_m_s)
-    values = {m.name: m.value(e_a, terms) for m in metrics()}
+    if ball_cor is not None and not 0.0 < ball_cor <= 1.0:
+        raise ParameterError("ball_cor", ball_cor, "must lie in (0, 1]")
+    terms = MetricTerms(k=k, v_bat=v_bat, v_pitch=swing.pitch_speed_m_s, ball_cor=ball_cor)
+    values = {m.name: m.value(e_a, terms) for m in metrics() if ball_cor is not None or not m.needs_ball_cor}
     return MetricSet(
         e_a=e_a,
         bbcor=values.pop("bbcor"),

@@ -19,16 +19,19 @@ from types import MappingProxyType
 
 from rig.core.errors import ConfigError
 from rig.core.units import MPH
+from rig.measure import bpf as bpf_table
 from rig.measure import softball
 
 
 @dataclass(frozen=True)
 class MetricTerms:
-    """What a metric depends on besides e_A: k = m Q^2 / I, the bat's and the pitch's speed (m/s)."""
+    """What a metric depends on besides e_A: k = m Q^2 / I, the bat's and the pitch's speed (m/s),
+    and the run's ball COR on the rigid wall (None: the run has none; a BPF needs it)."""
 
     k: float
     v_bat: float
     v_pitch: float
+    ball_cor: float | None = None
 
 
 @dataclass(frozen=True)
@@ -57,6 +60,10 @@ class Metric(Quantity):
     cross_check: bool = False
     needs_length: bool = False  # depends on the bat's length (the swing model)
     test_speed_m_s: float | None = None  # the speed its standard fires at; a procedure must match it
+    basis: str = ""  # the constraint its BBCOR assumes (rig.measure.bpf: PIVOTED or UNCONSTRAINED)
+    # divided by the run's ball COR (BPF): computed only where the run has one (MetricTerms.ball_cor),
+    # whose u enters the mean once, correlated across the hits (rig.measure.bpf.bpf_u)
+    needs_ball_cor: bool = False
 
     def scale(self, terms: MetricTerms) -> float:
         """The factor from the budget output's u to the metric's u (1 when it is the metric)."""
@@ -81,6 +88,34 @@ def besr(e_a: float) -> float:
 def bbs(e_a: float, v_pitch: float, v_bat: float) -> float:
     """BBS = V_pitch e_A + V_bat (e_A + 1) (founding paper, Eq. 4)."""
     return v_pitch * e_a + v_bat * (e_a + 1.0)
+
+
+def _ball_cor(t: MetricTerms) -> float:
+    if t.ball_cor is None:
+        raise ConfigError("a BPF needs the run's ball COR (rig certify --ball-lot LOT)")
+    return t.ball_cor
+
+
+def _bpf(std: bpf_table.BpfStandard) -> Metric:
+    """One body's BPF (rig.measure.bpf): the pivoted BBCOR over the run's ball COR."""
+    return Metric(
+        std.name,
+        f"BPF ({std.body})",
+        "",
+        "BPF = BBCOR / ball COR (WSU SSL glossary; ASTM F1890), BBCOR on the pivoted basis of F1890-23: "
+        "e_A (1 + k) + k, k = m Q^2 / I_pivot; ball COR: the lot's against a rigid flat wall at 60 mph "
+        "(ASTM F1887, rig balls test --procedure ball-cor)",
+        value=lambda e_a, t: bbcor(e_a, t.k) / _ball_cor(t),
+        e_a_of=lambda v, t: ea_from_bbcor(v * _ball_cor(t), t.k),
+        limit_range=(0.0, 3.0),  # a ratio of CORs: a rigid wall is 1.00, a bat above it by a few tenths
+        budget_output="bbcor",
+        u_scale=lambda t: 1.0 / _ball_cor(t),
+        u_scale_text="dBPF/dBBCOR = 1 / ball COR (the ball COR's own u added once, correlated)",
+        title=f"{std.body} BPF {std.limit:g}",
+        test_speed_m_s=bpf_table.BPF_SPEED_M_S,
+        basis=f"{bpf_table.PIVOTED} ({bpf_table.F1890})",
+        needs_ball_cor=True,
+    )
 
 
 def _softball_bbs(ed: softball.SoftballEdition) -> Metric:
@@ -128,6 +163,8 @@ _QUANTITIES: dict[str, Quantity] = {
             budget_output="bbcor",
             title="NCAA BBCOR",
             cross_check=True,
+            # the stationary bat on the rig's pivot (WSU SSL glossary; standards.md's BBCOR formula [I])
+            basis=f"{bpf_table.PIVOTED} (the stationary bat, WSU SSL glossary)",
         ),
         Metric(
             "besr",
@@ -167,6 +204,15 @@ _QUANTITIES: dict[str, Quantity] = {
             needs_length=True,
         ),
         *(_softball_bbs(e) for e in softball.EDITIONS),
+        *(_bpf(s) for s in bpf_table.STANDARDS),
+        Quantity(
+            "ball_cor",
+            "ball COR",
+            "",
+            "ball COR = v_rebound / v_inbound of the ball against a rigid flat wall at 60 mph, the run's "
+            "value being the lot's latest ball-cor result "
+            "(ASTM F1887; rig balls test --procedure ball-cor)",
+        ),
         Quantity(
             "v_bat",
             "V_bat",
@@ -185,6 +231,7 @@ BUILTIN_PROCEDURES: tuple[tuple[str, str], ...] = (
         if m.name in ("bbcor", "besr", "bbs") and isinstance(m, Metric)
     ),
     ("USA Softball BBS", "softball-bbs"),
+    *((f"{s.body} BPF {s.limit:g}", s.name.replace("_", "-")) for s in bpf_table.STANDARDS),
 )
 _DEFINITIONS: dict[str, str] = {}
 DEFINITIONS: MappingProxyType[str, str] = MappingProxyType(_DEFINITIONS)  # a live view of every formula

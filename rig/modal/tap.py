@@ -2,13 +2,17 @@
 
 Steps (docs/screening.md):
 1. checks: clipped (3 samples in a row at the record's extreme, or 4 at it in two places, or two
-   samples at digital full scale), the noise floor (the 10th percentile of 5 ms blocks' RMS), too
-   quiet (the loudest tap less than MIN_SNR_DB above the floor);
+   samples at digital full scale), the noise floor, too quiet (the loudest tap less than MIN_SNR_DB
+   above the floor). The floor is the lesser of two estimates that can only overstate it: the 10th
+   percentile of 5 ms blocks' RMS (the quiet between taps) and the robust RMS of what a linear
+   predictor of order PREDICTOR_ORDER cannot predict (a ring is predictable, noise is not: taps that
+   ring into each other leave no quiet block, and the first estimate would take the ring for noise);
 2. taps: an onset is a 1 ms block whose peak exceeds the threshold (max(30 x noise, 5 % of the
    loudest peak)) and 3 times the loudest of the 10 ms before it; onsets within MIN_SPACING_S of a
    tap are dropped with it (a bounce spoils the tap). Each tap's window starts SKIP_S after its
-   onset (the free decay) and all have one length T: the shortest gap to the next onset, at most
-   MAX_WINDOW_S; T below MIN_WINDOW_S or fewer than MIN_TAPS taps is "too short";
+   onset (the free decay) and all have one length T: the shortest gap to the next onset less SKIP_S
+   (a window ends before the next tap), at most MAX_WINDOW_S; T below MIN_WINDOW_S or fewer than
+   MIN_TAPS taps is "too short";
 3. spectra: each tap's window times w(t) = exp(-t/tau) (1 % at its end); a free decay's DFT is
    then exactly the pole-residue form rig.modal.modes fits, at s = j omega + 1/tau. The taps'
    power spectra summed give the peaks; each peak's pole is fitted jointly to every tap's complex
@@ -28,7 +32,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy import fft
+from scipy import fft, linalg, signal
 
 from rig.modal.errors import ClippedSignal, NoHoopMode, RecordingFormatError, RecordTooShort, TooQuiet
 from rig.modal.frf import FrfEstimate
@@ -47,6 +51,8 @@ MIN_WINDOW_S = 0.05  # a resolution of 20 Hz, as impact tests need
 MAX_WINDOW_S = 0.5
 MIN_TAPS = 3
 MIN_SNR_DB = 40.0  # [assumed] the loudest tap over the noise floor
+PREDICTOR_ORDER = 64  # taps of the linear predictor: two per mode for up to 32 modes
+MAD_TO_SIGMA = 1.4826  # a normal distribution's sigma over its median absolute deviation
 EXP_END = 0.01
 RESOLUTION_SHARE = 0.1  # as rig.modal.analysis
 COVERAGE_K = 2.0
@@ -140,6 +146,26 @@ def _blocks(x: np.ndarray, n: int) -> np.ndarray:
     return x[: m * n].reshape(m, n)
 
 
+def _noise_floor(x: np.ndarray, fs: float) -> float:
+    """The noise floor's RMS: the lesser of the quiet blocks' level and the unpredictable part."""
+    nn = max(round(NOISE_BLOCK_S * fs), 1)
+    quiet = float(np.percentile(np.sqrt(np.mean(_blocks(x, nn) ** 2, axis=1)), 10))
+    p = min(PREDICTOR_ORDER, x.size // 8)
+    r = fft.irfft(np.abs(fft.rfft(x, 2 * x.size)) ** 2)[: p + 1]  # autocorrelation, by FFT
+    if p < 2 or r[0] <= 0.0:
+        return max(quiet, np.finfo(float).tiny)
+    r[0] *= 1.0 + 1e-9  # a ridge: a pure tone's Toeplitz matrix is singular
+    try:
+        a = linalg.solve_toeplitz(r[:p], r[1 : p + 1])  # Yule-Walker: x[n] ~ sum a_k x[n - k]
+    except (linalg.LinAlgError, ValueError):
+        return max(quiet, np.finfo(float).tiny)
+    e = signal.lfilter(np.concatenate(([1.0], -a)), [1.0], x)[p:]
+    unpredictable = MAD_TO_SIGMA * float(np.median(np.abs(e - np.median(e))))
+    if not math.isfinite(unpredictable):
+        unpredictable = quiet
+    return max(min(quiet, unpredictable), np.finfo(float).tiny)
+
+
 def _onsets(x: np.ndarray, fs: float, noise: float) -> tuple[list[int], int]:
     """Tap onsets (sample indices) and how many were dropped as bounces."""
     nb = max(round(BLOCK_S * fs), 1)
@@ -165,7 +191,7 @@ def _windows(onsets: list[int], n: int, fs: float, where: str) -> tuple[list[int
     """Window starts and the common length N; refuses too few taps or too short windows."""
     skip = round(SKIP_S * fs)
     starts = [o + skip for o in onsets]
-    gaps = [b - a for a, b in itertools.pairwise(starts)]
+    gaps = [b - a - skip for a, b in itertools.pairwise(starts)]
     length = min([*gaps, round(MAX_WINDOW_S * fs)])
     notes = []
     if starts and n - starts[-1] < length:
@@ -201,8 +227,7 @@ def analyze_tap(wav: Wav, hoop_min_hz: float = HOOP_MIN_HZ) -> TapResult:
     nn = max(round(NOISE_BLOCK_S * fs), 1)
     if x.size < 4 * nn:
         raise RecordTooShort(f"{where}{x.size / fs * 1e3:.0f} ms long: record a few seconds of taps")
-    rms = np.sqrt(np.mean(_blocks(x, nn) ** 2, axis=1))
-    noise = max(float(np.percentile(rms, 10)), np.finfo(float).tiny)
+    noise = _noise_floor(x, fs)
     peak = float(np.max(np.abs(x)))
     snr_db = 20.0 * math.log10(max(peak, np.finfo(float).tiny) / noise)
     if snr_db < MIN_SNR_DB:

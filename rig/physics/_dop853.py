@@ -67,6 +67,34 @@ _D = np.ascontiguousarray(_coef.D, dtype=np.float64)
 _NS = 12  # stages of the step proper
 _NX = 16  # stages including those of the dense output
 
+
+def _sparse_rows(table: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A table's nonzero entries row by row, in column order: (row starts, columns, values).
+
+    The stage sums run over these only: a skipped term is 0 * K, which changes no finite sum, and
+    the terms kept are added in the same order, so the sums are the same to the last bit.
+    """
+    rows = np.atleast_2d(table)
+    starts = np.zeros(rows.shape[0] + 1, dtype=np.int64)
+    columns: list[int] = []
+    for r in range(rows.shape[0]):
+        columns += [int(j) for j in np.flatnonzero(rows[r])]
+        starts[r + 1] = len(columns)
+    cols = np.array(columns, dtype=np.int64)
+    return (
+        starts,
+        cols,
+        np.ascontiguousarray(rows[np.repeat(np.arange(rows.shape[0]), np.diff(starts)), cols]),
+    )
+
+
+_A_START, _A_COL, _A_VAL = _sparse_rows(_A)
+_, _B_COL, _B_VAL = _sparse_rows(_B[:_NS])
+_D_START, _D_COL, _D_VAL = _sparse_rows(_D)
+_E_COL = np.flatnonzero((_E5[: _NS + 1] != 0.0) | (_E3[: _NS + 1] != 0.0)).astype(np.int64)
+_E5_VAL = np.ascontiguousarray(_E5[_E_COL])
+_E3_VAL = np.ascontiguousarray(_E3[_E_COL])
+
 N_PARAMS = 11
 STATUS_OK = 0
 STATUS_TIME_LIMIT = 1
@@ -115,30 +143,32 @@ def _dense(
     F: np.ndarray,
 ) -> None:
     """Coefficients of the 7th-order dense output of the step just taken (scipy's DOP853 form)."""
-    _stages(y, h, p, K, tmp, _NS + 1, _NX)
-    for i in range(6):
+    n = _moving(p)
+    _stages(y, h, p, K, tmp, _NS + 1, _NX, n)
+    for i in range(n):
         dy = ynew[i] - y[i]
         F[0, i] = dy
         F[1, i] = h * f[i] - dy
         F[2, i] = 2.0 * dy - h * (fnew[i] + f[i])
         for r in range(4):
             acc = 0.0
-            for s in range(_NX):
-                acc += _D[r, s] * K[s, i]
+            for q in range(_D_START[r], _D_START[r + 1]):
+                acc += _D_VAL[q] * K[_D_COL[q], i]
             F[3 + r, i] = h * acc
 
 
 @nb.njit(cache=True)
 def _minimum(y: np.ndarray, F: np.ndarray, p: np.ndarray, tmp: np.ndarray) -> tuple:
     """Golden-section search for the minimum of g on the step's dense output: (x, g)."""
+    n = _moving(p)
     invphi = 0.6180339887498949
     a = 0.0
     b = 1.0
     c = b - invphi * (b - a)
     d = a + invphi * (b - a)
-    _interpolate(y, F, c, tmp)
+    _interpolate(y, F, c, tmp, n)
     gc = _gfun(tmp, p)
-    _interpolate(y, F, d, tmp)
+    _interpolate(y, F, d, tmp, n)
     gd = _gfun(tmp, p)
     for _ in range(60):
         if gc <= 0.0:
@@ -150,14 +180,14 @@ def _minimum(y: np.ndarray, F: np.ndarray, p: np.ndarray, tmp: np.ndarray) -> tu
             d = c
             gd = gc
             c = b - invphi * (b - a)
-            _interpolate(y, F, c, tmp)
+            _interpolate(y, F, c, tmp, n)
             gc = _gfun(tmp, p)
         else:
             a = c
             c = d
             gc = gd
             d = a + invphi * (b - a)
-            _interpolate(y, F, d, tmp)
+            _interpolate(y, F, d, tmp, n)
             gd = _gfun(tmp, p)
         if b - a < 1e-12:
             break
@@ -166,22 +196,63 @@ def _minimum(y: np.ndarray, F: np.ndarray, p: np.ndarray, tmp: np.ndarray) -> tu
     return d, gd
 
 
+@nb.njit(cache=True, inline="always")
+def _moving(p: np.ndarray) -> int:
+    """The states that move (the others stay 0 and are left out of every sum): all six with a body;
+    ball and barrel on a clamped flexible barrel; the ball alone on a clamped rigid one."""
+    if p[8] != 0.0:
+        return 6
+    if p[10] != 0.0:
+        return 2
+    return 4
+
+
+@nb.njit(cache=True, inline="always")
+def _combine(K: np.ndarray, cols: np.ndarray, vals: np.ndarray, lo: int, hi: int, n: int) -> tuple:
+    """sum over q in lo..hi-1 of vals[q] * K[cols[q]], for the `n` moving states (0 for the others).
+
+    Each state's terms are added in the same order as a plain loop would; the states' sums run side
+    by side in registers, so the additions of one state wait for one another only, not for all."""
+    s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+    for q in range(lo, hi):
+        c = vals[q]
+        j = cols[q]
+        s0 += c * K[j, 0]
+        s1 += c * K[j, 1]
+        if n > 2:
+            s2 += c * K[j, 2]
+            s3 += c * K[j, 3]
+            if n > 4:
+                s4 += c * K[j, 4]
+                s5 += c * K[j, 5]
+    return s0, s1, s2, s3, s4, s5
+
+
+@nb.njit(cache=True, inline="always")
+def _advance(y: np.ndarray, h: float, sums: tuple, out: np.ndarray) -> None:
+    """out = y + h * sums, state by state."""
+    out[0] = y[0] + h * sums[0]
+    out[1] = y[1] + h * sums[1]
+    out[2] = y[2] + h * sums[2]
+    out[3] = y[3] + h * sums[3]
+    out[4] = y[4] + h * sums[4]
+    out[5] = y[5] + h * sums[5]
+
+
 @nb.njit(cache=True)
 def _stages(
-    y: np.ndarray, h: float, p: np.ndarray, K: np.ndarray, tmp: np.ndarray, first: int, last: int
+    y: np.ndarray, h: float, p: np.ndarray, K: np.ndarray, tmp: np.ndarray, first: int, last: int, n: int
 ) -> None:
+    """Stages first..last-1: each one's state from the earlier stages (the table's nonzero terms,
+    the `n` moving states), then the right-hand side there."""
     for s in range(first, last):
-        for i in range(6):
-            acc = 0.0
-            for j in range(s):
-                acc += _A[s, j] * K[j, i]
-            tmp[i] = y[i] + h * acc
+        _advance(y, h, _combine(K, _A_COL, _A_VAL, _A_START[s], _A_START[s + 1], n), tmp)
         _rhs(tmp, p, K[s])
 
 
 @nb.njit(cache=True)
-def _interpolate(y: np.ndarray, F: np.ndarray, x: float, out: np.ndarray) -> None:
-    for i in range(6):
+def _interpolate(y: np.ndarray, F: np.ndarray, x: float, out: np.ndarray, n: int) -> None:
+    for i in range(n):
         acc = 0.0
         for k in range(6, -1, -1):
             acc += F[k, i]
@@ -215,12 +286,14 @@ def solve_one(
     atol = np.empty(6)
     for i in range(6):
         atol[i] = rtol * (length if i % 2 == 0 else v0)
+    n = _moving(p)
     _rhs(y, p, f)
     nfev = 1
     kappa = min(1.0, (40320.0 * rtol) ** 0.125)
     t = 0.0
     h = 1e-4 * length / v0
     g_old = _gfun(y, p)
+    gd_old = math.nan  # g's rate at y, carried from the step that ended there (nan: not known)
     rejected = False
     steps = 0
     while True:
@@ -230,29 +303,22 @@ def solve_one(
             return math.nan, t, nfev, steps, STATUS_TIME_LIMIT
         if h < 1e-14 * max(t, length / v0):
             return math.nan, t, nfev, steps, STATUS_STEP_UNDERFLOW
-        for i in range(6):
+        for i in range(n):
             K[0, i] = f[i]
-        _stages(y, h, p, K, tmp, 1, _NS)
-        for i in range(6):
-            acc = 0.0
-            for s in range(_NS):
-                acc += _B[s] * K[s, i]
-            ynew[i] = y[i] + h * acc
+        _stages(y, h, p, K, tmp, 1, _NS, n)
+        _advance(y, h, _combine(K, _B_COL, _B_VAL, 0, _B_COL.size, n), ynew)
         _rhs(ynew, p, fnew)
-        for i in range(6):
+        for i in range(n):
             K[_NS, i] = fnew[i]
         nfev += _NS
+        a5 = _combine(K, _E_COL, _E5_VAL, 0, _E_COL.size, n)
+        a3 = _combine(K, _E_COL, _E3_VAL, 0, _E_COL.size, n)
         e5 = 0.0
         e3 = 0.0
-        for i in range(6):
+        for i in range(n):
             sc = atol[i] + rtol * max(abs(y[i]), abs(ynew[i]))
-            a5 = 0.0
-            a3 = 0.0
-            for s in range(_NS + 1):
-                a5 += _E5[s] * K[s, i]
-                a3 += _E3[s] * K[s, i]
-            e5 += (a5 / sc) ** 2
-            e3 += (a3 / sc) ** 2
+            e5 += (a5[i] / sc) ** 2
+            e3 += (a3[i] / sc) ** 2
         err = 0.0 if e5 == 0.0 and e3 == 0.0 else abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * n_active)
         if not math.isfinite(err):
             h *= _MIN_FACTOR
@@ -268,12 +334,18 @@ def solve_one(
         steps += 1
         g_new = _gfun(ynew, p)
         crossed = g_old > 0.0 and g_new <= 0.0
-        lam = _damping_rate(y, p)
-        dip = not crossed and g_old > 0.0 and _gdot(y, f, p) < 0.0 and _gdot(ynew, fnew, p) > 0.0
-        if h * lam > kappa and (crossed or dip):
+        dip = False
+        gd_new = math.nan
+        if not crossed and g_old > 0.0:
+            if math.isnan(gd_old):
+                gd_old = _gdot(y, f, p)
+            if gd_old < 0.0:
+                gd_new = _gdot(ynew, fnew, p)
+                dip = gd_new > 0.0
+        if (crossed or dip) and h * _damping_rate(y, p) > kappa:
             # contact may end inside this step, whose dense output would not resolve the decay
             # of the relative motion (rate lam): retake it short enough that it does
-            h = 0.9 * kappa / lam
+            h = 0.9 * kappa / _damping_rate(y, p)
             rejected = True
             continue
         if dip:
@@ -303,7 +375,7 @@ def solve_one(
                 x = (lo * ghi - hi * glo) / (ghi - glo)
                 if not (lo < x < hi):
                     x = 0.5 * (lo + hi)
-                _interpolate(y, F, x, tmp)
+                _interpolate(y, F, x, tmp, n)
                 gx = _gfun(tmp, p)
                 if gx > 0.0:
                     lo = x
@@ -320,7 +392,7 @@ def solve_one(
                 if hi - lo <= 4e-16 * max(1.0, hi) or gx == 0.0:
                     break
             x = hi
-            _interpolate(y, F, x, tmp)
+            _interpolate(y, F, x, tmp, n)
             for i in range(6):
                 out_state[i] = tmp[i]
                 if not math.isfinite(tmp[i]):
@@ -335,7 +407,8 @@ def solve_one(
         t += h
         h *= factor
         g_old = g_new
-        for i in range(6):
+        gd_old = gd_new
+        for i in range(n):
             y[i] = ynew[i]
             f[i] = fnew[i]
 
@@ -427,6 +500,36 @@ def may_meet_again(y0: np.ndarray, p: np.ndarray) -> bool:
     return False
 
 
+LANE_GROUPS = 64  # solve_many's units of parallel work: lanes first, first + 64, ... (even loads)
+
+
+@nb.njit(cache=True)
+def _solve_lanes(
+    P: np.ndarray,
+    v0: np.ndarray,
+    length: np.ndarray,
+    rtol: float,
+    n_active: np.ndarray,
+    t_max: np.ndarray,
+    max_steps: int,
+    cor: np.ndarray,
+    tc: np.ndarray,
+    nfev: np.ndarray,
+    status: np.ndarray,
+    states: np.ndarray,
+    first: int,
+    stride: int,
+) -> None:
+    """Lanes first, first + stride, ... one after another (compiled on its own, as solve_one is:
+    inside the parallel loop's body the same calls ran about half again as long)."""
+    for k in range(first, P.shape[0], stride):
+        c, t, n, _, s = solve_one(P[k], v0[k], length[k], rtol, n_active[k], t_max[k], max_steps, states[k])
+        cor[k] = c
+        tc[k] = t
+        nfev[k] = n
+        status[k] = s
+
+
 @nb.njit(cache=True, parallel=True)
 def solve_many(
     P: np.ndarray,
@@ -442,10 +545,10 @@ def solve_many(
     status: np.ndarray,
     states: np.ndarray,
 ) -> None:
-    """Solve n collisions in parallel lanes, each with its own steps and event."""
-    for k in nb.prange(P.shape[0]):
-        c, t, n, _, s = solve_one(P[k], v0[k], length[k], rtol, n_active[k], t_max[k], max_steps, states[k])
-        cor[k] = c
-        tc[k] = t
-        nfev[k] = n
-        status[k] = s
+    """Solve n collisions in parallel lanes, each with its own steps and event (in LANE_GROUPS
+    interleaved groups: neighbouring lanes, which cost alike, go to different threads)."""
+    groups = min(P.shape[0], LANE_GROUPS)
+    for g in nb.prange(groups):
+        _solve_lanes(
+            P, v0, length, rtol, n_active, t_max, max_steps, cor, tc, nfev, status, states, g, groups
+        )

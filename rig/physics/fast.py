@@ -16,10 +16,11 @@ solves the compiled kernel. `warm_up` loads the compiled kernel at once.
 
 from __future__ import annotations
 
+import math
 import sys
 from collections.abc import Sequence
 from types import ModuleType
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -34,14 +35,16 @@ MAX_STEPS = 2_000_000
 INTERPRETED_SOLVES = 20  # ~0.3 s of interpreted solves, about what loading the compiled kernel costs
 _COMPILED = "rig.physics._dop853"
 _interpreted_left = INTERPRETED_SOLVES
+_solve_one: Any = None  # the compiled kernel's solve_one, once loaded
 
 
 def compiled() -> ModuleType:
     """The compiled kernel (numba loads here, the first time)."""
-    global _interpreted_left
+    global _interpreted_left, _solve_one
     from rig.physics import _dop853
 
     _interpreted_left = 0
+    _solve_one = _dop853.solve_one  # single solves go straight to it from now on
     return _dop853
 
 
@@ -69,9 +72,12 @@ def kernel_params(imp: Impact) -> np.ndarray:
     body = imp.body_mass
     inv_body = 0.0 if body is None else 1.0 / body
     inv_base = 0.0 if body is None else 1.0 / (p.m2 + body)
-    k2 = 0.0 if imp.rigid else imp.k2
+    hoop = imp.hoop_hz  # checked when the Impact was made
+    rigid = hoop is None
+    k2 = 0.0 if hoop is None else p.m2 * (2.0 * math.pi * hoop) ** 2  # CollisionParams.k2, unchecked again
     return np.array(
-        [p.m1, p.k1, p.c1, p.a, p.b, p.m2, k2, p.c2, inv_body, inv_base, 1.0 if imp.rigid else 0.0]
+        (p.m1, p.k1, p.c1, p.a, p.b, p.m2, k2, p.c2, inv_body, inv_base, 1.0 if rigid else 0.0),
+        dtype=np.float64,
     )
 
 
@@ -84,15 +90,10 @@ def solve(imp: Impact, rtol: float = DEFAULT_RTOL) -> CollisionResult:
     """Solve one collision with the DOP853 kernel (interpreted at first, then compiled: see above)."""
     rtol = check_tolerance(rtol)
     state = np.zeros(6)
-    cor, tc, nfev, _, status = _single().solve_one(
-        kernel_params(imp),
-        imp.speed,
-        imp.params.compression_scale(imp.speed),
-        rtol,
-        imp.n_states,
-        _time_limit(imp),
-        MAX_STEPS,
-        state,
+    scale = imp.params.compression_scale(imp.speed)
+    run = _solve_one if _solve_one is not None else _single().solve_one
+    cor, tc, nfev, _, status = run(
+        kernel_params(imp), imp.speed, scale, rtol, imp.n_states, _time_limit(imp, scale), MAX_STEPS, state
     )
     contacts = 1
     if status == kernel.STATUS_FOLLOW:
@@ -102,17 +103,16 @@ def solve(imp: Impact, rtol: float = DEFAULT_RTOL) -> CollisionResult:
         nfev += more
     elif status != kernel.STATUS_OK:
         raise SolverError(f"{_STATUS_TEXT.get(status, 'unknown failure')} at {_describe(imp, rtol)}")
-    return CollisionResult(
-        cor=bounded_cor(float(cor)),
-        contact_time_s=float(tc),
-        ball_exit_velocity=float(state[1]),
-        final_state=tuple(float(v) for v in state[: imp.n_states])
-        if contacts > 1
-        else tuple(float(v) for v in state),
-        nfev=int(nfev),
-        method="rig-DOP853" if contacts == 1 else "rig-DOP853+scipy-DOP853",
-        rtol=rtol,
-        contacts=int(contacts),
+    return CollisionResult(  # positional: a keyword call of the frozen dataclass costs twice as long
+        bounded_cor(float(cor)),  # cor
+        float(tc),  # contact_time_s
+        float(state[1]),  # ball_exit_velocity
+        tuple((state[: imp.n_states] if contacts > 1 else state).tolist()),  # final_state
+        int(nfev),  # nfev
+        "rig-DOP853" if contacts == 1 else "rig-DOP853+scipy-DOP853",  # method
+        rtol,  # rtol
+        {},  # energy
+        int(contacts),  # contacts
     )
 
 

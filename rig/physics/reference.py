@@ -59,9 +59,14 @@ def contact_time_limit(params: CollisionParams, speed: float, hoop_hz: ArrayLike
     return limit + 20.0 / np.asarray(hoop_hz, dtype=float) * max(1.0, math.sqrt(params.m1 / params.m2))
 
 
-def _time_limit(imp: Impact) -> float:
-    """contact_time_limit of one impact."""
-    return float(contact_time_limit(imp.params, imp.speed, imp.hoop_hz))
+def _time_limit(imp: Impact, scale: float | None = None) -> float:
+    """contact_time_limit of one impact, in plain floats (the same operations, without numpy's
+    per-call cost); `scale`: its compression scale, when already known."""
+    params, speed, hoop = imp.params, imp.speed, imp.hoop_hz
+    limit = 500.0 * (params.compression_scale(speed) if scale is None else scale) / speed
+    if hoop is None:
+        return limit
+    return limit + 20.0 / hoop * max(1.0, math.sqrt(params.m1 / params.m2))
 
 
 def _first_step(imp: Impact, first_step: float | str) -> dict[str, float]:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -28,6 +29,7 @@ from rig.population.calibrate import (
     UNITS,
     VARIANTS,
     Calibration,
+    FitBat,
     model_params,
     predict,
 )
@@ -176,6 +178,7 @@ def calibration_record(
                 "predicted": float(p),
                 "residual": b.measured - float(p),
                 "loo_error": float(e),
+                **bat_geometry(b),
             }
             for b, p, e in zip(cal.bats, predicted, loo, strict=True)
         ],
@@ -193,6 +196,15 @@ def calibration_record(
         },
         "ball": ball,
     }
+
+
+def bat_geometry(bat: FitBat) -> dict[str, float]:
+    """What a screen needs of a calibrated bat besides its hoop frequency (rig.population.screen):
+    its MOI about the pivot and, where known, its length and impact location."""
+    out = {"moi_kgm2": bat.pivoted.moi_kgm2}
+    if math.isfinite(bat.length_in) and math.isfinite(bat.location_in):
+        out |= {"length_in": bat.length_in, "location_in": bat.location_in}
+    return out
 
 
 def write_calibration(record: dict[str, Any], path: str | Path) -> Path:

@@ -22,12 +22,15 @@ from rig.core.errors import RigError
 from rig.core.units import INCH
 from rig.measure.metrics import compute_metrics
 from rig.measure.selection import VariantReport, simplest_within_one_se
-from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat, solve_batch
-from rig.physics.bat import impact_for
+from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat
+from rig.physics.bat_batch import pivoted_cor_batch
+from rig.population.budget import MAX_EVALUATIONS, Budget
 from rig.population.dataset import METRICS, PopulationBat, missing_column
 from rig.population.limits import DEFAULT_LOCATION_IN, MIN_BATS, MIN_HOOP_SPAN_HZ
 from rig.population.model import BALL_MASS_KG, SPEED_M_S
 
+WARM_START_BATS = 100  # above twice this, the first variant starts from its fit to this many bats
+EXACT_LOO_UP_TO = 60  # bats: up to this many, leave-one-out refits each bat (O(n^2), as before)
 MAX_CONDITION = 1e8  # of the column-scaled Jacobian; above it a parameter is not identified
 DIFF_STEP = 1e-5  # relative step of the finite-difference Jacobian
 FIT_RTOL = 1e-9  # the collision solves inside the fit: far below any bat-to-bat scatter
@@ -55,6 +58,8 @@ class FitBat:
     alpha: float
     beta: float
     measured: float
+    length_in: float = math.nan  # the bat's length and where it was struck, kept for the record
+    location_in: float = math.nan
 
 
 def metric_line(metric: str, q: float, moi: float, length_m: float) -> tuple[float, float]:
@@ -89,6 +94,8 @@ def fit_bats(bats: Sequence[PopulationBat], metric: str) -> list[FitBat]:
                 alpha,
                 beta,
                 value,
+                b.length_in,
+                location,
             )
         )
     return out
@@ -112,16 +119,16 @@ def predict_many(
     rtol: float = FIT_RTOL,
     base: CollisionParams = PAPER_BASE,
 ) -> np.ndarray:
-    """The metric predicted for each bat (columns) under each set of values (rows): one batch."""
-    impacts = []
-    for values in sets:
-        params = model_params(values, base)
-        impacts += [impact_for(params, SPEED_M_S, b.hoop_hz, b.pivoted) for b in bats]
-    e_a, _ = solve_batch(impacts, rtol=rtol)
+    """The metric predicted for each bat (columns) under each set of values (rows): one batch per set."""
+    hoops = np.array([b.hoop_hz for b in bats])
+    eff = np.array([b.pivoted.effective_mass for b in bats])
     alpha = np.array([b.alpha for b in bats])
     beta = np.array([b.beta for b in bats])
-    offsets = np.array([[v.get("offset", 0.0)] for v in sets])
-    return alpha + beta * e_a.reshape(len(sets), len(bats)) + offsets
+    out = np.empty((len(sets), len(bats)))
+    for i, values in enumerate(sets):
+        e_a, _ = pivoted_cor_batch(model_params(values, base), SPEED_M_S, hoops, eff, rtol)
+        out[i] = alpha + beta * e_a + values.get("offset", 0.0)
+    return out
 
 
 def predict(
@@ -145,6 +152,8 @@ class Fit:
     scatter: float  # sqrt(SSR / (n - p)): bat-to-bat scatter the model leaves
     residuals: np.ndarray
     condition: float
+    converged: bool = True
+    evaluations: int = 0
 
     def errors(self) -> dict[str, float]:
         """One-sigma uncertainty of each parameter."""
@@ -164,8 +173,13 @@ def fit_variant(
     start: dict[str, float] | None = None,
     covariance: bool = True,
     base: CollisionParams = PAPER_BASE,
+    budget: Budget | None = None,
 ) -> Fit:
-    """Least squares of the measured metric on the model's prediction for one variant."""
+    """Least squares of the measured metric on the model's prediction for one variant.
+
+    Each model evaluation ticks `budget` (CalibrationStopped past its time limit); a fit stops
+    after MAX_EVALUATIONS evaluations, `converged` False.
+    """
     names = VARIANTS[variant]
     measured = np.array([b.measured for b in bats])
     lo = np.array([BOUNDS[n][0] for n in names])
@@ -174,6 +188,8 @@ def fit_variant(
     scale = np.array([max(abs(START[n]), 1e-2) for n in names])
 
     def residuals(x: np.ndarray) -> np.ndarray:
+        if budget is not None:
+            budget.tick()
         return predict(bats, dict(zip(names, x, strict=True)), base=base) - measured
 
     tol = 1e-10 if covariance else 1e-7  # a leave-one-out refit starts at the full fit's optimum
@@ -190,6 +206,7 @@ def fit_variant(
         xtol=tol,
         ftol=tol * 1e-2,
         gtol=tol * 1e-2,
+        max_nfev=MAX_EVALUATIONS,
     )
     values = {n: float(v) for n, v in zip(names, res.x, strict=True)}
     n, p = len(bats), len(names)
@@ -199,17 +216,22 @@ def fit_variant(
     cov = np.full((p, p), np.nan)
     if covariance and math.isfinite(cond) and cond < MAX_CONDITION:
         cov = scatter**2 * np.linalg.inv(J.T @ J) * np.outer(scale, scale)
-    return Fit(variant, names, values, cov, scatter, res.fun.copy(), cond)
+    return Fit(variant, names, values, cov, scatter, res.fun.copy(), cond, int(res.status) > 0, int(res.nfev))
 
 
-def leave_one_out(bats: Sequence[FitBat], full: Fit, base: CollisionParams = PAPER_BASE) -> np.ndarray:
-    """For each bat: its measured value minus the prediction of a fit to the others."""
-    out = np.empty(len(bats))
-    for i in range(len(bats)):
-        rest = [b for j, b in enumerate(bats) if j != i]
-        fit = fit_variant(rest, full.variant, start=full.values, covariance=False, base=base)
-        out[i] = bats[i].measured - float(predict([bats[i]], fit.values, base=base)[0])
-    return out
+def leave_one_out(
+    bats: Sequence[FitBat], full: Fit, base: CollisionParams = PAPER_BASE, budget: Budget | None = None
+) -> np.ndarray:
+    """For each bat: its measured value minus the prediction of a fit to the others.
+
+    Up to EXACT_LOO_UP_TO bats, a refit per bat (the reference, as before); above, the fit to all
+    bats updated per bat (rig.population.loo), linear in the number of bats.
+    """
+    from rig.population import loo  # it builds on this module's fit
+
+    if len(bats) <= EXACT_LOO_UP_TO:
+        return loo.exact_leave_one_out(bats, full, base, budget)
+    return loo.leave_one_out(bats, full, base, budget)
 
 
 def choose(reports: dict[str, VariantReport[Fit]]) -> str:
@@ -262,11 +284,17 @@ def calibrate(
     metric: str = "bbcor",
     variants: Sequence[str] = tuple(VARIANTS),
     base: CollisionParams = PAPER_BASE,
+    budget: Budget | None = None,
 ) -> Calibration:
-    """Fit every variant, score each by leave-one-out prediction error, choose one.
+    """Fit every variant, check the residuals for structure, score each variant by leave-one-out
+    prediction error, choose one.
 
-    `base` gives the ball's constants (m1, k1, c1, a, b: the paper's, or a fitted ball's).
+    `base` gives the ball's constants (m1, k1, c1, a, b: the paper's, or a fitted ball's);
+    `budget` the time limit and the progress sink (CalibrationStopped past the limit).
     """
+    from rig.population.structure import check_structure  # scipy.special: on first use
+
+    budget = budget or Budget()
     rows = fit_bats(bats, metric)
     check_identifiable(rows)
     reports, notes = {}, []
@@ -274,9 +302,25 @@ def calibrate(
     for name in variants:
         # each further variant starts from the first identified one's optimum (its extra parameter
         # neutral), so it fits at least as well in sample and cannot stall in a worse local minimum
-        fit = fit_variant(rows, name, start={**START, **start}, base=base)
+        budget.say(f"fitting {name} to {len(rows)} bats")
+        x0 = {**START, **start}
+        if not start and len(rows) > 2 * WARM_START_BATS:  # the long way from the paper's values on a few
+            every = len(rows) / WARM_START_BATS
+            few = [rows[int(k * every)] for k in range(WARM_START_BATS)]
+            x0.update(fit_variant(few, name, start=x0, covariance=False, base=base, budget=budget).values)
+        fit = fit_variant(rows, name, start=x0, base=base, budget=budget)
         identified = bool(np.all(np.isfinite(fit.covariance)))
         bounded = _at_bounds(rows, fit)
+        budget.say(
+            f"fitted {name}",
+            f"{name}: {fit.evaluations} evaluations, scatter {fit.scatter:.4g}"
+            + ("" if fit.converged else ", not converged")
+            + ("" if identified else ", not identified"),
+        )
+        if not fit.converged:
+            notes.append(f"variant {name}: not converged in {MAX_EVALUATIONS} model evaluations; left out")
+            reports[name] = VariantReport(fit, np.full(len(rows), np.nan), False)
+            continue
         if not identified:
             why = ", ".join(f"{n} = {v:.4g} at its bound" for n, v, _, _ in bounded)
             notes.append(
@@ -290,11 +334,24 @@ def calibrate(
             notes.append(
                 f"variant {name}: {n} = {v:.4g} at its bound ({lo:g}-{hi:.4g}); its sigma is unreliable"
             )
-        reports[name] = VariantReport(fit, leave_one_out(rows, fit, base), True)
-    if not any(r.identified for r in reports.values()):
+        reports[name] = VariantReport(fit, np.full(len(rows), np.nan), True)
+    fitted = [r.fit for r in reports.values() if r.identified]
+    if not fitted:
         first = reports[variants[0]].fit
+        if not first.converged:
+            raise CalibrationRefused(
+                f"no variant converged in {MAX_EVALUATIONS} model evaluations: the model family does not"
+                " settle on these data"
+            )
         raise CalibrationRefused(
             f"singular Jacobian: the data cannot separate {', '.join(first.names)}"
             f" (condition number {first.condition:.3g}); no variant is identified"
         )
+    best = min(fitted, key=lambda f: f.scatter)  # the family's best description of the bats
+    check_structure([b.hoop_hz for b in rows], best.residuals.tolist(), best.variant)
+    for name, report in list(reports.items()):
+        if report.identified:
+            budget.say(f"leave-one-out of {name} on {len(rows)} bats")
+            reports[name] = VariantReport(report.fit, leave_one_out(rows, report.fit, base, budget), True)
+    budget.say("done", f"done: {budget.evaluations} model evaluations")
     return Calibration(metric, tuple(rows), reports, choose(reports), tuple(notes), base)

@@ -27,6 +27,7 @@ import numpy as np
 from rig.core.bat import PIVOT_FROM_KNOB_M
 from rig.core.errors import ConfigError
 from rig.core.units import INCH
+from rig.measure.student import quantile as t_quantile
 from rig.physics import PivotedBat
 from rig.population.calfile import CalibrationFile, calibration_base, covariance_matrix
 from rig.population.calibrate import BOUNDS, FitBat, metric_line, predict_many
@@ -100,9 +101,8 @@ def t_factor(cal: CalibrationFile, coverage: float) -> float:
         raise CrossCheckRefused(f"coverage {coverage:g} must lie between 0 and 1")
     if dof(cal) < 1:
         raise CrossCheckRefused(f"calibration has {dof(cal)} degrees of freedom: no interval")
-    from scipy.stats import t as student_t  # on first use: scipy.stats takes ~1 s to import
-
-    return float(student_t.ppf(0.5 * (1.0 + coverage), dof(cal)))
+    # rig.measure.student, not scipy.stats: importing scipy.stats took half the command's time
+    return t_quantile(0.5 * (1.0 + coverage), dof(cal))
 
 
 def _check_calibration(cal: CalibrationFile) -> None:

@@ -141,7 +141,9 @@ def _hit_rows(
     if len(corrected) != len(corrections):
         corrected = [None] * len(corrections)
     air = any(_is_num(s.get("temperature_c")) for s in hits)
-    name = metric_label(v.get("metric"))
+    name = carried_label(v)
+    bpf = v.get("bpf") if isinstance(v.get("bpf"), dict) else None
+    cor = bpf.get("ball_cor") if bpf else None
     headers = (
         "shot",
         "ball",
@@ -149,6 +151,7 @@ def _hit_rows(
         f"{name} measured",
         "correction",
         f"{name} corrected",
+        *((f"BPF = corrected / ball COR {_num(cor, 4)}",) if bpf else ()),
     )
     rows = tuple(
         (
@@ -159,13 +162,19 @@ def _hit_rows(
                 if air
                 else ()
             ),
-            _num(s.get("metric"), d),
+            _num((s.get("metrics") or {}).get("bbcor") if bpf else s.get("metric"), d),
             _signed(c, d + 1),
-            _num(after, d),
+            _num(after * cor if bpf and _is_num(after) and _is_num(cor) else after, d),
+            *((_num(after, d),) if bpf else ()),
         )
         for s, c, after in zip(hits, corrections, corrected, strict=True)
     )
     return headers, rows, notes
+
+
+def carried_label(v: dict[str, Any]) -> str:
+    """What the ball's corrections and terms are in: the metric, or a BPF's BBCOR (its numerator)."""
+    return "BBCOR (pivoted)" if isinstance(v.get("bpf"), dict) else metric_label(v.get("metric"))
 
 
 def _how(terms: dict[str, Any], measured: str, thing: str) -> str:
@@ -186,6 +195,8 @@ def _budget_rows(terms: dict[str, Any], vb: dict[str, Any], v: dict[str, Any]) -
     rows = [(key.removeprefix("u_"), words, _sig(vb.get(key))) for key, words in what.items() if key in vb]
     if "u" in vb:
         rows.append(("ball", "the ball's terms combined", _sig(vb["u"])))
+    if isinstance(v.get("bpf"), dict):  # BBCOR's terms: the BPF section combines them with the COR's
+        return rows
     if "u_measurement" in vb:
         rows.append(
             (
@@ -223,7 +234,9 @@ def ball_blocks(record: dict[str, Any], decimals: int) -> list[Block]:
         no = "No verdict" if not v else "The verdict has no ball terms"
         out.append(Para(f"{no}: no hit is corrected for its ball and the ball is not in the budget."))
         return out
-    unit = unit_suffix(v.get("metric"))
+    bpf = isinstance(v.get("bpf"), dict)
+    unit = "" if bpf else unit_suffix(v.get("metric"))
+    name = carried_label(v)
     g_text = f"ratio g = d{name}/d(plate COR) = {_sig(vb.get('g'), 4)}{unit}" if "g" in vb else ""
     balls = ", ".join(str(b) for b in vb.get("balls") or []) or "—"
     corrections = [c for c in vb.get("corrections") or [] if _is_num(c)]
@@ -244,4 +257,12 @@ def ball_blocks(record: dict[str, Any], decimals: int) -> list[Block]:
             ("term", "what", f"standard u ({name}{unit and ',' + unit})"), tuple(_budget_rows(terms, vb, v))
         ),
     ]
+    if bpf:
+        out.append(
+            Para(
+                "These terms are the hits' BBCOR's. In the BPF (section Bat performance factor) the spread "
+                "and the ratio stay the hits' own; the wear per hit and the air's sensitivities also move "
+                "the lot's COR, by one value each, so each enters the BPF once, with both offsets."
+            )
+        )
     return out

@@ -18,7 +18,7 @@ from rig.core.errors import RigError
 from rig.core.units import INCH
 from rig.measure import registry
 from rig.measure.metrics import compute_metrics, recorded_terms
-from rig.physics import DEFAULT_PARAMS, PivotedBat, fast
+from rig.physics import DEFAULT_PARAMS, PivotedBat, fast, rigid_cor
 from rig.physics.bat import impact_for
 
 HOOP_RANGE_HZ = (800.0, 8000.0)
@@ -210,9 +210,12 @@ def model_curve(record: dict[str, Any], hoops: np.ndarray) -> tuple[np.ndarray, 
             fitted.get("offset", 0.0),
         )
     pivoted = PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q)
+    entry = registry.find(name)
+    # a BPF's curve: the model ball's BBCOR over the same ball's COR on a rigid wall (as the cross-check)
+    own_cor = rigid_cor(params, v_in) if entry is not None and entry.needs_ball_cor else None
 
     def metric(e_a: float) -> float:
-        value = compute_metrics(v_in, e_a * v_in, q, moi, m_ball, length).as_dict()[name]
+        value = compute_metrics(v_in, e_a * v_in, q, moi, m_ball, length, ball_cor=own_cor).as_dict()[name]
         return float("nan") if value is None else value + offset
 
     try:

@@ -25,6 +25,18 @@ def _num(x: Any, decimals: int) -> str:
     return "—" if not isinstance(x, int | float) else f"{x:.{decimals}f}"
 
 
+def _ball_clause(v: dict[str, Any], ball: dict[str, Any] | None) -> str:
+    """How the ball's terms join the result: added (a metric's), or with the lot's COR (a BPF's, in BBCOR)."""
+    if not ball:
+        return "."
+    if isinstance(v.get("bpf"), dict):
+        return (
+            f", the ball's terms (in BBCOR, u = {_sig(ball.get('u'), 3)}, see Balls) and the lot's COR, "
+            "combined as section Bat performance factor shows."
+        )
+    return f", and the ball's terms, u = {_sig(ball.get('u'), 3)} (see Balls)."
+
+
 def _sig(x: Any, digits: int = 2) -> str:
     return "—" if not isinstance(x, int | float) else f"{x:.{digits}g}"
 
@@ -364,8 +376,7 @@ def budget_blocks(record: dict[str, Any]) -> list[Block]:
             f"Result: u = {_sig(v.get('u'), 3)}, U = {_sig(v.get('U'), 3)} (k = {v.get('coverage_k', 2):g}). "
             f"It combines the model budget below{note}, u = {_sig(scale * out_b.get('u', 0.0), 3)} "
             f"(systematic {_sig(sys_u)}, random {_sig(rnd_u)} for the mean of {budget.get('n_hits', '?')} "
-            "hits), with the hits' observed scatter (docs/measurement.md, section 3)"
-            + (f", and the ball's terms, u = {_sig(ball.get('u'), 3)} (see Balls)." if ball else ".")
+            "hits), with the hits' observed scatter (docs/measurement.md, section 3)" + _ball_clause(v, ball)
         ),
         Table(("input", "what", "u of input", "kind", f"share of u²({name})"), tuple(rows)),
         Para(f"Largest contribution: {lead}. Shared (systematic) inputs are not reduced by more hits."),

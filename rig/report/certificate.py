@@ -24,7 +24,9 @@ from rig.core.bat import PIVOT_FROM_KNOB_IN
 from rig.core.errors import ConfigError
 from rig.core.events import Verdict
 from rig.core.units import INCH, OUNCE
+from rig.report.cert_abi import ABI_PLAN, abi_blocks
 from rig.report.cert_ball import ball_blocks
+from rig.report.cert_bpf import basis_rows, bpf_blocks
 from rig.report.cert_crosscheck import cross_check_blocks
 from rig.report.cert_doc import Banner, Block, Code, Figure, Heading, Para, Table, kv, to_html, to_markdown
 from rig.report.cert_instruments import instrument_blocks
@@ -85,6 +87,8 @@ def own_plan(record: dict[str, Any]) -> list[tuple[str, str]]:
     plan = record.get("plan")
     if not plan:
         return []
+    if plan == ABI_PLAN:
+        return [("plan", f"{plan}: the NCAA accelerated break-in, stage by stage (below)")]
     return [("plan", f"{plan}: a lab's own plan, not the standard procedure's steps (rig.plans)")]
 
 
@@ -117,12 +121,15 @@ def build(record: dict[str, Any], fig: dict[str, Figure]) -> list[Block]:
                 ("run", str(record.get("run_id"))),
                 ("procedure", f"{proc.get('name', '?')} (standard: {proc.get('standard', '?')})"),
                 *_dated(proc),
+                *basis_rows(record),
                 *own_plan(record),
                 ("started (UTC)", str(record.get("started_utc") or "?")),
                 ("record status", str(record.get("status"))),
             ]
         ),
         *verdict_detail_blocks(record),
+        *bpf_blocks(record),
+        *abi_blocks(record),
         *retest_blocks(record),
         Heading("Bat"),
         bat_table(record),

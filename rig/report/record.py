@@ -102,6 +102,8 @@ def _fill(record: dict[str, Any], st: RunState, locks: list[LogEntry]) -> None:
         record["verdict"] = {k: v for k, v in st.verdict.to_payload().items() if k != "cross_check"}
         record["cross_check"] = st.verdict.cross_check
     record["shots"] = [_shot(st.by_index[i]) for i in sorted(st.by_index)]
+    if st.abi:  # an accelerated break-in's compressions, rollings, stages and inspections, in order
+        record["abi"] = [{"kind": n.kind, **n.data, "t_utc": n.t_utc} for n in st.abi]
 
 
 def covered(store: Store, run_id: str, anchor: Anchor | None = None) -> tuple[list[LogEntry], dict[str, Any]]:

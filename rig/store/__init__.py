@@ -24,6 +24,7 @@ from rig.store._schema import SCHEMA_VERSION
 from rig.store._signed import run_seal
 from rig.store._status import SHOWN_STATUSES, shown_status, status_word
 from rig.store._store import DEFAULT_LEASE_S, EntrySpec, Store
+from rig.store._writer import RunWriter
 
 __all__ = [
     "DEFAULT_LEASE_S",
@@ -41,6 +42,7 @@ __all__ = [
     "RunLocked",
     "RunStatus",
     "RunSummary",
+    "RunWriter",
     "Store",
     "StoreDamaged",
     "StoreError",

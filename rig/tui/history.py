@@ -154,7 +154,7 @@ class HistoryScreen(Screen[None]):
                 past = history(store, run.run_id)
                 recorded = recorded_inputs(store, run.run_id)  # a run that never started: its RunCreated's
             procedure, bat = recorded.procedure, recorded.bat
-            config = self.rig.config(bat)
+            config = self.rig.config(bat, procedure)
             job = RunJob(procedure, bat, config, self.rig.label, run_id=run.run_id, rig=self.rig)
         except (RigError, ValueError) as exc:
             self.notify(str(exc), title="Cannot resume", severity="error")

@@ -54,8 +54,12 @@ def prepare_job(
 ) -> RunJob:
     """A new run's job, rehearsed (rig.certification.prepare: the bat's measured hoop, the rig, the
     dry run, the lab file); raises RigError naming every problem, so that the set-up form can show it."""
+
+    def config_for(measured: BatSpec) -> RigConfig:  # a simulated rig loads the procedure's balls
+        return choice.config(measured, procedure)
+
     with Store.open(settings.db, clock=settings.clock) as store:
-        prepared = prepare(store, console_request(procedure, bat, choice.config, tested_by=tested_by))
+        prepared = prepare(store, console_request(procedure, bat, config_for, tested_by=tested_by))
     return RunJob(procedure, prepared.bat, prepared.config, choice.label, rig=choice, prepared=prepared)
 
 

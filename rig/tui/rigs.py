@@ -50,13 +50,16 @@ class RigChoice:
         """A stable id for the selector."""
         return f"{self.kind}:{self.ref}"
 
-    def config(self, bat: BatSpec | None = None) -> RigConfig:
-        """The rig config: a fresh simulated rig (with the bat's true properties), or the file."""
+    def config(self, bat: BatSpec | None = None, procedure: Procedure | None = None) -> RigConfig:
+        """The rig config: a fresh simulated rig (with the bat's true properties, firing the balls
+        `procedure` names, aiming as low as its speed), or the file."""
         with LOADING:
             from rig.core.config import RigConfig
             from rig.session import sim_config
         if self.kind == "sim":
-            return sim_config(self.ref, bat=bat)
+            balls = None if procedure is None else procedure.ball.ball_class
+            speed = None if procedure is None else procedure.target_speed_m_s
+            return sim_config(self.ref, bat=bat, ball_class=balls, speed_m_s=speed)
         return RigConfig.load(self.ref)
 
 

@@ -18,6 +18,7 @@ from rig.simulators.effects.faults_gates import DoubleTriggerConfig, MissedTrigg
 from rig.simulators.effects.faults_link import DroppedReplyConfig, GarbledConfig, UnplugConfig
 from rig.simulators.effects.recoil import RecoilConfig
 from rig.simulators.effects.scatter import SpeedScatterConfig
+from rig.simulators.effects.softening import BarrelSofteningConfig
 from rig.simulators.effects.timing import GateTimingConfig
 from rig.simulators.effects.trampoline import TrampolineConfig
 from rig.simulators.effects.wear import BallWearConfig
@@ -36,7 +37,8 @@ EffectSpec = Annotated[
     | DroppedReplyConfig
     | UnplugConfig
     | MisfireConfig
-    | InterlockConfig,
+    | InterlockConfig
+    | BarrelSofteningConfig,
     Field(discriminator="kind"),
 ]
 
@@ -57,6 +59,7 @@ KINDS: dict[str, type[EffectConfig]] = {
         UnplugConfig,
         MisfireConfig,
         InterlockConfig,
+        BarrelSofteningConfig,
     )
 }
 

@@ -92,6 +92,11 @@ class Trampoline(Effect):
         self.extra_bbcor = self.offset_bbcor + config.alteration_bbcor
         self._cache = SolveCache()
 
+    def set_hoop_hz(self, hoop_hz: float) -> None:
+        """The barrel's hoop frequency changed (rolled in: rig.simulators.effects.softening)."""
+        self.hoop_hz = hoop_hz
+        self._cache = SolveCache()
+
     def barrel(self, params: CollisionParams) -> CollisionParams:
         """The ball's constants (as this shot's ball has them) with the scene's true barrel."""
         c = self.config

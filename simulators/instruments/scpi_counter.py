@@ -11,14 +11,13 @@ from __future__ import annotations
 
 import contextlib
 import random
-import socket
-import threading
 from collections import deque
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from rig.drivers.scpi import counter_codec as codec
 from rig.simulators.effects.timing import GateTiming
+from rig.simulators.instruments.lineserver import LineServer
 from rig.simulators.physics import RoundingTicks, Ticks
 from rig.simulators.records import Crossing
 from rig.simulators.world import SimWorld
@@ -72,9 +71,7 @@ class ScpiCounterTwin:
         self.received: list[str] = []  # every command line, in order (tests read it)
         self._reset()
         self._garbled: set[int] = set()
-        self._server: socket.socket | None = None
-        self._conn: socket.socket | None = None
-        self._conn_lock = threading.Lock()
+        self._server = LineServer(self.handle, "scpi-counter", drops=self._drops)
         self.address = ""
         world.crossing_listeners.append(self._on_crossings)
 
@@ -198,10 +195,7 @@ class ScpiCounterTwin:
     # -- the wire ------------------------------------------------------------------------------------
     def start(self, host: str = "127.0.0.1", port: int = 0) -> str:
         """Listen on `host:port` (0: any free port) in a daemon thread; the VISA resource to open."""
-        server = socket.create_server((host, port))
-        self._server = server
-        self.address = f"TCPIP0::{host}::{server.getsockname()[1]}::SOCKET"
-        threading.Thread(target=self._accept, name="scpi-counter-accept", daemon=True).start()
+        self.address = f"TCPIP0::{host}::{self._server.start(host, port)}::SOCKET"
         return self.address
 
     def device_table(self) -> dict[str, Any]:
@@ -215,62 +209,10 @@ class ScpiCounterTwin:
         """Stop listening and hang up; the world forgets this front end."""
         with contextlib.suppress(ValueError):
             self.world.crossing_listeners.remove(self._on_crossings)
-        if self._server is not None:
-            with contextlib.suppress(OSError):
-                self._server.close()
-        self._hang_up()
+        self._server.close()
 
-    def _hang_up(self, only: socket.socket | None = None) -> None:
-        with self._conn_lock:
-            conn = self._conn
-            if conn is None or (only is not None and conn is not only):
-                return
-            self._conn = None
-        with contextlib.suppress(OSError):
-            conn.shutdown(socket.SHUT_RDWR)
-        with contextlib.suppress(OSError):
-            conn.close()
-
-    def _accept(self) -> None:
-        server = self._server
-        assert server is not None
-        while True:
-            try:
-                conn, _ = server.accept()
-            except OSError:
-                return  # closed
-            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            self._hang_up()  # one client at a time: a new connection replaces the old (a replug)
-            with self._conn_lock:
-                self._conn = conn
-            threading.Thread(target=self._serve, args=(conn,), name="scpi-counter", daemon=True).start()
-
-    def _serve(self, conn: socket.socket) -> None:
-        buffer = b""
-        while True:
-            try:
-                data = conn.recv(4096)
-            except OSError:
-                data = b""
-            if not data:
-                self._hang_up(conn)
-                return
-            buffer += data
-            while b"\n" in buffer:
-                raw, buffer = buffer.split(b"\n", 1)
-                line = raw.decode("ascii", errors="replace").strip()
-                if not line:
-                    continue
-                if self._drops(line):
-                    self._hang_up(conn)
-                    return
-                reply = self.handle(line)
-                if reply is not None:
-                    try:
-                        conn.sendall(reply.encode("ascii") + b"\n")
-                    except OSError:
-                        self._hang_up(conn)
-                        return
+    def _hang_up(self) -> None:
+        self._server.hang_up()
 
     def _drops(self, line: str) -> bool:
         """The drop fault: the connection goes when the shot's FETC? comes."""

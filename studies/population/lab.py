@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import random
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -20,6 +21,7 @@ from rig.core.bat import Barrel
 from rig.core.units import INCH
 from rig.measure.metrics import compute_metrics
 from rig.population.dataset import PopulationBat
+from rig.simulators.effects.trampoline import TrampolineConfig
 from rig.simulators.physics import Collision
 from rig.simulators.scene import Scene
 from studies.population.simulated import SimulatedBat
@@ -30,9 +32,31 @@ SPEED_M_S = 60.8  # the BBCOR inbound speed the calibration predicts at
 SCAN_IN = (5.0, 5.5, 6.0, 6.5, 7.0, 7.5, 8.0, 8.5)
 
 
-def bat_scene(scene: Scene, bat: SimulatedBat) -> Scene:
+@dataclass(frozen=True)
+class Variation:
+    """Bat-to-bat variation of the barrel the one-mode calibration cannot see: each bat's contact
+    stiffness (k1 scale) and hoop mass m2 times 1 + U(-rel, rel), drawn from the scene seed and the
+    bat's id (the same for a bat and its altered twin)."""
+
+    k1_rel: float = 0.0
+    m2_rel: float = 0.0
+
+    def apply(self, scene: Scene, bat_id: str) -> Scene:
+        """The scene with this bat's own k1 scale and m2."""
+        if not (self.k1_rel or self.m2_rel):
+            return scene
+        t = next(e for e in scene.effects if isinstance(e, TrampolineConfig))
+        draw = random.Random(f"{scene.seed}/barrel-variation/{bat_id}")
+        k1 = t.k1_scale * (1.0 + draw.uniform(-self.k1_rel, self.k1_rel))
+        m2 = (t.m2 or scene.ball.m2) * (1.0 + draw.uniform(-self.m2_rel, self.m2_rel))
+        return scene.with_effect("trampoline", k1_scale=k1, m2=m2)
+
+
+def bat_scene(scene: Scene, bat: SimulatedBat, vary: Variation | None = None) -> Scene:
     """The scene with this bat's true properties (true MOI) and its alteration, as a certification has it."""
     s = bat.spec
+    if vary is not None:
+        scene = vary.apply(scene, s.id)
     out = scene.with_bat(
         id=s.id,
         length_m=s.length_m,
@@ -44,10 +68,12 @@ def bat_scene(scene: Scene, bat: SimulatedBat) -> Scene:
     return out.with_alteration(bat.alteration_bbcor) if bat.altered else out
 
 
-def bat_metric(scene: Scene, bat: SimulatedBat, metric: str = "bbcor") -> Callable[[float], float]:
+def bat_metric(
+    scene: Scene, bat: SimulatedBat, metric: str = "bbcor", vary: Variation | None = None
+) -> Callable[[float], float]:
     """The metric the simulated rig's collision gives this bat, as a function of the location from
     the barrel end: the bat's scene and collision effect built once (the effect caches its solves)."""
-    sc = bat_scene(scene, bat)
+    sc = bat_scene(scene, bat, vary)
     slot = [e for e in sc.active_effects() if getattr(e, "slot", None) == "collision"]
     if not slot:
         raise ValueError(f"scene {scene.name!r} has no collision effect: its barrel is rigid")
@@ -85,15 +111,17 @@ def measured_population(
     rng: np.random.Generator,
     metric: str = "bbcor",
     u: float | None = None,
+    vary: Variation | None = None,
 ) -> list[PopulationBat]:
     """Population rows: each bat's true metric plus N(0, noise_sd); u_<metric> = u (else noise_sd).
 
     `location_in` is a location from the barrel end, or a function choosing one from the bat's
-    metric by location (best_scan_location: where the procedure's scan would settle).
+    metric by location (best_scan_location: where the procedure's scan would settle). `vary`
+    gives each bat its own barrel (Variation).
     """
     rows = []
     for bat in bats:
-        at = bat_metric(scene, bat, metric)
+        at = bat_metric(scene, bat, metric, vary)
         loc = location_in(at) if callable(location_in) else location_in
         value = at(loc) + float(rng.normal(0.0, noise_sd))
         rows.append(

@@ -103,3 +103,30 @@ def test_bad_status_is_garbled() -> None:
     script = [(cmd(1, "STATUS"), ok(1, {"LOCK": 1, "POS": 500.0, "MOVING": 0}))]
     with scripted(ClampDriver, script, **KW) as (clamp, _), pytest.raises(GarbledReply, match="DEG"):
         clamp.status()
+
+
+def test_a_clamp_without_an_encoder_waits_for_no_recoil() -> None:
+    """recoil_encoder = false: a RECOIL that cannot come is not waited for (5 s asked, none spent)."""
+    with scripted(ClampDriver, [], recoil_encoder=False, **KW) as (clamp, _):
+        start = time.monotonic()
+        assert clamp.next_recoil(5.0) is None
+        assert time.monotonic() - start < 1.0
+
+
+def test_the_recoil_encoder_option_comes_from_the_rig_config_and_the_scene() -> None:
+    """A scene without the recoil effect configures its clamp without an encoder; one with it (the
+    lab scene), and any config that does not say, with one; a stranger option is refused in one line."""
+    from rig.core.config import RigConfig
+    from rig.core.errors import ConfigError
+    from rig.session import RigSession, sim_config
+
+    assert sim_config("ideal").device("clamp").options == {"recoil_encoder": False}
+    assert sim_config("lab").device("clamp").options == {}
+    with RigSession.open(sim_config("ideal")) as session:
+        assert isinstance(session.clamp, ClampDriver) and session.clamp.recoil_encoder is False
+    with RigSession.open(sim_config("lab")) as session:
+        assert isinstance(session.clamp, ClampDriver) and session.clamp.recoil_encoder is True
+    odd = sim_config("ideal").model_dump()
+    odd["devices"]["clamp"]["options"] = {"encoder": False}
+    with pytest.raises(ConfigError, match=r"\[devices.clamp\] driver does not know option 'encoder'"):
+        RigSession.open(RigConfig.model_validate(odd))

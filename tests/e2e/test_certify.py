@@ -162,7 +162,7 @@ CHILD = textwrap.dedent("""
         if event.kind == kind:
             seen += 1
             if seen == nth:
-                os.kill(os.getpid(), signal.SIGKILL)  # right after the entry was committed
+                os.kill(os.getpid(), signal.SIGKILL)  # right after it was recorded (held or committed)
 
     bat = BatSpec.load(bat_path)
     with Store.open(db) as store:
@@ -197,6 +197,15 @@ def test_killed_run_resumes_without_loss_or_double_fire(tmp_path: Path, kind: st
         assert store.verify().ok
         (run,) = store.open_runs()
         before = store.entries(run.run_id)
+        # a shot's raw record, traffic and outcome are one transaction: all on disk, or none of them
+        for index in {e.payload["index"] for e in before if e.kind == "ShotRequested"}:
+            written = {e.kind for e in before if e.payload.get("index") == index} - {"ShotRequested"}
+            outcomes = written & {"ShotMeasured", "ShotRejected", "ShotLost"}
+            assert not written or len(outcomes) == 1, (index, written)  # no shot half-written
+        if kind in ("ShotFired", "Traffic"):
+            # killed while the shot's entries were held: its intent alone is on disk
+            last = max(e.payload["index"] for e in before if e.kind == "ShotRequested")
+            assert [e.kind for e in before if e.payload.get("index") == last] == ["ShotRequested"]
         bat = BatSpec.load(SAMPLE_BAT)
         out = certify(store, Procedure.load("bbcor"), bat, sim_config("lab", bat=bat), run_id=run.run_id)
         assert out.status == "finished" and out.verdict.verdict in ("PASS", "FAIL")
@@ -210,7 +219,7 @@ def test_killed_run_resumes_without_loss_or_double_fire(tmp_path: Path, kind: st
         assert all(n == 1 for n in requested.values())  # every shot index requested once
         assert all(n == 1 for n in fired.values())  # and fired at most once
         assert set(outcomes) == set(requested) and all(n == 1 for n in outcomes.values())
-        if kind == "ShotRequested":  # killed between the intent and FIRE: marked lost, not re-fired
+        if kind in ("ShotRequested", "ShotFired", "Traffic"):  # killed after the intent: lost, not re-fired
             lost = [e.payload for e in after if e.kind == "ShotLost"]
             assert any(p["index"] == nth for p in lost)
         record = run_record(store, run.run_id)

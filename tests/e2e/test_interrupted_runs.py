@@ -52,8 +52,9 @@ def test_a_run_interrupted_every_way_resumes_to_a_verdict(
     assert code == 3
     run_id = err.split("rig certify --resume ")[1].split()[0]
     # 2-4. SIGINT, SIGTERM and kill -9 to a child resuming it on the lab rig
-    stop_child(db, run_id, "SIGINT", "ShotFired", 2)
-    stop_child(db, run_id, "SIGTERM", "ShotFired", 1)
+    # (each stopped during a shot, after its intent: a shot's raw record is committed with its outcome)
+    stop_child(db, run_id, "SIGINT", "ShotRequested", 2)
+    stop_child(db, run_id, "SIGTERM", "ShotRequested", 1)
     stop_child(db, run_id, "SIGKILL", "ShotRequested", 1)
     # 5. the re-shoot budget, on a cannon that scatters its speed by 5 %
     wild = tmp_path / "wild.toml"

@@ -49,14 +49,15 @@ def _gone(path: Path) -> None:
 def test_a_store_deleted_mid_run_stops_it_with_no_verdict(
     files: dict[str, Path], monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    original = StoreClass.append
+    original = StoreClass.append_many  # a run's entries go in at commit points (rig.store.RunWriter)
 
-    def append(self: Store, run_id: str | None, kind: str, payload: dict[str, Any]) -> Any:
-        if kind == "ShotMeasured" and payload.get("index") == 3:
+    def append_many(self: Store, items: Any) -> Any:
+        items = list(items)
+        if any(kind == "ShotMeasured" and payload.get("index") == 3 for _, kind, payload in items):
             _gone(files["db"])  # `rm d.db d.db-wal d.db-shm` while the run goes on
-        return original(self, run_id, kind, payload)
+        return original(self, items)
 
-    monkeypatch.setattr(StoreClass, "append", append)
+    monkeypatch.setattr(StoreClass, "append_many", append_many)
     code, out, err = certify(files)
     assert code == 2, err
     assert err.strip().splitlines()[-1].startswith("rig: ") and "r.db is gone" in err

@@ -52,7 +52,7 @@ def test_every_builtin_twin_serves_its_own_driver_and_kind() -> None:
     from rig.simulators.instruments.serve import twin_class
 
     with_twins = {name: entry for name, entry in registry.BUILTIN.items() if entry.twin}
-    assert set(with_twins) == {"scpi-counter", "vxm-stage", "modbus-cannon"}
+    assert set(with_twins) == {"scpi-counter", "vxm-stage", "modbus-cannon", "scpi-compression"}
     for name, entry in with_twins.items():
         cls = twin_class(name)
         assert name == cls.DRIVER and cls.KIND in entry.factories

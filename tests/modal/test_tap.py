@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from rig.modal.errors import ClippedSignal, RecordTooShort, TooQuiet
-from rig.modal.tap import analyze_tap
+from rig.modal.tap import SKIP_S, _noise_floor, _windows, analyze_tap
 from rig.modal.wav import read_wav, write_wav
 from tests.unit.clirun import run_cli
 
@@ -174,3 +174,40 @@ def test_two_channel_wav_in_modal_analyze(tmp_path: Path) -> None:
     assert res.hoop is not None
     assert abs(res.hoop.frequency_hz - 1800.0) <= max(res.hoop.expanded_uncertainty_hz, 0.01 * 1800)
     assert any("one response" in w for w in res.warnings)
+
+
+def test_windows_end_before_the_next_tap() -> None:
+    """Each window starts SKIP_S after its tap and ends before the next tap's onset."""
+    onsets = [0, 4800, 9700, 14400, 19300]
+    starts, n, _ = _windows(onsets, 30000, FS, "")
+    assert n == min(np.diff(onsets)) - round(SKIP_S * FS)
+    for start, nxt in zip(starts, onsets[1:], strict=False):
+        assert start + n <= nxt
+
+
+@pytest.mark.parametrize("sigma", [1e-4, 1e-3])
+def test_noise_floor_of_a_ring_that_never_falls_quiet(sigma: float) -> None:
+    """Five tones that never decay: every 5 ms block is loud, yet the floor is the noise's (the
+    unpredictable part), within a factor 2; with quiet between taps it is the quiet's level."""
+    rng = np.random.default_rng(7)
+    t = np.arange(2 * FS) / FS
+    tones = sum(
+        a * np.sin(2 * np.pi * f * t + p)
+        for f, a, p in zip(
+            (310, 905, 1834, 2600, 4100), (0.2, 0.1, 0.3, 0.05, 0.1), rng.uniform(0, 6, 5), strict=True
+        )
+    )
+    x = tones + sigma * rng.standard_normal(t.size)
+    assert sigma / 2 <= _noise_floor(x, FS) <= 2 * sigma
+    quiet = np.where((t % 0.4) < 0.1, x, sigma * rng.standard_normal(t.size))  # rings 0.1 s of 0.4 s
+    assert sigma / 2 <= _noise_floor(quiet, FS) <= 2 * sigma
+
+
+@pytest.mark.parametrize(
+    "x",
+    [np.zeros(4000), np.ones(4000), np.sin(np.arange(4000) * 0.3), np.zeros(8), 1e-300 * np.ones(4000)],
+    ids=["silence", "dc", "pure-tone", "eight-samples", "denormal"],
+)
+def test_noise_floor_of_degenerate_signals_is_finite_and_positive(x: np.ndarray) -> None:
+    floor = _noise_floor(x, 200.0 if x.size < 100 else FS)
+    assert np.isfinite(floor) and floor > 0.0

@@ -31,7 +31,7 @@ from rig.report.record import run_record
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE_BAT = ROOT / "protocols" / "examples" / "sample-bat.toml"
-TERMS = MetricTerms(k=0.021, v_bat=27.4, v_pitch=31.3)
+TERMS = MetricTerms(k=0.021, v_bat=27.4, v_pitch=31.3, ball_cor=0.47)  # a BPF needs the ball COR
 
 TOY = Metric(
     "toy",
@@ -129,10 +129,11 @@ def test_each_metric_formula_its_inverse_and_u_scale_agree(name: str) -> None:
         assert m.e_a_of is not None and m.e_a_of(value, TERMS) == pytest.approx(e_a, abs=1e-12)
     h = 1e-6
     slope = (m.value(0.2 + h, TERMS) - m.value(0.2 - h, TERMS)) / (2 * h)
-    if m.budget_output == "e_a":
-        assert m.scale(TERMS) == pytest.approx(slope, rel=1e-6)
-    else:
-        assert m.budget_output == name and m.scale(TERMS) == 1.0
+    # u_scale = d(metric)/d(budget output) = d(metric)/de_A over d(output)/de_A (BBCOR's is 1 + k)
+    d_output = {"e_a": 1.0, "besr": 1.0, "bbcor": 1.0 + TERMS.k}[m.budget_output]
+    assert m.scale(TERMS) == pytest.approx(slope / d_output, rel=1e-6)
+    if m.budget_output == name:
+        assert m.scale(TERMS) == 1.0
 
 
 @pytest.mark.parametrize("name", registry.cross_checked())
@@ -158,9 +159,13 @@ def test_the_measurement_model_outputs_are_the_registry_formulas() -> None:
 def test_compute_metrics_carries_a_registered_metric_and_definitions_follow() -> None:
     before = compute_metrics(60.8, 12.16, 0.56, 0.19, 0.145, 0.8382).as_dict()
     with registry.registered(TOY):
-        m = compute_metrics(60.8, 12.16, 0.56, 0.19, 0.145, 0.8382)
+        m = compute_metrics(60.8, 12.16, 0.56, 0.19, 0.145, 0.8382, ball_cor=0.47)
         assert m.value("toy") == m.as_dict()["toy"] == pytest.approx(_toy(m.e_a))
         assert set(m.as_dict()) == set(registry.DEFINITIONS)
+        # without the run's ball COR, the metrics divided by it (BPF) are not computed
+        by_ball = {"ball_cor", *(x.name for x in registry.metrics() if x.needs_ball_cor)}
+        plain = compute_metrics(60.8, 12.16, 0.56, 0.19, 0.145, 0.8382).as_dict()
+        assert set(plain) == set(registry.DEFINITIONS) - by_ball and by_ball - {"ball_cor"}
         with pytest.raises(ConfigError, match="taken"):
             registry.register(TOY)
     assert compute_metrics(60.8, 12.16, 0.56, 0.19, 0.145, 0.8382).as_dict() == before

@@ -79,6 +79,9 @@ def test_api_mid_run_error_records_the_interruption_and_resumes(
     update = {
         k: getattr(good, k).model_copy(update=v) if isinstance(v, dict) else v for k, v in change.items()
     }
+    if after_fire:  # the ideal scene's clamp reports no recoil: configured with an encoder, it is waited for
+        clamp = good.device("clamp").model_copy(update={"options": {"recoil_encoder": True}})
+        update["devices"] = good.devices.model_copy(update={"clamp": clamp})
     bad = good.model_copy(update=update)
     with Store.open(tmp_path / "r.db") as store:
         out = certify(store, Procedure.load("bbcor"), bat, bad)

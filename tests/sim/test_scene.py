@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import pytest
@@ -18,7 +19,7 @@ def write(tmp_path: Path, text: str) -> Path:
 
 
 def test_builtins_load_with_their_names() -> None:
-    assert Scene.builtin_names() == ["drag", "faulty", "ideal", "lab"]
+    assert Scene.builtin_names() == ["composite", "drag", "faulty", "ideal", "lab", "softball"]
     assert [e.kind for e in Scene.load("drag").effects] == ["drag"]  # drag only (finding 5)
     ideal, lab, faulty = Scene.load("ideal"), Scene.load("lab"), Scene.load("faulty")
     assert (ideal.name, lab.name, faulty.name) == ("ideal", "lab", "faulty")
@@ -26,6 +27,8 @@ def test_builtins_load_with_their_names() -> None:
     assert {e.kind for e in lab.effects} == {
         "speed_scatter", "gate_timing", "drag", "trampoline", "recoil", "ball_wear", "environment",
     }  # fmt: skip
+    composite = {e.kind for e in Scene.load("composite").effects}
+    assert composite == {e.kind for e in lab.effects} | {"barrel_softening"}  # the lab, and a barrel to roll
     assert {e.kind for e in faulty.effects} >= {
         "misfire", "missed_trigger", "double_trigger", "garbled", "dropped_reply", "unplug", "interlock",
     }  # fmt: skip
@@ -110,7 +113,7 @@ def test_a_disabled_effect_does_not_count_for_its_slot() -> None:
 
 
 def test_unknown_scene_lists_the_builtins() -> None:
-    with pytest.raises(ConfigError, match="built-in scenes: drag, faulty, ideal, lab"):
+    with pytest.raises(ConfigError, match="built-in scenes: composite, drag, faulty, ideal, lab"):
         Scene.load("no-such-scene")
 
 
@@ -141,3 +144,47 @@ def test_a_session_or_a_nearby_hour_is_another_run() -> None:
     assert all(x != y for x, y in zip(_first_draws(lab), _first_draws(again), strict=True))
     near = [lab.with_effect("environment", start_s=s).run_key() for s in (100000.2, 100000.4)]
     assert near[0] != near[1]
+
+
+@pytest.mark.parametrize(
+    ("key", "cor", "diameter_in"), [("44/375", 0.44, 12.0), ("52/300", 0.52, 12.0), ("47/375", 0.47, 11.0)]
+)
+def test_a_softball_class_is_a_ball_of_its_cor_mass_and_size(
+    key: str, cor: float, diameter_in: float
+) -> None:
+    """The class's COR on a rigid wall at 60 mph, solved by a separately written ODE (scipy solve_ivp on
+    Eq. 1 with x2 = 0), its mass and the drag effect's diameter (circumference / pi)."""
+    from scipy.integrate import solve_ivp
+
+    scene = Scene.load("lab").with_ball_class(key)
+    b = scene.ball
+    assert scene.ball_class == key and b.m1 == pytest.approx(0.187)
+    assert b.k1 == pytest.approx(6e7 * int(key[3:]) / 375)
+    v0 = 60 * 0.44704
+
+    def rhs(t: float, y: list[float]) -> list[float]:
+        d, v = y  # compression and its rate (the ball's speed into the wall)
+        f = b.k1 * abs(d) ** (1 + b.a) * (1 if d > 0 else -1) + b.c1 * v * abs(d) ** b.b
+        return [v, -f / b.m1]
+
+    def released(t: float, y: list[float]) -> float:  # the contact force falls to zero
+        d, v = y
+        return b.k1 * abs(d) ** (1 + b.a) + b.c1 * v * abs(d) ** b.b if t > 1e-6 else 1.0
+
+    released.terminal, released.direction = True, -1  # type: ignore[attr-defined]
+    sol = solve_ivp(rhs, (0.0, 0.01), [0.0, v0], events=released, rtol=1e-11, atol=1e-14, method="DOP853")
+    assert -sol.y_events[0][0][1] / v0 == pytest.approx(cor, abs=2e-6)
+    drag = next(e for e in scene.effects if e.kind == "drag")
+    assert drag.ball_diameter_m == pytest.approx(diameter_in * 0.0254 / math.pi)
+
+
+def test_the_softball_scene_fires_44_375_and_an_unknown_class_is_refused_in_one_line() -> None:
+    soft = Scene.load("softball")
+    assert soft.ball_class == "44/375" and soft.ball.m1 == pytest.approx(0.187)
+    assert soft.with_ball_class("47/375").ball.c1 != soft.ball.c1
+    assert (
+        soft.with_ball_class("44/375") is soft and Scene.load("lab").with_ball_class(None).ball_class is None
+    )
+    with pytest.raises(ConfigError, match="no simulated softball of class '40/400'") as caught:
+        Scene.load("lab").with_ball_class("40/400")
+    assert "\n" not in str(caught.value)

@@ -23,6 +23,7 @@ RUNS: dict[str, str] = json.loads((FIXTURES / "log-v1.runs.json").read_text())
 # issue 21 item 6, one word per run state in every output (an ended run, stored 'aborted', is 'ended').
 # The certificates (log-v1.*.md) were regenerated for issue 24 item 4 (the test report's first page,
 # the technical annex, the Instruments section of issue 22); their JSON records are as written.
+# Issue 25 added the annex's basis row (the constraint the BBCOR formula assumes).
 SHOWN_SINCE: dict[tuple[str, str], tuple[tuple[str, str], ...]] = {
     ("ended", "json"): (('"status": "aborted"', '"status": "ended"'),),
 }

@@ -35,6 +35,7 @@ What the conversion does, and nothing else:
 from __future__ import annotations
 
 import argparse
+import gzip
 from pathlib import Path
 
 import numpy as np
@@ -119,14 +120,37 @@ def write(records: list[np.ndarray], out: Path) -> Path:
     return out
 
 
+def write_response(records: list[np.ndarray], out: Path) -> Path:
+    """The uncut records' accelerometer row, joined, as one gzipped CSV column."""
+    accel = np.concatenate([r[2] for r in records])
+    comments = [
+        "Real impact-hammer test (measured, not simulated): the accelerometer of five hits, 25.6 kHz.",
+        f"source: {SOURCE} commit {COMMIT}, data/measurements_1..5.npy, row 2 (acceleration)",
+        "authors: Janko Slavič and the OpenModal project (pyFRF showcase data)",
+        "licence: LGPL-3.0 (the repository's licence at that commit; see README.md beside this file)",
+        "converted by tests/data/modal/convert_pyfrf_impact.py --response (read it for every step)",
+        f"the five uncut 1 s records joined in file order, {FS_HZ:g} samples per second, m/s^2, 4 decimals",
+    ]
+    with gzip.open(out, "wt", encoding="utf-8", newline="\n") as fh:
+        for line in comments:
+            fh.write(f"# {line}\n")
+        fh.write("accel_ms2\n")
+        fh.writelines(f"{a:.4f}\n" for a in accel)
+    return out
+
+
 def main() -> None:
     """Command line: SOURCE_FOLDER OUT.csv."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("folder", type=Path, help="folder holding measurements_1.npy ... measurements_5.npy")
     parser.add_argument("out", type=Path, help="the CSV to write")
+    parser.add_argument("--response", type=Path, help="also write the uncut accelerometer row (.csv.gz)")
     args = parser.parse_args()
-    path = write(load(args.folder), args.out)
-    print(f"wrote {path} ({path.stat().st_size / 1024:.0f} kB)")
+    records = load(args.folder)
+    for path in [write(records, args.out)] + (
+        [write_response(records, args.response)] if args.response else []
+    ):
+        print(f"wrote {path} ({path.stat().st_size / 1024:.0f} kB)")
 
 
 if __name__ == "__main__":

@@ -1,0 +1,89 @@
+"""Calibration is bounded: a population the one-mode model cannot describe is refused with what the
+residuals showed, a time limit stops it with one line, and progress lines go to stderr."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from rig.cli import main
+from rig.population import write_population_csv
+from rig.population.budget import Budget, CalibrationStopped
+from rig.population.calibrate import calibrate
+from rig.population.structure import ModelFamilyRefused, check_structure, hoop_trend, two_modes
+from studies.population.twomode import two_mode_population
+
+
+@pytest.fixture(scope="module")
+def two_mode() -> list:
+    """Half the bats with a second hoop mode at 1.3 x their hoop frequency (solve_ivp, not the kernel)."""
+    return two_mode_population(40, seed=3)
+
+
+def test_a_second_hoop_mode_is_refused_naming_the_two_groups(two_mode: list) -> None:
+    with pytest.raises(ModelFamilyRefused, match="does not describe this population") as err:
+        calibrate(two_mode)
+    assert "bimodal" in str(err.value)
+
+
+def test_one_mode_bats_of_the_same_generator_calibrate() -> None:
+    """The generator's one-mode bats alone (share 0) are described: no refusal, the truth recovered."""
+    cal = calibrate(two_mode_population(30, seed=4, share=0.0), variants=("m2+c2",))
+    assert cal.fit.values["m2"] == pytest.approx(0.24, abs=3 * cal.fit.errors()["m2"])
+
+
+def test_the_checks_see_a_trend_and_two_groups_and_pass_normal_scatter() -> None:
+    rng = np.random.default_rng(0)
+    hoops = rng.uniform(1400.0, 3000.0, 200)
+    with pytest.raises(ModelFamilyRefused, match="trend with hoop frequency"):
+        check_structure(hoops, 0.01 * ((hoops - 2200.0) / 800.0) ** 2 + rng.normal(0, 0.003, 200), "v")
+    groups = np.where(rng.random(200) < 0.3, 0.02, 0.0) + rng.normal(0, 0.004, 200)
+    with pytest.raises(ModelFamilyRefused, match="bimodal"):
+        check_structure(hoops, groups, "v")
+    refused = 0
+    for seed in range(200):  # normal scatter: refused (almost) never
+        r = np.random.default_rng(seed).normal(0, 0.005, 40)
+        try:
+            check_structure(hoops[:40], r, "v")
+        except ModelFamilyRefused:
+            refused += 1
+    assert refused <= 1
+    share, p, _ = hoop_trend(hoops[:40], np.random.default_rng(1).normal(0, 1, 40))
+    assert share < 0.25 and p > 1e-4
+    assert two_modes(np.random.default_rng(2).normal(0, 1, 400))[0] < 3.0
+
+
+def test_a_time_limit_stops_the_calibration_in_one_line(two_mode: list) -> None:
+    with pytest.raises(CalibrationStopped, match=r"time limit of 0.01 s while fitting m2\+c2"):
+        calibrate(two_mode, budget=Budget(max_seconds=0.01))
+
+
+def test_cli_refuses_with_progress_lines(
+    tmp_path: Path, two_mode: list, capsys: pytest.CaptureFixture[str]
+) -> None:
+    data = write_population_csv(two_mode, tmp_path / "two.csv", ("two hoop modes",))
+    code = main(
+        ["model", "calibrate", "--data", str(data), "--output", str(tmp_path / "c.json"), "--progress"]
+    )
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "calibrate [" in err and "fitting m2+c2 to 40 bats" in err
+    last = err.strip().splitlines()[-1]
+    assert "does not describe this population" in last and "bimodal" in last
+    assert not (tmp_path / "c.json").exists()
+    code = main(
+        [
+            "model",
+            "calibrate",
+            "--data",
+            str(data),
+            "--output",
+            str(tmp_path / "c.json"),
+            "--max-seconds",
+            "0.001",
+        ]
+    )
+    err = capsys.readouterr().err
+    assert code == 2 and "--max-seconds allows more" in err and "calibrate [" not in err
