@@ -13,6 +13,7 @@ import os
 import re
 import shutil
 import subprocess
+import unicodedata
 from pathlib import Path
 from typing import Any
 
@@ -109,8 +110,9 @@ def test_the_certificate_prints_to_pdf(certificate: dict[str, Any]) -> None:
 
 
 def _squeezed(text: str) -> str:
-    """Text without whitespace: the PDF's text extraction spaces words as the layout placed them."""
-    return re.sub(r"\s+", "", text)
+    """Text without whitespace and with ligatures undone (NFKC: the printed font may set "ff" as one
+    glyph, U+FB00): the PDF's text extraction spaces words as the layout placed them."""
+    return re.sub(r"\s+", "", unicodedata.normalize("NFKC", text))
 
 
 def test_every_printed_page_carries_the_report_id_its_number_and_the_simulated_mark(

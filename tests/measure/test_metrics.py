@@ -119,8 +119,11 @@ def test_bad_speeds_refused(args: tuple[float, float]) -> None:
 
 
 def test_every_value_has_a_definition_with_formula_and_source() -> None:
-    m = compute_metrics(60.8, 11.0, 0.56, 0.19, 0.145, L34)
+    m = compute_metrics(60.8, 11.0, 0.56, 0.19, 0.145, L34, ball_cor=0.55)
     assert set(m.as_dict()) == set(DEFINITIONS) == set(m.definitions)
+    # without a ball COR the BPF values (and the ball COR itself) are not computed, and nothing else goes
+    bare = compute_metrics(60.8, 11.0, 0.56, 0.19, 0.145, L34)
+    assert set(DEFINITIONS) - set(bare.as_dict()) == {"ball_cor", "usssa_bpf", "fastpitch_bpf"}
     for text in DEFINITIONS.values():
         assert "=" in text and "(" in text
     assert (
