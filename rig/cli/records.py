@@ -48,6 +48,8 @@ def _resume_command(store: Any, run_id: str, args: argparse.Namespace) -> str:
         if args.procedure and args.procedure not in BUILTIN:
             given.insert(0, ("--procedure", args.procedure))
         inputs = "".join(f" {flag} {shlex.quote(str(value))}" for flag, value in given if value)
+    if args.sim and args.bat:  # the simulated bat's truth ([simulated]) is in its file, not the record
+        inputs += f" --bat {shlex.quote(str(args.bat))}"
     return f"rig certify --resume {run_id} {rig}{db}{inputs}"
 
 
@@ -185,6 +187,12 @@ def cmd_certify(args: argparse.Namespace) -> int:
             raise StoreError(f"{exc}{hint}") from None
         finally:
             live.close()
+        if args.resume and args.sim is not None and not args.bat:
+            print(
+                "rig: note: this simulated run was resumed without --bat: the recorded bat's properties "
+                "were its truth (give the bat's file with --bat if it has a [simulated] table)",
+                file=sys.stderr,
+            )
         resume = _resume_command(store, outcome.run_id, args) if outcome.status != "finished" else ""
         if args.json:
             json.dump(run_record(store, outcome.run_id), sys.stdout, indent=2, allow_nan=False)

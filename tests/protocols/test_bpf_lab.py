@@ -10,6 +10,7 @@ import contextlib
 import io
 import json
 import math
+import shlex
 import signal
 from collections import Counter
 from pathlib import Path
@@ -285,6 +286,8 @@ def test_a_bpf_run_stopped_by_sigint_resumes_at_its_positions_and_verifies(lab: 
                 child.kill()
     assert child.returncode == 3 and "rig certify --resume " in err, err
     run_id = err.split("rig certify --resume ")[1].split()[0]
+    printed = shlex.split(err.split("resume with: ")[1].splitlines()[0])
+    assert printed[printed.index("--bat") + 1] == case["bat"]  # the command to resume names the bat's file
     # the record keeps the bat, not the file's [simulated] truth (MOI 0.17): the simulated rig needs
     # the file again, else the simulated bat is another and every recoil disagrees with the MOI measured
     resume = ["certify", "--resume", run_id, "--sim", str(case["scene"]), "--db", lab["db"]]
