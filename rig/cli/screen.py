@@ -119,7 +119,7 @@ def _print(r: Any, taps: Any) -> None:
         f"limit {r.limit:g} ({r.limit_source}): the prediction {exceeds} it;"
         f" the interval {where[r.interval_vs_limit]}"
     )
-    for note in r.notes:
+    for note in (*r.notes, *(taps.warnings if taps is not None else ())):
         console.print(f"note: {note}")
     console.print(CANNOT)
 

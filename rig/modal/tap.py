@@ -1,8 +1,9 @@
 """The hoop frequency from a tap's ping: one channel, no force signal (output-only), several taps.
 
 Steps (docs/screening.md):
-1. checks: clipped (3 samples in a row at the record's extreme, or 4 at it in two places, or two
-   samples at digital full scale), the noise floor, too quiet (the loudest tap less than MIN_SNR_DB
+1. checks: silent (at most SILENT_LEVELS sample values: silence, a constant, dither), clipped (3
+   samples in a row at the record's extreme, or 4 at it in two places, or two samples at digital
+   full scale), the noise floor, too quiet (the loudest tap less than MIN_SNR_DB
    above the floor). The floor is the lesser of two estimates that can only overstate it: the 10th
    percentile of 5 ms blocks' RMS (the quiet between taps) and the robust RMS of what a linear
    predictor of order PREDICTOR_ORDER cannot predict (a ring is predictable, noise is not: taps that
@@ -38,7 +39,7 @@ from rig.modal.errors import ClippedSignal, NoHoopMode, RecordingFormatError, Re
 from rig.modal.frf import FrfEstimate
 from rig.modal.hits import longest_run, runs
 from rig.modal.modes import find_mode_peaks, fit_band, fit_mode
-from rig.modal.output_only import HOOP_MIN_HZ, output_only_kinds
+from rig.modal.output_only import DAMPING_FACTOR, HOOP_MIN_HZ, MIN_AMPLITUDE, output_only_kinds
 from rig.modal.wav import Wav
 
 BLOCK_S = 1e-3
@@ -57,6 +58,9 @@ EXP_END = 0.01
 RESOLUTION_SHARE = 0.1  # as rig.modal.analysis
 COVERAGE_K = 2.0
 FULL_SCALE = 0.9999
+NEAR_RULE = 2.0  # a bending mode above HOOP_MIN_HZ within this times the damping limit is warned of
+SILENT_LEVELS = 3  # a recording of at most this many sample values has no tap (silence, dither)
+SILENT_SCAN = 65536  # samples looked at first (a recording with a tap has more levels in them)
 PEAK_DECADES = 2.0  # peaks of the summed power within this of the highest (amplitude 10 %)
 # [assumed] a room's reverberation, common to every tap, shifts a peak by up to about this share of
 # its half-power bandwidth 2 zeta f (measured on the synthesized room of tests/modal/test_tap.py only)
@@ -128,6 +132,17 @@ class TapResult:
             "snr_db": self.snr_db,
             "warnings": list(self.warnings),
         }
+
+
+def _check_silent(x: np.ndarray, where: str) -> None:
+    """TooQuiet for a recording with no signal at all: a handful of sample values (silence, a constant,
+    a bit of dither) is not a clipped tap, and no tap rings in it."""
+    levels = np.unique(x[: min(x.size, SILENT_SCAN)])
+    if levels.size <= SILENT_LEVELS and np.unique(x).size <= SILENT_LEVELS:
+        raise TooQuiet(
+            f"{where}silent: {np.unique(x).size} distinct sample value(s), no tap recorded: check the"
+            f" microphone, its input and its gain"
+        )
 
 
 def _check_clipped(x: np.ndarray, where: str) -> None:
@@ -213,6 +228,26 @@ def _windows(onsets: list[int], n: int, fs: float, where: str) -> tuple[list[int
     return starts, length, notes
 
 
+def _damped_below_hoop(modes: list[TapMode], hoop_min_hz: float) -> list[str]:
+    """Warnings for modes above `hoop_min_hz` and below the hoop found that the rule (rig.modal.output_only,
+    assumed) called bending though they ring within NEAR_RULE times its damping limit: if the handle
+    was held firmly the hoop rings damped too (and a damped peak is lower), and one may be the hoop."""
+    hoop = next((m for m in modes if m.kind == "hoop"), None)
+    if hoop is None:
+        return []
+    return [
+        f"a mode at {m.frequency_hz:.0f} Hz lies above {hoop_min_hz:.0f} Hz and below the hoop found at"
+        f" {hoop.frequency_hz:.0f} Hz: taken as bending (damping {m.damping_ratio / hoop.damping_ratio:.1f}"
+        f" times the hoop's, peak {m.amplitude:.0%} of the loudest; the assumed rule wants at most"
+        f" {DAMPING_FACTOR:g} times and {MIN_AMPLITUDE:.0%}); if the handle was held firmly it may be the"
+        f" hoop: tap again with the bat hanging loosely"
+        for m in modes
+        if m.kind == "bending"
+        and m.frequency_hz >= hoop_min_hz
+        and m.damping_ratio <= NEAR_RULE * DAMPING_FACTOR * hoop.damping_ratio
+    ]
+
+
 def analyze_tap(wav: Wav, hoop_min_hz: float = HOOP_MIN_HZ) -> TapResult:
     """The first hoop frequency of a one-channel tap recording, with its uncertainty."""
     where = f"{wav.source}: " if wav.source else ""
@@ -223,6 +258,7 @@ def analyze_tap(wav: Wav, hoop_min_hz: float = HOOP_MIN_HZ) -> TapResult:
         )
     x = wav.samples[:, 0] - float(np.median(wav.samples[:, 0]))
     fs = wav.rate_hz
+    _check_silent(wav.samples[:, 0], where)
     _check_clipped(wav.samples[:, 0], where)
     nn = max(round(NOISE_BLOCK_S * fs), 1)
     if x.size < 4 * nn:
@@ -287,6 +323,7 @@ def analyze_tap(wav: Wav, hoop_min_hz: float = HOOP_MIN_HZ) -> TapResult:
                 per_tap,
             )
         )
+    notes.extend(_damped_below_hoop(modes, hoop_min_hz))
     if not any(m.kind == "hoop" for m in modes):
         listed = ", ".join(f"{m.frequency_hz:.0f} Hz (damping {m.damping_ratio:.4f})" for m in modes)
         raise NoHoopMode(

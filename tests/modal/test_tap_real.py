@@ -80,7 +80,10 @@ def test_the_response_is_the_impact_files_accelerometer(response: np.ndarray) ->
 
 
 def test_finds_the_five_taps(tapped: TapResult) -> None:
-    assert len(tapped.tap_times_s) == HITS and not tapped.warnings
+    assert len(tapped.tap_times_s) == HITS
+    # the one warning: a weak (below half the loudest) but lightly damped mode below the hoop picked,
+    # which the assumed rule calls bending; the result says so rather than keep quiet
+    assert [w.split(" lies")[0] for w in tapped.warnings] == ["a mode at 2640 Hz"]
     for k, t in enumerate(tapped.tap_times_s):
         assert k < t < k + 2e-3  # the hits come 0.8 ms after each record's start
     assert tapped.window_s == pytest.approx(0.5)
