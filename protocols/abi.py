@@ -40,6 +40,7 @@ from rig.protocols.plan import (
 from rig.protocols.state import RunState
 from rig.protocols.steps import choose_location, opening, scan, shoot, valid_hits
 
+ROLE = "barrel-compression-tester"  # the equipment register's item an ABI run needs (EQUIPMENT_ROLES)
 INSPECTION = (
     "Inspect the barrel: is it free of damage (no crack, delamination, dent, rattle or loose part)? "
     "n ends the break-in"
@@ -113,6 +114,11 @@ def abi(ctx: PlanContext) -> Plan[RunVerdict | None]:
         yield Problem(
             "the accelerated break-in needs a barrel-compression tester: name one in the rig config "
             "([devices.compression], docs/instruments.md)"
+        )
+    if not any(item.role == ROLE for item in ctx.config.equipment):
+        yield Problem(
+            f"the accelerated break-in needs the role {ROLE} in the rig's equipment register "
+            f"([[equipment]] with role = \"{ROLE}\", its calibration dates; docs/instruments.md)"
         )
     yield from opening(ctx)
     while True:

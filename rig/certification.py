@@ -40,6 +40,7 @@ from rig.protocols.plan import PlanContext
 from rig.protocols.procedure import Procedure
 from rig.protocols.runner import run_to_verdict
 from rig.protocols.state import RunState
+from rig.protocols.steps import plan_name
 from rig.quality.records import rig_quality
 from rig.report.cert_retest import retest_meta
 from rig.request import CertifyRequest, Prepared, Signoff
@@ -209,6 +210,8 @@ def run_prepared(store: Store, prepared: Prepared, *, kind: str | None = None) -
     )
     p = request.procedure
     meta: dict[str, Any] = {"procedure": p.name, "report": prepared.report_meta()}
+    if plan_name(request.plan) is not None:  # a run that never starts is resumed with its plan too
+        meta["plan"] = plan_name(request.plan)
     under = rig_quality(store, config.identity_name()).under if request.run_id is None else None
     if under is not None:
         meta["check_ack"] = under.as_dict()

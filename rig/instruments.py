@@ -95,12 +95,16 @@ BALL_ROLES = (*DEVICE_ROLES, "gate-gauge", "scale", *AIR_ROLES, "compression-tes
 SHOT_ROLES = ("cannon", "gates", "gate-gauge")  # one shot's speeds
 
 
-def roles_for(procedure: Mapping[str, Any] | None) -> tuple[str, ...]:
-    """The equipment roles the result of a run of `procedure` (as a record holds it) depends on:
-    a bat certification's (a `standard`), a ball test's (a `test`), else one shot's."""
+ABI_ROLES = (*BAT_ROLES, "barrel-compression-tester")  # an accelerated break-in: its stages' BC too
+
+
+def roles_for(procedure: Mapping[str, Any] | None, plan: str | None = None) -> tuple[str, ...]:
+    """The equipment roles the result of a run of `procedure` (as a record holds it; `plan`: the
+    plan it recorded) depends on: an accelerated break-in's, a bat certification's (a `standard`),
+    a ball test's (a `test`), else one shot's."""
     procedure = procedure or {}
     if procedure.get("standard"):
-        return BAT_ROLES
+        return ABI_ROLES if plan == ev.ABI_PLAN else BAT_ROLES
     if procedure.get("test"):
         return BALL_ROLES
     return SHOT_ROLES

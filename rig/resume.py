@@ -22,11 +22,13 @@ from rig.store import Store
 
 @dataclass(frozen=True)
 class Recorded:
-    """A run's procedure and bat as recorded; `started`: RunStarted is recorded (else it starts anew)."""
+    """A run's procedure and bat as recorded; `started`: RunStarted is recorded (else it starts anew);
+    `plan`: the plan it records (module.function), None for the standard steps."""
 
     procedure: Procedure
     bat: BatSpec
     started: bool
+    plan: str | None = None
 
 
 def recorded_inputs(store: Store, run_id: str, procedure: Procedure | None = None) -> Recorded:
@@ -40,7 +42,10 @@ def recorded_inputs(store: Store, run_id: str, procedure: Procedure | None = Non
     if started:
         payload = started[0].payload
         return Recorded(
-            Procedure.model_validate(payload["procedure"]), BatSpec.model_validate(payload["bat"]), True
+            Procedure.model_validate(payload["procedure"]),
+            BatSpec.model_validate(payload["bat"]),
+            True,
+            payload.get("plan"),
         )
     created = store.entries(run_id, kinds=["RunCreated"])
     payload = created[0].payload if created else {}
@@ -58,7 +63,8 @@ def recorded_inputs(store: Store, run_id: str, procedure: Procedure | None = Non
     spec = store.bats().get(str(payload.get("bat_id")))
     if spec is None:
         raise ConfigError(f"run {run_id} never started and its bat is not registered", "--resume")
-    return Recorded(chosen, BatSpec.model_validate(spec), False)
+    plan = meta.get("plan")
+    return Recorded(chosen, BatSpec.model_validate(spec), False, plan if isinstance(plan, str) else None)
 
 
 def _builtin(standard: str) -> Procedure | None:

@@ -27,6 +27,7 @@ SAMPLE: tuple[tuple[str, str, str | None, str | None, str], ...] = (
     ("lab hygrometer", "hygrometer", None, "SIM-HY-7", "SIM-CAL-RH"),
     ("lab barometer", "barometer", None, "SIM-BA-3", "SIM-CAL-BARO"),
     ("ball compression tester", "compression-tester", None, "SIM-BC-12", "SIM-CAL-COMP"),
+    ("barrel compression tester", "barrel-compression-tester", None, "SIM-B001", "SIM-CAL-BARREL"),
 )
 
 

@@ -36,6 +36,7 @@ from rig.measure.registry import BUILTIN_PROCEDURES
 def _resume_command(store: Any, run_id: str, args: argparse.Namespace) -> str:
     """`rig certify --resume RUN ...` as the operator types it: the rig and store of this command;
     for a run that never started, also what it starts with (a procedure file, balls, calibration)."""
+    from rig.break_in import ABI
     from rig.core import events as ev
     from rig.protocols.procedure import BUILTIN
 
@@ -45,7 +46,7 @@ def _resume_command(store: Any, run_id: str, args: argparse.Namespace) -> str:
     inputs = ""
     if not store.entries(run_id, kinds=[ev.RUN_STARTED]):
         given = [("--ball-lot", args.ball_lot), ("--ball", args.ball), ("--calibration", args.calibration)]
-        if args.procedure and args.procedure not in BUILTIN:
+        if args.procedure and args.procedure not in (*BUILTIN, ABI):
             given.insert(0, ("--procedure", args.procedure))
         inputs = "".join(f" {flag} {shlex.quote(str(value))}" for flag, value in given if value)
     if args.sim and args.bat:  # the simulated bat's truth ([simulated]) is in its file, not the record
@@ -81,11 +82,13 @@ def _end(args: argparse.Namespace) -> int:
 
 def cmd_certify(args: argparse.Namespace) -> int:
     """rig certify: run a certification procedure on a bat, live, recording everything."""
+    from rig.break_in import load_procedure, recorded_plan
     from rig.certification import RunNotRecorded, prepare, run_prepared
+    from rig.cli.abi_run import run_operator
     from rig.core.bat import BatSpec
     from rig.core.errors import StoreError
-    from rig.protocols.control import RunControl, ScriptedOperator
-    from rig.protocols.procedure import Procedure
+    from rig.protocols.control import RunControl
+    from rig.protocols.abi import abi
     from rig.report.live import LiveConsole
     from rig.report.record import run_record
     from rig.request import CertifyRequest, calibrated
@@ -114,16 +117,19 @@ def cmd_certify(args: argparse.Namespace) -> int:
     accept_overdue = signoff_from(args, "--accept-overdue") if args.accept_overdue else None
     control = RunControl()
     args.create_db = True
-    with stop_on_signals(control), _certify_store(args) as store:
+    with contextlib.ExitStack() as stack:
+        stack.enter_context(stop_on_signals(control))
+        store = stack.enter_context(_certify_store(args))
         ball: dict[str, Any] | None = None  # a resumed run keeps the ball terms it recorded
         started = True
         if args.resume:
             from rig.resume import recorded_inputs
 
             run_id = resolve_run(store, args.resume)
-            given = Procedure.load(args.procedure) if args.procedure else None
+            given = load_procedure(args.procedure)[0] if args.procedure else None
             recorded = recorded_inputs(store, run_id, given)  # never started: what its RunCreated names
             procedure, bat, started = recorded.procedure, recorded.bat, recorded.started
+            plan = recorded_plan(recorded.plan, run_id)  # the plan it was started with (the ABI's)
             if args.bat:  # the same bat's file: a simulated rig takes its [simulated] truth again
                 bat = _same_bat(BatSpec.load(args.bat), bat, args.bat)
             if started and (args.ball_lot or args.ball):
@@ -135,7 +141,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
         else:
             if not args.procedure or not args.bat:
                 raise ConfigError("give --procedure and --bat (or --resume RUN)", source="command line")
-            procedure, bat = Procedure.load(args.procedure), BatSpec.load(args.bat)
+            (procedure, plan), bat = load_procedure(args.procedure), BatSpec.load(args.bat)
             run_id = None
             ball = _ball_terms(store, args, procedure)
         if args.resume and (args.lab or args.operator):
@@ -149,17 +155,22 @@ def cmd_certify(args: argparse.Namespace) -> int:
                 source="command line",
             )
         live = LiveConsole(quiet=args.json)
+        # who answers (an ABI's rollings: a person at a terminal, else the script rolling a simulated barrel)
+        operator, rig_for = stack.enter_context(run_operator(args, store, run_id, plan is abi))
         request = CertifyRequest(
             procedure,
             bat,
             # built once the bat has its measured hoop: a simulated bat takes it as its own
-            lambda measured: calibrated(
-                rig_config(args, bat=measured, session=sim_session(store), procedure=procedure),
-                args.calibration,
-                "command line",
+            lambda measured: rig_for(
+                calibrated(
+                    rig_config(args, bat=measured, session=sim_session(store), procedure=procedure),
+                    args.calibration,
+                    "command line",
+                )
             ),
             run_id=run_id,
-            operator=ScriptedOperator(who="script (--sim or scripted run)"),
+            plan=plan,
+            operator=operator,
             subscribers=(live,),
             control=control,
             rig_checked=rig_checked,
@@ -454,7 +465,15 @@ def add_parsers(sub: Any) -> None:
     """`rig certify|runs|report|verify|tui`, in this order: the everyday tasks lead `rig --help`."""
     p = sub.add_parser("certify", help="certify a bat (BBCOR, BESR, BBS)", description=cmd_certify.__doc__)
     p.add_argument(
-        "--procedure", help=f"{', '.join(n for _, n in BUILTIN_PROCEDURES)}, or a procedure TOML file"
+        "--procedure",
+        help=f"{', '.join(n for _, n in BUILTIN_PROCEDURES)}, abi (the NCAA accelerated break-in of a "
+        "composite bat: BBCOR before and after rolling stages), or a procedure TOML file",
+    )
+    p.add_argument(
+        "--rolled-by",
+        metavar="NAME",
+        help="with --procedure abi: who rolls the barrel (recorded with each rolling; at a terminal the "
+        "default the rolling prompt offers)",
     )
     p.add_argument(
         "--bat",

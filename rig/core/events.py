@@ -487,6 +487,7 @@ BARREL_ROLLED = BarrelRolled.kind
 ABI_STAGE_MEASURED = AbiStageMeasured.kind
 ABI_KINDS = (COMPRESSION_MEASURED, BARREL_ROLLED, ABI_STAGE_MEASURED)
 ABI_DAMAGE_PROMPT = "abi-intact-"  # an ABI stage's inspection prompt: its id, then the stage
+ABI_PLAN = "rig.protocols.abi.abi"  # the accelerated break-in plan's recorded name (RunStarted.plan)
 TRAFFIC = Traffic.kind
 GATE_CROSSED = GateCrossed.kind
 INBOUND_MEASURED = InboundMeasured.kind

@@ -13,7 +13,7 @@ from typing import Any
 from rig.core import events as ev
 from rig.report.cert_doc import Block, Heading, Para, Table
 
-ABI_PLAN = "rig.protocols.abi.abi"  # the plan's recorded name (rig.protocols.steps.plan_name)
+ABI_PLAN = ev.ABI_PLAN  # the plan's recorded name (rig.protocols.steps.plan_name)
 
 
 def _num(x: Any, fmt: str) -> str:

@@ -33,7 +33,7 @@ def instrument_blocks(record: dict[str, Any]) -> list[Block]:
     last = sessions[-1]
     equipment = last.get("equipment") or []
     if any(e.get("role") for e in equipment):  # a register with roles: which items this result used
-        blocks += register_blocks(equipment, roles_for(record.get("procedure")))
+        blocks += register_blocks(equipment, roles_for(record.get("procedure"), record.get("plan")))
     elif equipment:
         blocks.append(
             Table(
