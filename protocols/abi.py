@@ -118,7 +118,7 @@ def abi(ctx: PlanContext) -> Plan[RunVerdict | None]:
     if not any(item.role == ROLE for item in ctx.config.equipment):
         yield Problem(
             f"the accelerated break-in needs the role {ROLE} in the rig's equipment register "
-            f"([[equipment]] with role = \"{ROLE}\", its calibration dates; docs/instruments.md)"
+            f'([[equipment]] with role = "{ROLE}", its calibration dates; docs/instruments.md)'
         )
     yield from opening(ctx)
     while True:

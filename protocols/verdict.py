@@ -348,8 +348,9 @@ def stage_verdict(
     p: Procedure, bat: BatSpec, state: RunState, config: RigConfig, purpose: str, hoop_hz: float | None
 ) -> RunVerdict:
     """The verdict of the valid hits of `purpose` at the chosen location (an accelerated break-in's
-    stage), decided as the run's own, with the cross-check at the stage's hoop frequency."""
+    stage), decided as the run's own, with the cross-check at the stage's hoop frequency (none where
+    it was not measured: the new bat's would predict a barrel that rolling has changed)."""
     hits = [replace(s, purpose="valid") for s in state.shots if s.purpose == purpose]
     view = replace(state, shots=hits)
-    stage_bat = bat if hoop_hz is None else bat.model_copy(update={"hoop_hz": hoop_hz})
+    stage_bat = bat.model_copy(update={"hoop_hz": hoop_hz})
     return verdict(p, stage_bat, view, config)

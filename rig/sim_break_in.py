@@ -1,9 +1,11 @@
 """The simulated break-in bench: the barrel-compression tester's twin on a simulated rig's world, and
-the hands that roll that world's barrel as a run's rollings say.
+the hands that roll that world's barrel as a run's rollings say and tap it after.
 
 `rig certify --procedure abi --sim composite` runs the tester's twin (rig.simulators.instruments.
 compression_tester) on a port of 127.0.0.1 for the run, through the real driver, and rolls the
-simulated barrel as each rolling is reported. A resumed run rolls the new world's barrel by the
+simulated barrel as each rolling is reported; then it taps the barrel (a ping synthesized at the
+world's hoop frequency, rig.simulators.tap) and finds the hoop frequency with its u by the tap
+analysis (rig.modal.tap), as an operator with a phone would. A resumed run rolls the new world's barrel by the
 rollings its record holds first, so that its stages squeeze and shoot the barrel they left.
 """
 
@@ -14,6 +16,9 @@ from urllib.parse import parse_qs, urlsplit
 
 from rig.core.config import DeviceSpec, RigConfig
 from rig.core.errors import ConfigError
+from rig.modal.tap import analyze_tap
+from rig.modal.wav import Wav
+from rig.simulators import tap
 from rig.simulators.instruments.compression_tester import CompressionTesterTwin
 from rig.simulators.urlhandler import get_world
 from rig.simulators.urlhandler.registry import world_for
@@ -61,11 +66,15 @@ class SimBreakIn:
         devices = config.devices.model_copy(update={"compression": DeviceSpec(**self.twin.device_table())})
         return config.model_copy(update={"devices": devices})
 
-    def roll(self, depth_in: float, passes: int) -> None:
-        """Roll the simulated barrel as reported."""
+    def roll(self, depth_in: float, passes: int) -> tuple[float, float]:
+        """Roll the simulated barrel as reported, tap it: its hoop frequency and u found, Hz."""
         if self.world is None:
             raise RuntimeError("the bench has no world yet: attach it to the run's rig config first")
-        self.world.roll(depth_in, passes)
+        hoop = self.world.roll(depth_in, passes)
+        self.rolled.append((depth_in, passes))
+        samples = tap.ping(hoop, seed=len(self.rolled))[:, None]
+        found = analyze_tap(Wav(samples, float(tap.RATE_HZ), 16, False, "simulated tap")).hoop
+        return found.frequency_hz, found.u_hz
 
     def close(self) -> None:
         """Stop the twin."""

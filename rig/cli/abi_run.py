@@ -45,7 +45,9 @@ def run_operator(
         if rolled_by is not None:
             from rig.core.errors import ConfigError
 
-            raise ConfigError("--rolled-by goes with an accelerated break-in (--procedure abi)", "--rolled-by")
+            raise ConfigError(
+                "--rolled-by goes with an accelerated break-in (--procedure abi)", "--rolled-by"
+            )
         yield ScriptedOperator(who=SCRIPT_WHO), _same
         return
     if args.sim is not None:

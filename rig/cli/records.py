@@ -87,8 +87,8 @@ def cmd_certify(args: argparse.Namespace) -> int:
     from rig.cli.abi_run import run_operator
     from rig.core.bat import BatSpec
     from rig.core.errors import StoreError
-    from rig.protocols.control import RunControl
     from rig.protocols.abi import abi
+    from rig.protocols.control import RunControl
     from rig.report.live import LiveConsole
     from rig.report.record import run_record
     from rig.request import CertifyRequest, calibrated

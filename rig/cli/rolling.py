@@ -6,7 +6,7 @@ was tapped after, its hoop frequency (Hz; blank: not tapped); then, after each s
 inspection (y/n). A bad answer gets one line saying why and the question again; an empty answer
 takes the default shown in brackets (what the plan asked for). In a scripted or simulated run the
 script reports what the plan asked for, recorded as given by a script (`hands`: the simulated
-barrel is rolled so).
+barrel is rolled so, and tapped: rig.sim_break_in).
 """
 
 from __future__ import annotations
@@ -141,7 +141,9 @@ class TerminalRoller:
         depth = ask_until("Depth rolled, in", parse_depth, self.read, self.say, f"{depth_in:g}")
         done = ask_until("Passes", parse_passes, self.read, self.say, str(passes))
         who = ask_until("Rolled by", parse_who, self.read, self.say, self.rolled_by)
-        hoop = ask_until("Hoop frequency tapped after, Hz (blank: not tapped)", parse_hoop, self.read, self.say)
+        hoop = ask_until(
+            "Hoop frequency tapped after, Hz (blank: not tapped)", parse_hoop, self.read, self.say
+        )
         return Rolling(depth, done, who, ASKED, hoop)
 
 
@@ -151,10 +153,12 @@ class ScriptedRoller(ScriptedOperator):
     reported as the plan asked (by `rolled_by`, else the script), `hands` rolling the simulated barrel."""
 
     rolled_by: str | None = None
-    hands: Callable[[float, int], None] | None = None
+    hands: Callable[[float, int], tuple[float, float]] | None = None
 
     def roll(self, prompt_id: str, text: str, depth_in: float, passes: int) -> Rolling:
-        """Roll as asked (the simulated barrel, if any) and report it, given by the script."""
-        if self.hands is not None:
-            self.hands(depth_in, passes)
-        return Rolling(depth_in, passes, self.rolled_by or self.who, SCRIPT)
+        """Roll as asked and report it, given by the script; on a simulated barrel, with the hoop
+        frequency (and u) its tap after the rolling found."""
+        if self.hands is None:
+            return Rolling(depth_in, passes, self.rolled_by or "script", SCRIPT)
+        hoop, u = self.hands(depth_in, passes)
+        return Rolling(depth_in, passes, self.rolled_by or "script", SCRIPT, hoop, u)

@@ -222,7 +222,7 @@ EQUIPMENT_ROLES: dict[str, str] = {
     "hygrometer": "the lab's relative humidity",
     "barometer": "the lab's air pressure (the drag correction)",
     "compression-tester": "the ball compression tester (ASTM F1888, the ball lot's qualification)",
-    "barrel-compression-tester": "the barrel-compression tester (accelerated break-in: force at a fixed squeeze)",
+    "barrel-compression-tester": "the barrel-compression tester (accelerated break-in, at a fixed squeeze)",
 }
 Role = Literal[
     "cannon",

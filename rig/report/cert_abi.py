@@ -20,6 +20,11 @@ def _num(x: Any, fmt: str) -> str:
     return "-" if not isinstance(x, int | float) or isinstance(x, bool) else format(x, fmt)
 
 
+def _how(rolling: dict[str, Any]) -> str:
+    """How a rolling was reported: by a person answering the prompt, or by a script."""
+    return "script" if rolling.get("given") == ev.BY_SCRIPT else "prompt"
+
+
 def stage_rows(entries: list[dict[str, Any]]) -> list[tuple[str, ...]]:
     """One row per measured stage, from the record's ABI entries in order."""
     forces = [e["force_lbf"] for e in entries if e["kind"] == ev.COMPRESSION_MEASURED]
@@ -32,7 +37,9 @@ def stage_rows(entries: list[dict[str, Any]]) -> list[tuple[str, ...]]:
         result = next(e for e in own if e["kind"] == ev.ABI_STAGE_MEASURED)
         verdict, cc = result["result"], result["result"].get("cross_check") or {}
         drop = "-" if not bc or not new else f"{100 * (1 - bc[-1] / new):.1f}"
-        rolling = "; ".join(f"{r['depth_in']:g} in x {r['passes']} ({r.get('who') or '?'})" for r in rolled)
+        rolling = "; ".join(
+            f"{r['depth_in']:g} in x {r['passes']} ({r.get('who') or '?'}, {_how(r)})" for r in rolled
+        )
         predicted = _num(cc.get("predicted"), ".4f")
         if cc.get("interval"):
             lo, hi = cc["interval"]
@@ -63,6 +70,8 @@ def abi_blocks(record: dict[str, Any]) -> list[Block]:
     verdict = record.get("verdict") or {}
     inspections = [e for e in entries if e["kind"] == ev.OPERATOR_ANSWERED]
     damaged = [e for e in inspections if not e.get("answer")]
+    rollings = [e for e in entries if e["kind"] == ev.BARREL_ROLLED]
+    scripted = sum(_how(e) == "script" for e in rollings)
     return [
         Heading("Accelerated break-in (NCAA, 2009)"),
         Para(
@@ -77,7 +86,7 @@ def abi_blocks(record: dict[str, Any]) -> list[Block]:
                 "stage",
                 "BC start -> end (lbf)",
                 "BC drop from new (%)",
-                "rolling (depth x passes, who)",
+                "rolling (depth x passes, who, reported at)",
                 "hoop (Hz)",
                 "BBCOR",
                 "U",
@@ -85,6 +94,11 @@ def abi_blocks(record: dict[str, Any]) -> list[Block]:
                 "stage verdict",
             ),
             tuple(stage_rows(entries)),
+        ),
+        Para(
+            f"Rolling reports: {len(rollings) - scripted} answered at the prompt by a person, {scripted} "
+            "given by a script (the rolling the plan asked for, taken as done: a simulated or scripted "
+            "run; a simulated run's hoop frequency is its simulated barrel's tap)."
         ),
         Para(
             f"Inspections: {len(inspections)}, damage reported in "

@@ -38,9 +38,10 @@ class LiveConsole:
             )
             cc = v.cross_check or {}
             if cc.get("predicted") is not None:
-                out.print(
-                    f"  model at {cc['hoop_hz'] or 'rigid'} Hz predicts {cc['predicted']:.4f}: {cc['note']}"
-                )
+                hoop = f"{cc['hoop_hz']:.0f}" if cc.get("hoop_hz") else "rigid"
+                out.print(f"  model at {hoop} Hz predicts {cc['predicted']:.4f}: {cc['note']}")
+            if (v.reason or "").startswith("after accelerated break-in"):
+                out.print(f"  {v.reason}")
         elif v.reason:
             out.print(f"  {v.reason}")
 
@@ -97,6 +98,18 @@ def _line(e: RunEvent) -> str | None:
             return f"scan extended to {e.from_barrel_end_in:g} in: {e.reason}"
         case ev.RigChecked():
             return f"rig checked by {e.who}: {e.why} (re-shoot budget starts again)"
+        case ev.CompressionMeasured():
+            return (
+                f"barrel compression at {e.location_in:g} in: {e.force_lbf:.1f} lbf at "
+                f"{e.displacement_in:.3f} in (stage {e.stage})"
+            )
+        case ev.BarrelRolled():
+            how = "by script" if e.given == ev.BY_SCRIPT else "answered at the prompt"
+            hoop = "" if e.hoop_hz is None else f"; hoop {e.hoop_hz:.0f} Hz"
+            return escape(f"rolled {e.depth_in:g} in x {e.passes} by {e.who} ({how}){hoop}")
+        case ev.AbiStageMeasured():
+            r = e.result
+            return f"stage {e.stage}: {r['metric']} {r['mean']:.4f} +- {r['U']:.4f}: {r['verdict']}"
         case ev.RunInterrupted():
             return f"[red]interrupted[/]: {e.reason}"
         case ev.RunFinished() if e.result.mean is not None:
