@@ -371,6 +371,10 @@ def cmd_tui(args: argparse.Namespace) -> int:
 
     if args.sim is None and not args.config:
         raise ConfigError("give --sim [SCENE] or --config RIG.toml", source="command line")
+    if args.procedure == "abi":  # refused before the console starts: one line (rig.tui.jobs)
+        from rig.tui.jobs import refuse_break_in
+
+        refuse_break_in(args.procedure)
     settings = ConsoleSettings.from_args(
         args.sim, args.config, args.db or default_db(), bat=args.bat or "", procedure=args.procedure or ""
     )

@@ -59,7 +59,8 @@ def cmd_sim_serve(args: argparse.Namespace) -> int:
     """rig sim serve: expose the simulated devices on ptys or TCP ports until interrupted.
 
     With --instruments each device is served by the twin of a real instrument class at its own
-    wire level (a SCPI counter, a Modbus PLC, a VXM stage with its swing sensor), and --write-config
+    wire level (a SCPI counter, a Modbus PLC, a VXM stage with its swing sensor; a scene whose barrel
+    rolling softens, such as composite, also its barrel-compression tester), and --write-config
     writes the rig config that names their drivers.
 
     The physics is loaded and one dummy shot fired before the ports are printed, so that the first
@@ -151,7 +152,8 @@ def add_parsers(sub: Any) -> None:
     p.add_argument(
         "--instruments",
         action="store_true",
-        help="serve the devices through real-instrument twins (SCPI counter, Modbus PLC, VXM stage) on TCP",
+        help="serve the devices through real-instrument twins (SCPI counter, Modbus PLC, VXM stage) on TCP; "
+        "a scene whose barrel softens (composite) also serves the barrel-compression tester",
     )
     p.add_argument(
         "--write-config",

@@ -30,11 +30,14 @@ def stage_rows(entries: list[dict[str, Any]]) -> list[tuple[str, ...]]:
     forces = [e["force_lbf"] for e in entries if e["kind"] == ev.COMPRESSION_MEASURED]
     new = forces[0] if forces else None
     rows: list[tuple[str, ...]] = []
-    for stage in sorted({e["stage"] for e in entries if e["kind"] == ev.ABI_STAGE_MEASURED}):
+    for stage in sorted({e["stage"] for e in entries if e["kind"] in ev.ABI_KINDS}):
         own = [e for e in entries if e.get("stage") == stage]
         bc = [e["force_lbf"] for e in own if e["kind"] == ev.COMPRESSION_MEASURED]
         rolled = [e for e in own if e["kind"] == ev.BARREL_ROLLED]
-        result = next(e for e in own if e["kind"] == ev.ABI_STAGE_MEASURED)
+        # a stage the break-in ended in before its BBCOR (too many steps, an interruption): its rolling
+        result = next((e for e in own if e["kind"] == ev.ABI_STAGE_MEASURED), {"result": {}})
+        if "hoop_hz" not in result and rolled:
+            result = {**result, "hoop_hz": rolled[-1].get("hoop_hz")}
         verdict, cc = result["result"], result["result"].get("cross_check") or {}
         drop = "-" if not bc or not new else f"{100 * (1 - bc[-1] / new):.1f}"
         rolling = "; ".join(
@@ -56,7 +59,7 @@ def stage_rows(entries: list[dict[str, Any]]) -> list[tuple[str, ...]]:
                 _num(verdict.get("mean"), ".4f"),
                 _num(verdict.get("U"), ".4f"),
                 predicted,
-                str(verdict.get("verdict", "?")),
+                str(verdict.get("verdict", "not measured")),
             )
         )
     return rows

@@ -11,7 +11,8 @@ from dataclasses import dataclass
 from rig.certification import Outcome, prepare, run_prepared
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
-from rig.core.errors import RigError
+from rig.core import events as ev
+from rig.core.errors import ConfigError, RigError
 from rig.core.events import Subscriber
 from rig.protocols.control import RunControl
 from rig.protocols.evaluate import cross_check, run_calibration
@@ -20,6 +21,30 @@ from rig.request import CertifyRequest, ConfigFor, Prepared
 from rig.store import Store
 from rig.tui.operator import ConsoleOperator
 from rig.tui.rigs import ConsoleSettings, RigChoice, RunJob
+
+BREAK_IN = "abi"  # rig.break_in.ABI: the name `rig certify --procedure` takes
+
+
+NO_BREAK_IN = (
+    "the console cannot run the accelerated break-in (abi) yet: it has no rolling prompts; run it with "
+    "rig certify --procedure abi, and resume it with rig certify --resume RUN"
+)
+
+
+def refuse_break_in(procedure: str) -> None:
+    """ConfigError (one line) for the accelerated break-in, which the console cannot run yet."""
+    if procedure == BREAK_IN:
+        raise ConfigError(NO_BREAK_IN, source="procedure")
+
+
+def _refuse_break_in_run(store: Store, run_id: str) -> None:
+    """ConfigError (one line) for resuming a run the accelerated break-in's plan started."""
+    started = store.entries(run_id, kinds=[ev.RUN_STARTED])
+    created = store.entries(run_id, kinds=["RunCreated"])
+    meta = created[0].payload.get("meta") if created else None
+    plan = started[0].payload.get("plan") if started else (meta or {}).get("plan")
+    if plan == ev.ABI_PLAN:
+        raise ConfigError(NO_BREAK_IN, source="resume")
 
 
 @dataclass(frozen=True)
@@ -67,6 +92,8 @@ def _prepared(store: Store, job: RunJob) -> Prepared:
     """The job's rehearsal: the set-up's for the new run it was made for, else one made now (a resume)."""
     if job.prepared is not None and job.prepared.request.run_id == job.run_id:
         return job.prepared
+    if job.run_id is not None:
+        _refuse_break_in_run(store, job.run_id)
     return prepare(store, console_request(job.procedure, job.bat, job.config, job.run_id))
 
 

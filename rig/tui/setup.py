@@ -270,10 +270,12 @@ class SetupScreen(Screen[None]):
         """The run the form describes, rehearsed; raises RigError (with the field) when something is wrong."""
         with LOADING:  # loaded at the first start (or by the warm-up), not before the first paint
             from rig.protocols.procedure import Procedure
-            from rig.tui.jobs import prepare_job
+            from rig.tui.jobs import prepare_job, refuse_break_in
 
+        chosen = str(self.query_one("#procedure", Select).value)
+        refuse_break_in(chosen)  # its rolling prompts are not in the console yet
         bat = self.bat_from_form()
-        procedure = Procedure.load(str(self.query_one("#procedure", Select).value))
+        procedure = Procedure.load(chosen)
         tested_by = self.query_one("#operator", Input).value.strip() or None
         return prepare_job(self.settings, procedure, bat, self.rig, tested_by)
 

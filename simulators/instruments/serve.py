@@ -2,7 +2,8 @@
 
 Each device of one SimWorld is served by the twin of an instrument class at its own wire level on a
 TCP port of 127.0.0.1: the gates by a SCPI counter, the clamp by a VXM stage and its swing sensor,
-the cannon by a Modbus PLC. The rig config that names the three drivers (and marks each device
+the cannon by a Modbus PLC; a scene whose barrel rolling softens (composite) also has its
+barrel-compression tester served (rig.simulators.instruments.compression_tester). The rig config that names the three drivers (and marks each device
 simulated) is printed as `<device> <driver> <address>` lines and, if asked, written as a TOML file
 that `rig certify --config` reads.
 """
@@ -10,6 +11,7 @@ that `rig certify --config` reads.
 from __future__ import annotations
 
 import importlib
+from datetime import UTC, date, datetime
 import threading
 from collections.abc import Mapping
 from pathlib import Path
@@ -19,11 +21,13 @@ from rig.core.config import DEVICE_KINDS
 from rig.core.errors import ConfigError
 from rig.core.tomlfile import dump_toml
 from rig.drivers.registry import BUILTIN
+from rig.simulators.register import sample_register
 from rig.simulators.scene import Scene
 from rig.simulators.warmup import warm_up
 from rig.simulators.world import SimWorld
 
 PORTS = 1  # ports a twin takes unless its class says otherwise (the stage and its sensor: 2)
+BREAK_IN_DRIVER = "scpi-compression"  # the barrel-compression tester served beside a softening barrel
 
 
 class Twin(Protocol):
@@ -88,6 +92,8 @@ def start_twins(
     form (SERIAL = True: the PLC on Modbus RTU, the stage and sensor) serves it on ptys; stop them
     all if one fails."""
     classes = [twin_class(driver) for driver in twin_drivers(chosen).values()]
+    if world.barrel is not None:  # a barrel that rolling softens: the break-in's compression tester too
+        classes.append(twin_class(BREAK_IN_DRIVER))
     needed = sum(int(getattr(cls, "PORTS", PORTS)) for cls in classes)
     if base_port and base_port + needed - 1 > 65535:
         raise ConfigError(f"--base-port {base_port}: the twins need {needed} ports from it, past 65535")
@@ -109,13 +115,19 @@ def start_twins(
 
 def rig_config(scene: Scene, twins: list[Twin]) -> dict[str, Any]:
     """The rig config that runs `scene` through `twins`: their drivers, addresses and options, the
-    scene's gate positions and aim table; the rig is named sim-<scene>-instruments."""
-    return {
+    scene's gate positions and aim table; the rig is named sim-<scene>-instruments. With the
+    barrel-compression tester (an accelerated break-in's), the sample equipment register too: an ABI
+    run needs its barrel-compression-tester role (rig.simulators.register)."""
+    config: dict[str, Any] = {
         "name": f"simulated rig through instrument twins ({scene.name})",
         "identity": {"name": f"sim-{scene.name}-instruments"},
         "devices": {twin.KIND: twin.device_table() for twin in twins},
         **scene.rig_config_fragment(),
     }
+    if "compression" in config["devices"]:
+        register = sample_register(datetime.now(UTC).date())  # dates as TOML text: YYYY-MM-DD
+        config["equipment"] = [{k: str(v) if isinstance(v, date) else v for k, v in e.items()} for e in register]
+    return config
 
 
 def serve_instruments(
