@@ -9,9 +9,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from rig.certification import Outcome, prepare, run_prepared
+from rig.core import events as ev
 from rig.core.bat import BatSpec
 from rig.core.config import RigConfig
-from rig.core import events as ev
 from rig.core.errors import ConfigError, RigError
 from rig.core.events import Subscriber
 from rig.protocols.control import RunControl

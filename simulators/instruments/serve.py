@@ -3,17 +3,17 @@
 Each device of one SimWorld is served by the twin of an instrument class at its own wire level on a
 TCP port of 127.0.0.1: the gates by a SCPI counter, the clamp by a VXM stage and its swing sensor,
 the cannon by a Modbus PLC; a scene whose barrel rolling softens (composite) also has its
-barrel-compression tester served (rig.simulators.instruments.compression_tester). The rig config that names the three drivers (and marks each device
-simulated) is printed as `<device> <driver> <address>` lines and, if asked, written as a TOML file
-that `rig certify --config` reads.
+barrel-compression tester served (rig.simulators.instruments.compression_tester). The rig config
+that names their drivers (and marks each device simulated) is printed as `<device> <driver>
+<address>` lines and, if asked, written as a TOML file that `rig certify --config` reads.
 """
 
 from __future__ import annotations
 
 import importlib
-from datetime import UTC, date, datetime
 import threading
 from collections.abc import Mapping
+from datetime import UTC, date, datetime
 from pathlib import Path
 from typing import Any, Protocol, TextIO
 
@@ -126,7 +126,9 @@ def rig_config(scene: Scene, twins: list[Twin]) -> dict[str, Any]:
     }
     if "compression" in config["devices"]:
         register = sample_register(datetime.now(UTC).date())  # dates as TOML text: YYYY-MM-DD
-        config["equipment"] = [{k: str(v) if isinstance(v, date) else v for k, v in e.items()} for e in register]
+        config["equipment"] = [
+            {k: str(v) if isinstance(v, date) else v for k, v in item.items()} for item in register
+        ]
     return config
 
 
