@@ -35,7 +35,7 @@ def stage_rows(entries: list[dict[str, Any]]) -> list[tuple[str, ...]]:
         bc = [e["force_lbf"] for e in own if e["kind"] == ev.COMPRESSION_MEASURED]
         rolled = [e for e in own if e["kind"] == ev.BARREL_ROLLED]
         # a stage the break-in ended in before its BBCOR (too many steps, an interruption): its rolling
-        result = next((e for e in own if e["kind"] == ev.ABI_STAGE_MEASURED), {"result": {}})
+        result: dict[str, Any] = next((e for e in own if e["kind"] == ev.ABI_STAGE_MEASURED), {"result": {}})
         if "hoop_hz" not in result and rolled:
             result = {**result, "hoop_hz": rolled[-1].get("hoop_hz")}
         verdict, cc = result["result"], result["result"].get("cross_check") or {}
