@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
 import sqlite3
 import subprocess
 import sys
@@ -55,3 +56,27 @@ def wait_count(db: Path, kind: str, n: int, proc: subprocess.Popen[str], timeout
         assert proc.poll() is None, f"the child ended before {n} {kind}: {proc.communicate()}"
         assert time.monotonic() < deadline, f"no {n} {kind} in {timeout_s} s"
         time.sleep(0.005)
+
+
+def stopped_by_signals(
+    proc: subprocess.Popen[str],
+    db: Path,
+    kind: str,
+    n: int,
+    signals: tuple[signal.Signals, ...] = (signal.SIGINT,),
+    pause_s: float = 0.0,
+) -> str:
+    """Once the store holds `n` entries of `kind`, send `signals` (each `pause_s` after the last) and
+    return the child's stderr; it must end with exit 3 and no traceback (killed if anything fails)."""
+    try:
+        wait_count(db, kind, n, proc)
+        for sig in signals:
+            time.sleep(pause_s)
+            proc.send_signal(sig)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 3, err
+    assert "Traceback" not in err
+    return err

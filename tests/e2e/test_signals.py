@@ -8,7 +8,6 @@ verdict with every shot fired once at its recorded location, and `rig verify` pa
 from __future__ import annotations
 
 import signal
-import time
 from collections import Counter
 from pathlib import Path
 
@@ -16,7 +15,7 @@ import pytest
 
 from rig.cli import main
 from rig.store import Store
-from tests.e2e.procs import SAMPLE_BAT, burners, certify_child, wait_count
+from tests.e2e.procs import SAMPLE_BAT, burners, certify_child, stopped_by_signals
 from tests.protocols.wire import check_fires
 
 OUTCOMES = ("ShotMeasured", "ShotRejected", "ShotLost")
@@ -40,17 +39,7 @@ def test_signal_interrupts_and_the_run_resumes(
     db = tmp_path / "r.db"
     with burners():
         child = certify_child(db, "--procedure", "bbcor", "--bat", str(SAMPLE_BAT), "--sim", scene)
-        try:
-            wait_count(db, kind, nth, child)
-            for name in signals:
-                time.sleep(0.1)
-                child.send_signal(getattr(signal, name))
-            _, err = child.communicate(timeout=120)
-        finally:
-            if child.poll() is None:
-                child.kill()
-    assert child.returncode == 3, err
-    assert "Traceback" not in err
+        err = stopped_by_signals(child, db, kind, nth, tuple(getattr(signal, s) for s in signals), 0.1)
     run_id = err.split("rig certify --resume ")[1].split()[0]
     assert f"rig certify --resume {run_id} --sim {scene} --db {db}" in err
     with Store.open(db) as store:
