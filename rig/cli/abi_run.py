@@ -15,7 +15,7 @@ from typing import Any
 
 from rig.core import events as ev
 from rig.core.config import RigConfig
-from rig.protocols.control import Operator, ScriptedOperator
+from rig.protocols.control import Operator, RunControl, ScriptedOperator
 
 SCRIPT_WHO = "script (--sim or scripted run)"
 RigFor = Callable[[RigConfig], RigConfig]
@@ -35,10 +35,11 @@ def recorded_rollings(store: Any, run_id: str | None) -> list[tuple[float, int]]
 
 @contextlib.contextmanager
 def run_operator(
-    args: argparse.Namespace, store: Any, run_id: str | None, is_abi: bool
+    args: argparse.Namespace, store: Any, run_id: str | None, is_abi: bool, control: RunControl
 ) -> Iterator[tuple[Operator, RigFor]]:
-    """The run's operator and what its rig config becomes (a simulated ABI: the tester's twin added)."""
-    from rig.cli.rolling import ScriptedRoller, TerminalRoller, parse_who
+    """The run's operator and what its rig config becomes (a simulated ABI: the tester's twin added);
+    a prompt waiting at the terminal gives way to a stop of `control` (Ctrl-C, SIGTERM)."""
+    from rig.cli.rolling import ScriptedRoller, TerminalRoller, parse_who, terminal_reader
 
     rolled_by = None if args.rolled_by is None else _checked_name(args.rolled_by, parse_who)
     if not is_abi:
@@ -60,7 +61,8 @@ def run_operator(
             bench.close()
         return
     if sys.stdin.isatty():
-        yield TerminalRoller(rolled_by=rolled_by), _same
+        stopped = terminal_reader(lambda: control.reason if control.aborted else None)
+        yield TerminalRoller(rolled_by=rolled_by, read=stopped), _same
         return
     yield ScriptedRoller(who=SCRIPT_WHO, rolled_by=rolled_by), _same
 

@@ -156,7 +156,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
             )
         live = LiveConsole(quiet=args.json)
         # who answers (an ABI's rollings: a person at a terminal, else the script rolling a simulated barrel)
-        operator, rig_for = stack.enter_context(run_operator(args, store, run_id, plan is abi))
+        operator, rig_for = stack.enter_context(run_operator(args, store, run_id, plan is abi, control))
         request = CertifyRequest(
             procedure,
             bat,

@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TypeVar
 
 from rig.core import events as ev
@@ -23,6 +23,7 @@ from rig.protocols.control import ASKED, SCRIPT, Answer, Rolling, RunAborted, Sc
 T = TypeVar("T")
 MAX_DEPTH_IN = 0.5  # rig.protocols.control.Rolling's bound
 MAX_PASSES = 1000
+POLL_S = 0.2  # how often a prompt that waits looks for a stop
 HOOP_RANGE_HZ = (300.0, 10000.0)  # [assumed] a bat barrel's first hoop mode lies well inside this
 
 
@@ -109,13 +110,25 @@ def _say(text: str) -> None:
     print(text, file=sys.stderr, flush=True)
 
 
-def _read(prompt: str) -> str:
-    sys.stderr.write(prompt)
-    sys.stderr.flush()
-    line = sys.stdin.readline()
-    if not line:
-        raise EOFError
-    return line.rstrip("\n")
+def terminal_reader(stopped: Callable[[], str | None] = lambda: None) -> Callable[[str], str]:
+    """Read an answer from the terminal after writing its prompt to stderr; while waiting, a stop
+    (Ctrl-C, SIGTERM: `stopped()` gives its reason) stops the run at once, resumable."""
+    import select
+
+    def read(prompt: str) -> str:
+        sys.stderr.write(prompt)
+        sys.stderr.flush()
+        while not select.select([sys.stdin], [], [], POLL_S)[0]:
+            why = stopped()
+            if why is not None:
+                sys.stderr.write("\n")
+                raise RunAborted(why)
+        line = sys.stdin.readline()
+        if not line:
+            raise EOFError
+        return line.rstrip("\n")
+
+    return read
 
 
 @dataclass
@@ -125,7 +138,7 @@ class TerminalRoller:
 
     who: str = "operator at the terminal"
     rolled_by: str | None = None
-    read: Callable[[str], str] = _read
+    read: Callable[[str], str] = field(default_factory=terminal_reader)
     say: Callable[[str], None] = _say
 
     def ask(self, prompt_id: str, text: str) -> Answer:

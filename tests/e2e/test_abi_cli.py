@@ -19,6 +19,7 @@ import signal
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -307,10 +308,9 @@ DEPTH = "Depth rolled, in [0.0125]: "
 ANY_DEPTH = "]: "
 
 
-@pytest.mark.slow
-def test_at_a_terminal_a_person_reports_each_rolling_from_prompts(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
+@pytest.fixture
+def served_composite(tmp_path: Path) -> Iterator[Path]:
+    """`rig sim serve --scene composite --instruments --write-config`: the rig config of its twins."""
     config = tmp_path / "rig.toml"
     server = subprocess.Popen(
         [
@@ -321,20 +321,39 @@ def test_at_a_terminal_a_person_reports_each_rolling_from_prompts(
         stderr=subprocess.PIPE,
         text=True,
     )  # fmt: skip
-    db = tmp_path / "abi.db"
-    term: Pty | None = None
     try:
         assert server.stdout is not None
         served = [server.stdout.readline().split() for _ in range(5)]
         assert served[3][:2] == ["compression", "scpi-compression"], served  # the tester is served too
         assert served[4][:2] == ["rig", "config:"]
-        term = Pty(
-            [
-                sys.executable, "-m", "rig.cli", "certify", "--procedure", "abi", "--bat", str(COMPOSITE),
-                "--config", str(config), "--db", str(db), "--rolled-by", "B. Roller",
-            ],
-            tmp_path / "stdout.txt",
-        )  # fmt: skip
+        yield config
+    finally:
+        server.send_signal(signal.SIGINT)
+        try:
+            server.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            server.kill()
+
+
+def at_terminal(config: Path, db: Path, stdout: Path) -> Pty:
+    """`rig certify --procedure abi` on the served rig, at a terminal."""
+    return Pty(
+        [
+            sys.executable, "-m", "rig.cli", "certify", "--procedure", "abi", "--bat", str(COMPOSITE),
+            "--config", str(config), "--db", str(db), "--rolled-by", "B. Roller",
+        ],
+        stdout,
+    )  # fmt: skip
+
+
+@pytest.mark.slow
+def test_at_a_terminal_a_person_reports_each_rolling_from_prompts(
+    tmp_path: Path, served_composite: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    db = tmp_path / "abi.db"
+    term: Pty | None = None
+    try:
+        term = at_terminal(served_composite, db, tmp_path / "stdout.txt")
         # stage 0's BBCOR, then its inspection: a bad answer, then yes
         assert term.read_until(INSPECT) == INSPECT
         term.answer("maybe")
@@ -357,11 +376,6 @@ def test_at_a_terminal_a_person_reports_each_rolling_from_prompts(
     finally:
         if term is not None:
             term.close()
-        server.send_signal(signal.SIGINT)
-        try:
-            server.communicate(timeout=30)
-        except subprocess.TimeoutExpired:
-            server.kill()
     assert code in (0, 1), term.text[-3000:] if term else ""
     with Store.open(db) as store:
         (run,) = store.runs()
@@ -382,3 +396,22 @@ def test_at_a_terminal_a_person_reports_each_rolling_from_prompts(
     certificate = capsys.readouterr().out
     assert "Rolling reports: 12 answered at the prompt by a person, 0 given by a script" in certificate
     assert "0.0125 in x 4 (B. Roller, prompt)" in certificate
+
+
+@pytest.mark.slow
+def test_ctrl_c_at_a_prompt_stops_the_run_at_once_resumably(tmp_path: Path, served_composite: Path) -> None:
+    db = tmp_path / "abi.db"
+    term = at_terminal(served_composite, db, tmp_path / "stdout.txt")
+    try:
+        assert term.read_until(INSPECT) == INSPECT  # waiting for the person: nothing else to finish
+        term.proc.send_signal(signal.SIGINT)
+        assert term.read_until("never seen", timeout_s=60) == ""  # the terminal closes: the child ends
+        code = term.proc.wait(timeout=60)
+    finally:
+        term.close()
+    assert code == 3, term.text[-2000:]
+    assert "interrupted: stopped by SIGINT" in term.text and "resume with: rig certify --resume" in term.text
+    with Store.open(db) as store:
+        (run,) = store.runs()
+        last = store.entries(run.run_id)[-1]
+    assert last.kind == ev.RUN_INTERRUPTED and "stopped by SIGINT" in last.payload["reason"]
