@@ -7,8 +7,13 @@ its conditioning temperature and humidity) with the lot's terms (rig.protocols.b
 - BBCOR: each hit corrected (and budgeted) as any certification with --ball-lot, with the model's
   g = dBBCOR/d(plate COR) (rig.protocols.verdict.ball_part);
 - the COR: the lot's latest ball-cor result, moved from its mean hit count to a new ball by the wear
-  per hit (its u budgeted), and from the test's mean air to the nominal by the air sensitivities where
-  the lot measured them (their u budgeted), else not moved and the whole air effect budgeted.
+  per hit (its u budgeted), and from the test's mean air to the nominal by the air sensitivities (their
+  u budgeted);
+- the air: both sides moved to the nominal air by the same sensitivities, the lot's measured ones or
+  else the assumed ones [U] with their stated u. A BPF divides a bat test by a ball test made at
+  another hour: left uncorrected, the two airs leave a bias of s (g d_hits - BPF d_cor) / COR that
+  repeats on every run of a bat at its hour of the lab's day (issue 25: +0.005 in BPF on the lab
+  scene's sample bat), which budgeting it whole does not remove.
 
 The COR's own u (its test's) then enters the mean BPF once (rig.measure.bpf.bpf_u): one value
 divides every hit. The wear per hit and the air sensitivities act on both sides with one value each,
@@ -26,8 +31,12 @@ from rig.protocols.ball_terms import BallAdjustment, BallTerms, HitBall, hit_bal
 from rig.protocols.state import RunState, ShotEntry
 
 
-def nominal_cor(state: RunState) -> dict[str, Any]:
-    """The lot's COR on the rigid wall for a new ball at the lot's nominal air, with its u and parts."""
+def nominal_cor(state: RunState, correct_air: bool = True) -> dict[str, Any]:
+    """The lot's COR on the rigid wall for a new ball at the lot's nominal air, with its u and parts.
+
+    `correct_air`: move it to the nominal air by the assumed sensitivities too when the lot did not
+    measure them (as bpf_result moves the hits); False: only by measured ones, else the whole effect
+    budgeted (a run whose hits are not moved)."""
     recorded = (state.setup or {}).get("ball") or {}
     if recorded.get("wall_cor") is None or recorded.get("wall_cor_u") is None:
         raise RigError(
@@ -40,11 +49,11 @@ def nominal_cor(state: RunState) -> dict[str, Any]:
     wear, u_wear = -t.wear_per_hit * before, t.wear_per_hit_u * before
     d_t = (t.wall_cor_temp_c if t.wall_cor_temp_c is not None else t.temp_c) - t.temp_c
     d_rh = (t.wall_cor_rh_pct if t.wall_cor_rh_pct is not None else t.rh_pct) - t.rh_pct
-    if t.conditions_measured:
+    if t.conditions_measured or correct_air:  # measured, or assumed [U] with their stated u
         air = -(t.cor_per_c * d_t + t.cor_per_pct_rh * d_rh)
         var_t, cov, var_rh = t.air_cov or (t.cor_per_c_u**2, 0.0, t.cor_per_pct_rh_u**2)
         u_air = math.sqrt(max(0.0, var_t * d_t * d_t + 2.0 * cov * d_t * d_rh + var_rh * d_rh * d_rh))
-    else:  # assumed sensitivities: nothing moved, the whole effect budgeted (as the hits' air)
+    else:  # not moved: the whole effect budgeted
         air = 0.0
         u_air = math.hypot(
             math.hypot(t.cor_per_c, t.cor_per_c_u) * d_t,
@@ -71,22 +80,19 @@ def shared_terms(
 ) -> tuple[float, float]:
     """(u_air, u_wear) of the BPF from the sensitivities shared by the hits and the COR (bpf.shared_u).
 
-    Measured air sensitivities: their covariance, and the readings' own u (taken independent between
-    the bat's run and the ball test, which may be on other sensors); assumed ones: the whole effect
-    (|s| and its u), per C and per % RH independently, as for the hits alone (ball_terms.adjust)."""
+    Both sides are moved by the sensitivities (measured, or assumed [U]): what is left is their error,
+    budgeted with their covariance (assumed: their stated u, per C and per % RH independently), and
+    the readings' own u (taken independent between the bat's run and the ball test, which may be on
+    other sensors)."""
     n, cor = len(balls), wall["nominal"]
     d_hits = (sum(b.temp_c - t.temp_c for b in balls) / n, sum(b.rh_pct - t.rh_pct for b in balls) / n)
     d_cor = wall["d_air"]
-    if t.conditions_measured:
-        var_t, cov, var_rh = t.air_cov or (t.cor_per_c_u**2, 0.0, t.cor_per_pct_rh_u**2)
-        readings = math.hypot(t.cor_per_c * t.sensor_u_c, t.cor_per_pct_rh * t.sensor_u_pct)
-        u_air = math.hypot(
-            shared_u(g, bpf_mean, cor, d_hits, d_cor, ((var_t, cov), (cov, var_rh))),
-            readings * math.hypot(g, bpf_mean) / cor,
-        )
-    else:
-        s_t, s_rh = math.hypot(t.cor_per_c, t.cor_per_c_u), math.hypot(t.cor_per_pct_rh, t.cor_per_pct_rh_u)
-        u_air = shared_u(g, bpf_mean, cor, d_hits, d_cor, ((s_t * s_t, 0.0), (0.0, s_rh * s_rh)))
+    var_t, cov, var_rh = t.air_cov or (t.cor_per_c_u**2, 0.0, t.cor_per_pct_rh_u**2)
+    readings = math.hypot(t.cor_per_c * t.sensor_u_c, t.cor_per_pct_rh * t.sensor_u_pct)
+    u_air = math.hypot(
+        shared_u(g, bpf_mean, cor, d_hits, d_cor, ((var_t, cov), (cov, var_rh))),
+        readings * math.hypot(g, bpf_mean) / cor,
+    )
     wear_u = t.wear_per_hit_u if t.wear_measured else math.hypot(t.wear_per_hit, t.wear_per_hit_u)
     mean_hits = sum(b.hits for b in balls) / n
     u_wear = shared_u(g, bpf_mean, cor, (mean_hits,), (wall["hits_before"],), ((wear_u * wear_u,),))
@@ -105,11 +111,12 @@ def bpf_result(
 
     `u_bbcor_hits`: the mean BBCOR's u from the hits (budget and scatter); the ball's terms add to it:
     its spread and ratio to the hits' part, its wear and air as terms shared with the COR."""
-    wall = nominal_cor(state)
+    wall = nominal_cor(state, correct_air=ball is not None)
+    air = [0.0] * len(bbcor_hits) if ball is None else air_corrections(state, hits, ball.g)
     corrected = (
         list(bbcor_hits)
         if ball is None
-        else [b + c for b, c in zip(bbcor_hits, ball.corrections, strict=True)]
+        else [b + c + a for b, c, a in zip(bbcor_hits, ball.corrections, air, strict=True)]
     )
     cor = wall["nominal"]
     values = [b / cor for b in corrected]
@@ -139,5 +146,18 @@ def bpf_result(
         "u_shared_air": shared_air,
         "u_shared_wear": shared_wear,
         "u": u,
+        "air_corrections": air,
         "correlated": "the ball COR's u enters once, for the mean: one lot value divides every hit",
     }
+
+
+def air_corrections(state: RunState, hits: list[ShotEntry], g: float) -> list[float]:
+    """Each hit's BBCOR moved to the lot's nominal air by the assumed sensitivities [U] (-g s.d), as
+    nominal_cor moves the COR; none when the lot measured them (ball_terms.adjust has moved the hits)."""
+    t = BallTerms.model_validate((state.setup or {}).get("ball") or {})
+    if t.conditions_measured:
+        return [0.0] * len(hits)
+    return [
+        -g * (t.cor_per_c * (b.temp_c - t.temp_c) + t.cor_per_pct_rh * (b.rh_pct - t.rh_pct))
+        for b in hit_balls(hits, state.environment, t)
+    ]
