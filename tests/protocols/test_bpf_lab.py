@@ -157,21 +157,31 @@ def test_bpf_recomputes_from_the_gate_ticks_and_the_lots_ball_test(lab: dict[str
     assert len(hits) == verdict["n_hits"] == 6
     assert verdict["mean"] == pytest.approx(sum(hits) / len(hits), rel=1e-12)
     # the averaged hits: each its BBCOR moved to a new ball (wear measured on the lot: -g wear n, n its
-    # ball's hits before), over the lot's COR moved to a new ball (mean hit count 1 + wear ...)
+    # ball's hits before) and to the nominal air (the assumed sensitivities s: -g s.(T - 21, RH - 50)),
+    # over the lot's COR moved to a new ball (mean hit count 1 + wear ...) and to the nominal air too
     averaged = [
         s
         for s in record["shots"]
         if s.get("valid") and s["purpose"] == "valid" and s["location_in"] == verdict["location_in"]
     ]
-    result, ball = case["ball_run"]["lot_result"], verdict["ball"]
+    result, ball, terms = case["ball_run"]["lot_result"], verdict["ball"], record["ball"]
     wear, g = result["wear_per_hit"], ball["g"]
-    cor_new = cor - wear * (result["mean_hit"] - 1)
+    slope = (terms["cor_per_c"], terms["cor_per_pct_rh"])
+    cor_air = -sum(
+        k * (terms[f"wall_cor_{n}"] - terms[n]) for k, n in zip(slope, ("temp_c", "rh_pct"), strict=True)
+    )
+    cor_new = cor - wear * (result["mean_hit"] - 1) + cor_air
     assert verdict["bpf"]["ball_cor"] == pytest.approx(cor_new, rel=1e-9)
     assert len(averaged) == 6 and ball["corrections"] == pytest.approx(
         [-g * wear * s["raw"]["ball_hits"] for s in averaged], rel=1e-9, abs=1e-15
     )
-    for s, h, c in zip(averaged, hits, ball["corrections"], strict=True):
-        assert h == pytest.approx((recomputed[s["index"]] * cor + c) / cor_new, rel=1e-9)
+    air = [
+        -g * sum(k * (s[key] - terms[nom]) for k, (key, nom) in zip(slope, AIR, strict=True))
+        for s in averaged
+    ]
+    assert verdict["bpf"]["air_corrections"] == pytest.approx(air, rel=1e-9)
+    for s, h, c, a in zip(averaged, hits, ball["corrections"], air, strict=True):
+        assert h == pytest.approx((recomputed[s["index"]] * cor + c + a) / cor_new, rel=1e-9)
     cor = cor_new
     parts = verdict["bpf"]
     assert parts["bbcor_mean"] == pytest.approx(verdict["mean"] * cor, rel=1e-9)
@@ -181,16 +191,16 @@ def test_bpf_recomputes_from_the_gate_ticks_and_the_lots_ball_test(lab: dict[str
     assert parts["u_from_ball_cor"] == pytest.approx(bpf_mean * u_test / cor, rel=1e-9)
     own = math.sqrt(parts["u_bbcor_hits"] ** 2 + ball["u_spread"] ** 2 + ball["u_ratio"] ** 2)
     assert parts["u_from_bbcor"] == pytest.approx(own / cor, rel=1e-9)
-    # one sensitivity moves the hits (g s d_hits) and the COR (s d_cor): BPF by s (g d_hits - BPF d_cor) / COR
-    assert not terms["conditions_measured"]  # assumed: the whole effect, |s| and its u, per C and per % RH
+    # one sensitivity moves the hits (g s d_hits) and the COR (s d_cor): BPF by s (g d_hits - BPF d_cor)
+    # / COR; both moved by the assumed s, what is left is its u's share, with the air readings' own u
+    assert not terms["conditions_measured"]  # assumed: corrected, their u per C and per % RH budgeted
     d_hits = [sum(s[key] - terms[nom] for s in averaged) / 6 for key, nom in AIR]
     d_cor = [terms["wall_cor_temp_c"] - terms["temp_c"], terms["wall_cor_rh_pct"] - terms["rh_pct"]]
-    sens = [
-        math.hypot(terms["cor_per_c"], terms["cor_per_c_u"]),
-        math.hypot(terms["cor_per_pct_rh"], terms["cor_per_pct_rh_u"]),
-    ]
+    sens = [terms["cor_per_c_u"], terms["cor_per_pct_rh_u"]]
+    readings = math.hypot(slope[0] * terms["sensor_u_c"], slope[1] * terms["sensor_u_pct"])
     u_air = math.hypot(
-        *[s * (g * h - bpf_mean * c) / cor for s, h, c in zip(sens, d_hits, d_cor, strict=True)]
+        *[s * (g * h - bpf_mean * c) / cor for s, h, c in zip(sens, d_hits, d_cor, strict=True)],
+        readings * math.hypot(g, bpf_mean) / cor,
     )
     mean_hits = sum(s["raw"]["ball_hits"] for s in averaged) / 6
     u_wear = abs(g * mean_hits - bpf_mean * (result["mean_hit"] - 1)) * terms["wear_per_hit_u"] / cor
