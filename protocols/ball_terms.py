@@ -28,7 +28,10 @@ from rig.physics import CollisionParams, PivotedBat, predict_bat, rigid_cor
 from rig.protocols.ball_air import fit_air, pooled_wear
 
 PLATE_SPEED_M_S = 26.8  # ASTM F1887: 60 mph onto a rigid flat surface
-G_U_REL = 0.15  # [U] relative u of the model's ratio g (rigid barrel against a hollow one: 6 % seen)
+# [U] relative u of the model's ratio g: the model's barrel (the bat's hoop frequency, the paper's m2
+# and c2) against the simulated scenes' own: 2 % (lab, 3600 Hz) and 6 % (softball, 1500 Hz) seen; a
+# rigid barrel's g was 25 % off on the softball bat (issue 25)
+G_U_REL = 0.15
 DAMPING_STEP = 0.01  # relative step of c1 for the ratio
 MIN_SPREAD_BALLS = 3  # balls a ball-cor test must have for its ball-to-ball SD to count as measured
 
@@ -110,11 +113,22 @@ def law_params(terms: BallTerms, m_ball: float) -> CollisionParams:
     return CollisionParams.build(**{k: v for k, v in values.items() if k in CollisionParams.model_fields})
 
 
-def ratio(params: CollisionParams, metric: str, speed: float, q: float, moi: float, length_m: float) -> float:
-    """g = d(metric)/d(plate COR) for a change of the ball's damping c1, on the rigid-barrel pivoted bat."""
+def ratio(
+    params: CollisionParams,
+    metric: str,
+    speed: float,
+    q: float,
+    moi: float,
+    length_m: float,
+    hoop_hz: float | None = None,
+) -> float:
+    """g = d(metric)/d(plate COR) for a change of the ball's damping c1, on the pivoted bat with the
+    barrel of hoop frequency `hoop_hz` (None: rigid). A lively barrel stores part of the impact's
+    energy in its hoop mode, so the ball's own loss counts for less: on a 1500 Hz softball barrel g is
+    about 0.8, against 1.0 on a rigid one."""
 
     def both(p: CollisionParams) -> tuple[float, float]:
-        e_a = predict_bat(p, speed, None, PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q)).e_a
+        e_a = predict_bat(p, speed, hoop_hz, PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q)).e_a
         m = compute_metrics(speed, e_a * speed, q, moi, p.m1, length_m)
         return m.value(metric), rigid_cor(p, PLATE_SPEED_M_S)
 

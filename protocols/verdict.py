@@ -265,7 +265,13 @@ def ball_part(
         return None
     terms = BallTerms.model_validate(recorded)
     g = ratio(
-        law_params(terms, p.ball.mass_kg), metric or p.standard, p.target_speed_m_s, q, moi, bat.length_m
+        law_params(terms, p.ball.mass_kg),
+        metric or p.standard,
+        p.target_speed_m_s,
+        q,
+        moi,
+        bat.length_m,
+        None if bat.barrel is Barrel.WOOD else bat.hoop_hz,  # a solid barrel has no hoop mode
     )
     return adjust(terms, hit_balls(hits, state.environment, terms), g)
 
