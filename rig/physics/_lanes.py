@@ -305,16 +305,46 @@ def _error(lanes: _Lanes, K: np.ndarray, ynew: np.ndarray, rtol: float) -> np.nd
     return np.where((e5 == 0.0) & (e3 == 0.0), 0.0, err)
 
 
-def _minima(lanes: _Lanes, rows: np.ndarray, F: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Where g has its minimum inside the step, and that minimum, for lanes whose g dips there: the
-    kernel's golden-section `_minimum`, run lane by lane (a dip is rare)."""
-    x_min = np.empty(rows.size)
-    g_min = np.empty(rows.size)
-    tmp = np.zeros(6)
-    for j, r in enumerate(rows):
-        y = np.ascontiguousarray(lanes.y[:, r])
-        p = np.ascontiguousarray(lanes.model.p[:, r])
-        x_min[j], g_min[j] = _k._minimum(y, np.ascontiguousarray(F[:, :, j]), p, tmp)
+_INVPHI = 0.6180339887498949
+
+
+def _minima(y: np.ndarray, F: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Where g is least on each lane's dense output, and g there: the kernel's golden-section
+    `_minimum`, each lane stopping where the kernel's would (at a point where g <= 0, or when its
+    bracket is below 1e-12)."""
+    m = y.shape[1]
+    lo, hi = np.zeros(m), np.ones(m)
+    c = hi - _INVPHI * (hi - lo)
+    d = lo + _INVPHI * (hi - lo)
+    gc = _gfun(_interpolate(y, F, c), p)
+    gd = _gfun(_interpolate(y, F, d), p)
+    x_min, g_min = np.empty(m), np.empty(m)
+    live = np.arange(m)
+    settled: list[np.ndarray] = []
+    for _ in range(60):
+        at_c = gc[live] <= 0.0
+        at_d = ~at_c & (gd[live] <= 0.0) & (gc[live] > gd[live])
+        for done, x, g in ((at_c, c, gc), (at_d, d, gd)):
+            x_min[live[done]], g_min[live[done]] = x[live[done]], g[live[done]]
+        L = live[~(at_c | at_d)]
+        left = gc[L] < gd[L]
+        a, b = L[left], L[~left]
+        hi[a], d[a], gd[a] = d[a], c[a], gc[a]
+        c[a] = hi[a] - _INVPHI * (hi[a] - lo[a])
+        lo[b], c[b], gc[b] = c[b], d[b], gd[b]
+        d[b] = lo[b] + _INVPHI * (hi[b] - lo[b])
+        x = np.where(left, c[L], d[L])
+        g = _gfun(_interpolate(y[:, L], F[:, :, L], x), p[:, L])
+        gc[a], gd[b] = g[left], g[~left]
+        closed = hi[L] - lo[L] < 1e-12
+        settled.append(L[closed])
+        live = L[~closed]
+        if not live.size:
+            break
+    rest = np.concatenate([*settled, live])  # closed brackets, and any still open after 60 steps
+    at_c = gc[rest] < gd[rest]
+    x_min[rest] = np.where(at_c, c[rest], d[rest])
+    g_min[rest] = np.where(at_c, gc[rest], gd[rest])
     return x_min, g_min
 
 
@@ -379,7 +409,8 @@ def _step(lanes: _Lanes, rtol: float, kappa: float, ends: _Ends) -> np.ndarray:
             hi_start = np.ones(rows.size)
             in_dip = np.flatnonzero(dip[rows])
             if in_dip.size:  # g has a minimum inside the step: contact ends there if it reaches 0
-                x_min, g_min = _minima(lanes, rows[in_dip], F[:, :, in_dip])
+                r = rows[in_dip]
+                x_min, g_min = _minima(y[:, r], F[:, :, in_dip], model.p[:, r])
                 low = g_min <= 0.0
                 crossed[rows[in_dip[low]]] = True
                 g_new[rows[in_dip[low]]] = g_min[low]
