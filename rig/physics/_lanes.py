@@ -7,8 +7,9 @@ nonzero terms in the same order, the same error norm, step control, end-of-conta
 the 7th-order dense output and re-contact screen, each lane with its own step size, rejections
 and end. What differs is only how the arithmetic is issued: one numpy operation over all the
 lanes still in contact instead of one scalar loop per lane, so the results agree with the compiled
-kernel's to rounding (tests/physics/test_lanes.py). The rare per-lane parts (the minimum of g
-inside a step where it dips, the re-contact screen) run the interpreted kernel's own functions.
+kernel's to the last bit (tests/physics/test_lanes.py; x ** y is taken from the C library as the
+compiled kernel takes it, see `_pow`). The re-contact screen after each separation runs lane by
+lane: the interpreted kernel's own `may_meet_again`.
 
 Arrays are laid out state-major: y[i] is state i over the lanes, p[j] parameter j over the lanes.
 """
@@ -29,6 +30,7 @@ _k = _interpreted.load()  # the kernel's source run by the interpreter: its tabl
 # thousands of steps then part ways with the compiled kernel's (within rtol, but no longer to rounding)
 _pow = np.float_power
 
+_Arr = np.ndarray
 _Rows = tuple[np.ndarray, np.ndarray, np.ndarray]  # a table's nonzero terms: row starts, columns, values
 _A: _Rows = (_k._A_START, _k._A_COL, _k._A_VAL)
 _D: _Rows = (_k._D_START, _k._D_COL, _k._D_VAL)
@@ -220,7 +222,7 @@ class _Lanes:
 
     def keep(self, rows: np.ndarray) -> None:
         """Keep only these lanes (boolean mask or indices)."""
-        for name, value in vars(self).items():
+        for name, value in list(vars(self).items()):
             if name == "model":
                 self.model = value.take(rows)
             else:
@@ -444,21 +446,11 @@ def _step(lanes: _Lanes, rtol: float, kappa: float, ends: _Ends) -> np.ndarray:
 
 
 def solve_many(
-    P: np.ndarray,
-    v0: np.ndarray,
-    length: np.ndarray,
-    rtol: float,
-    n_active: np.ndarray,
-    t_max: np.ndarray,
-    max_steps: int,
-    cor: np.ndarray,
-    tc: np.ndarray,
-    nfev: np.ndarray,
-    status: np.ndarray,
-    states: np.ndarray,
+    P: _Arr, v0: _Arr, length: _Arr, rtol: float, n_active: _Arr, t_max: _Arr, max_steps: int, *results: _Arr
 ) -> None:
-    """`_dop853.solve_many`'s call and results, every lane stepped side by side in numpy."""
-    out = _Out(cor, tc, nfev, status, states)
+    """`_dop853.solve_many`'s call, every lane stepped side by side in numpy; `results` are its arrays
+    cor, tc, nfev, status and states, filled in."""
+    out = _Out(*results)
     kappa = min(1.0, (40320.0 * rtol) ** 0.125)
     ends = _Ends()
     with np.errstate(all="ignore"):

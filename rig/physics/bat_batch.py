@@ -1,11 +1,12 @@
-"""Many pivoted bats under one set of constants: the kernel's lanes built as arrays, not Impacts.
+"""Many pivoted bats under one or more sets of constants: the kernel's lanes built as arrays, not Impacts.
 
 A calibration solves every bat of a population once per model evaluation; building an Impact
 (and its checks) per bat cost about a third of each evaluation at 1,000 bats. Here the lanes of
 one constant set are one row of kernel parameters tiled, with each bat's barrel spring
 k2 = m2 (2 pi f)^2, body 1/(I/Q^2 - m2) and base 1/(I/Q^2) filled in as columns, as
 `curve.cor_grid` does for the clamped barrel. The numbers are those of `solve_batch` over
-`impact_for` (tests/physics/test_bat_batch.py holds them equal).
+`impact_for` (tests/physics/test_bat_batch.py holds them equal). Several sets of constants (a
+prediction and its parameter steps) go in one batch: each lane's numbers do not depend on the others.
 """
 
 from __future__ import annotations
