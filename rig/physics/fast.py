@@ -11,7 +11,10 @@ compiles the kernel (a few seconds); the machine code is cached on disk for late
 numba and the cached machine code take about a second to load, so the kernel loads only when a
 solve needs it: the first `INTERPRETED_SOLVES` single solves of a process run the same kernel
 source in the interpreter (`_interpreted`, 10-20 ms each, the same numbers), batches and later
-solves the compiled kernel. `warm_up` loads the compiled kernel at once.
+solves the compiled kernel. `warm_up` loads the compiled kernel at once. A caller that asks for it
+(`solve_batch(..., numpy_lanes=True)`: a cross-check's few hundred solves) gets a batch of at most
+`NUMPY_LANES` solves from `_lanes`, the same steps over all the lanes at once as numpy arrays (the
+compiled kernel's numbers to the last bit), unless the compiled kernel is loaded already.
 """
 
 from __future__ import annotations
@@ -33,6 +36,7 @@ from rig.physics.reference import CollisionResult, _time_limit, bounded_cor, con
 DEFAULT_RTOL = 1e-10
 MAX_STEPS = 2_000_000
 INTERPRETED_SOLVES = 20  # ~0.3 s of interpreted solves, about what loading the compiled kernel costs
+NUMPY_LANES = 5000  # a batch this small may run in numpy lanes: ~0.4 s, below numba's load (~1 s)
 _COMPILED = "rig.physics._dop853"
 _interpreted_left = INTERPRETED_SOLVES
 _solve_one: Any = None  # the compiled kernel's solve_one, once loaded
@@ -116,8 +120,13 @@ def solve(imp: Impact, rtol: float = DEFAULT_RTOL) -> CollisionResult:
     )
 
 
-def solve_batch(impacts: Sequence[Impact], rtol: float = DEFAULT_RTOL) -> tuple[np.ndarray, np.ndarray]:
-    """Solve many collisions in parallel; returns arrays (cor, contact_time_s)."""
+def solve_batch(
+    impacts: Sequence[Impact], rtol: float = DEFAULT_RTOL, numpy_lanes: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
+    """Solve many collisions in parallel; returns arrays (cor, contact_time_s).
+
+    numpy_lanes: a batch of at most NUMPY_LANES runs in numpy unless the compiled kernel is loaded.
+    """
     rtol = check_tolerance(rtol)
     n = len(impacts)
     P = np.empty((n, kernel.N_PARAMS))
@@ -131,7 +140,16 @@ def solve_batch(impacts: Sequence[Impact], rtol: float = DEFAULT_RTOL) -> tuple[
         length[k] = imp.params.compression_scale(imp.speed)
         n_active[k] = imp.n_states
         t_max[k] = _time_limit(imp)
-    return _run_batch(P, v0, length, rtol, n_active, t_max, impacts)
+    return _run_batch(P, v0, length, rtol, n_active, t_max, impacts, numpy_lanes=numpy_lanes)
+
+
+def _batch_kernel(n: int, numpy_lanes: bool) -> Any:
+    """solve_many of the numpy lanes (a small batch that asks for them, numba not loaded) or compiled."""
+    if numpy_lanes and n <= NUMPY_LANES and _COMPILED not in sys.modules:
+        from rig.physics import _lanes
+
+        return _lanes.solve_many
+    return compiled().solve_many
 
 
 class ImpactLookup(Protocol):
@@ -149,10 +167,11 @@ def _run_batch(
     t_max: np.ndarray,
     impacts: ImpactLookup,
     contacts: np.ndarray | None = None,
+    numpy_lanes: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Run the lanes; lanes whose ball may meet the barrel again are followed by the reference.
 
-    `contacts`, if given, receives each lane's number of contacts.
+    `contacts`, if given, receives each lane's number of contacts; `numpy_lanes` as solve_batch's.
     """
     n = P.shape[0]
     cor = np.empty(n)
@@ -160,7 +179,9 @@ def _run_batch(
     nfev = np.empty(n, dtype=np.int64)
     status = np.empty(n, dtype=np.int64)
     states = np.zeros((n, 6))
-    compiled().solve_many(P, v0, length, rtol, n_active, t_max, MAX_STEPS, cor, tc, nfev, status, states)
+    _batch_kernel(n, numpy_lanes)(
+        P, v0, length, rtol, n_active, t_max, MAX_STEPS, cor, tc, nfev, status, states
+    )
     if contacts is not None:
         contacts[:] = 1
     for k in np.flatnonzero(status == kernel.STATUS_FOLLOW):

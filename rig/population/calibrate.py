@@ -23,7 +23,7 @@ from rig.core.units import INCH
 from rig.measure.metrics import compute_metrics
 from rig.measure.selection import VariantReport, simplest_within_one_se
 from rig.physics import DEFAULT_PARAMS, CollisionParams, PivotedBat
-from rig.physics.bat_batch import pivoted_cor_batch
+from rig.physics.bat_batch import pivoted_cor_sets
 from rig.population.budget import MAX_EVALUATIONS, Budget
 from rig.population.dataset import METRICS, PopulationBat, missing_column
 from rig.population.limits import DEFAULT_LOCATION_IN, MIN_BATS, MIN_HOOP_SPAN_HZ
@@ -118,17 +118,20 @@ def predict_many(
     sets: Sequence[dict[str, float]],
     rtol: float = FIT_RTOL,
     base: CollisionParams = PAPER_BASE,
+    numpy_lanes: bool = False,
 ) -> np.ndarray:
-    """The metric predicted for each bat (columns) under each set of values (rows): one batch per set."""
+    """The metric predicted for each bat (columns) under each set of values (rows): one batch of solves.
+
+    numpy_lanes: a few hundred solves run in numpy, without loading numba (`fast.solve_batch`).
+    """
     hoops = np.array([b.hoop_hz for b in bats])
     eff = np.array([b.pivoted.effective_mass for b in bats])
     alpha = np.array([b.alpha for b in bats])
     beta = np.array([b.beta for b in bats])
-    out = np.empty((len(sets), len(bats)))
-    for i, values in enumerate(sets):
-        e_a, _ = pivoted_cor_batch(model_params(values, base), SPEED_M_S, hoops, eff, rtol)
-        out[i] = alpha + beta * e_a + values.get("offset", 0.0)
-    return out
+    params = [model_params(values, base) for values in sets]
+    e_a, _ = pivoted_cor_sets(params, SPEED_M_S, hoops, eff, rtol, numpy_lanes)
+    offsets = np.array([values.get("offset", 0.0) for values in sets])
+    return alpha + beta * e_a + offsets[:, None]
 
 
 def predict(

@@ -156,7 +156,7 @@ def _predict(cal: CalibrationFile, rows: Sequence[FitBat]) -> tuple[np.ndarray, 
     """Predictions and u_model for each row, in one batch of solves (centre and +-step per parameter)."""
     steps = _steps(cal, rows)
     sets = [dict(cal.parameters)] + [s for up, down, _ in steps for s in (up, down)]
-    values = predict_many(rows, sets, base=calibration_base(cal))
+    values = predict_many(rows, sets, base=calibration_base(cal), numpy_lanes=True)  # no numba to load
     centre = values[0]
     grad = np.array([(values[1 + 2 * i] - values[2 + 2 * i]) / span for i, (_, _, span) in enumerate(steps)])
     cov = covariance_matrix(cal)

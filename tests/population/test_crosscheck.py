@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import json
 import math
+import subprocess
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -317,3 +319,37 @@ def test_the_uncertainty_columns_round_trip_and_stay_out_when_empty(tmp_path: Pa
     (tmp_path / "bad.csv").write_text("bat_id,barrel,hoop_hz,u_bbcor\nX,wood,2000,-0.1\n")
     with pytest.raises(ConfigError, match="u_bbcor"):
         load_population(tmp_path / "bad.csv")
+
+
+def test_a_fresh_crosscheck_loads_neither_numba_nor_scipy_stats_and_gives_the_compiled_figures(
+    cal: CalibrationFile, cal_path: Path, tmp_path: Path
+) -> None:
+    """`rig model crosscheck` in a fresh process solves in numpy lanes (numba would take longer to
+    load than the solves take) and takes t from rig.measure.student; its every figure is the one the
+    compiled kernel gives in a process that has it loaded, within 1e-9."""
+    from rig.physics import fast
+
+    rows = bats(12, seed=24) + bats(4, seed=25, shift=0.03, prefix="X")
+    data = write_population_csv(rows, tmp_path / "bats.csv")
+    code = (
+        "import json, sys\n"
+        "from rig.cli import main\n"
+        "code = main(sys.argv[1:])\n"
+        "loaded = sorted(m for m in ('numba', 'scipy.stats') if m in sys.modules)\n"
+        "print(json.dumps(loaded), file=sys.stderr)\n"
+        "raise SystemExit(code)\n"
+    )
+    argv = ["model", "crosscheck", "--data", str(data), "--calibration", str(cal_path), "--json"]
+    done = subprocess.run(
+        [sys.executable, "-c", code, *argv], capture_output=True, text=True, check=True, timeout=300
+    )
+    assert json.loads(done.stderr.strip().splitlines()[-1]) == []
+    fast.compiled()  # this process: the compiled kernel
+    expected = [c.as_dict() for c in crosscheck_bats(cal, rows)]
+    got = json.loads(done.stdout)
+    assert [r["bat_id"] for r in got] == [r["bat_id"] for r in expected]
+    for r, e in zip(got, expected, strict=True):
+        assert r["flagged"] == e["flagged"]
+        for key in ("predicted", "u_model", "z", "t_factor", "u_total"):
+            assert abs(r[key] - e[key]) <= 1e-9, (r["bat_id"], key, r[key], e[key])
+        assert np.max(np.abs(np.subtract(r["interval"], e["interval"]))) <= 1e-9
