@@ -67,8 +67,8 @@ def result_terms(v: dict[str, Any], out_b: dict[str, Any], scale: float) -> tupl
         for k, share in (out_b.get("contributions") or {}).items()
         if isinstance(share, int | float)
     ]
-    ball = v.get("ball") if isinstance(v.get("ball"), dict) else {}
-    bpf = v.get("bpf") if isinstance(v.get("bpf"), dict) else None
+    ball: dict[str, Any] = v["ball"] if isinstance(v.get("ball"), dict) else {}
+    bpf: dict[str, Any] | None = v["bpf"] if isinstance(v.get("bpf"), dict) else None
     if bpf is not None:  # BPF: every BBCOR term over the COR; the COR's and the shared terms as they are
         cor = _num(bpf.get("ball_cor"))
         hits = _num(bpf.get("u_bbcor_hits"))
