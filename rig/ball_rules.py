@@ -87,7 +87,7 @@ def same_balls(store: Any, lot_id: str, run_id: str, procedure: Procedure) -> No
 
 def which_test(ball_class: str | None) -> str:
     """The built-in ball-cor test firing balls of `ball_class` (None: baseballs, no class), or how to
-    write one; from the built-in ball tests (rig.protocols.ball_procedure.BALL_BUILTIN)."""
+    write one; from the built-in ball tests (rig.protocols.names.BALL_BUILTIN)."""
     wanted = (ball_class or "").lstrip(".") or None
     for name, test in _builtin_tests():
         if test.test == "ball-cor" and ((test.ball.ball_class or "").lstrip(".") or None) == wanted:
@@ -96,7 +96,8 @@ def which_test(ball_class: str | None) -> str:
 
 
 def _builtin_tests() -> list[tuple[str, Any]]:
-    from rig.protocols.ball_procedure import BALL_BUILTIN, BallProcedure
+    from rig.protocols.ball_procedure import BallProcedure
+    from rig.protocols.names import BALL_BUILTIN
 
     return [(name, BallProcedure.load(name)) for name in BALL_BUILTIN]
 

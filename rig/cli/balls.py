@@ -25,6 +25,7 @@ from rig.cli.common import (
 from rig.cli.common import console as out
 from rig.core.dbpath import DB_HELP
 from rig.core.errors import ConfigError, RecordRefused
+from rig.protocols.names import BALL_BUILTIN
 
 
 def cmd_register(args: argparse.Namespace) -> int:
@@ -52,7 +53,8 @@ def _accepted(args: argparse.Namespace) -> Any:
 
 
 def cmd_test(args: argparse.Namespace) -> int:
-    """rig balls test: run a ball test (ccor, ball-cor) on a registered lot, recording everything."""
+    """rig balls test: run a ball test (a built-in one or a TOML file) on a registered lot, recording
+    everything."""
     from rig.ball_rules import refuse_other_balls
     from rig.balls import recorded_test, rehearse_test, run_ball_test
     from rig.core import events as ev
@@ -274,7 +276,7 @@ def cmd_law(args: argparse.Namespace) -> int:
 
 def add_parsers(sub: Any) -> None:
     """`rig balls ...`."""
-    balls = sub.add_parser("balls", help="ball lots and ball tests (ccor, ball-cor)")
+    balls = sub.add_parser("balls", help=f"ball lots and ball tests ({', '.join(BALL_BUILTIN)})")
     bsub = balls.add_subparsers(dest="balls_command", required=True, metavar="BALLS_COMMAND")
 
     p = bsub.add_parser(
@@ -285,9 +287,7 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(handler=cmd_register)
 
     p = bsub.add_parser("test", help="run a ball test on a registered lot", description=cmd_test.__doc__)
-    p.add_argument(
-        "--procedure", help="ccor, ball-cor, ball-cor-fastpitch (47/375 softballs), or a ball-test TOML file"
-    )
+    p.add_argument("--procedure", help=f"{', '.join(BALL_BUILTIN)} (built in), or a ball-test TOML file")
     p.add_argument("--lot", metavar="LOT", help="the registered lot's id")
     add_rig_options(p)
     p.add_argument("--db", metavar="FILE", help=DB_HELP)

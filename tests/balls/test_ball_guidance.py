@@ -72,3 +72,29 @@ def test_a_fastpitch_bpf_on_an_untested_lot_names_the_fastpitch_ball_test(tmp_pa
     result = run_cli([*argv, "--db", str(db)])
     assert result.code == 2 and result.err.count("\n") == 1, result.err
     assert "'rig balls test --procedure ball-cor-fastpitch --lot FP-1'" in result.err
+
+
+@pytest.mark.parametrize(
+    ("name", "lot", "test", "scene", "other"),
+    [
+        ("ball-lot.toml", "ACME-23A", "ball-cor", "lab", "ball-cor-fastpitch"),
+        ("ball-lot-fastpitch.toml", "FP-23A", "ball-cor-fastpitch", "softball", "ball-cor"),
+    ],
+)
+def test_the_example_lots_register_and_fit_their_ball_tests(
+    tmp_path: Path, name: str, lot: str, test: str, scene: str, other: str
+) -> None:
+    """The example lots of docs/ball.md: registered, their own test named and dry-run clean on the
+    scene that loads their balls, the other ball's test refused."""
+    db = tmp_path / "x.db"
+    assert (
+        run_cli(["balls", "register", str(ROOT / "protocols" / "examples" / name), "--db", str(db)]).code == 0
+    )
+    _, out = stdout_of(["balls", "show", lot, "--db", str(db)])
+    named = out.splitlines()[-1].split("--procedure ", 1)[1].split()[0].split("|")
+    assert test in named and other not in named
+    argv = ["balls", "test", "--lot", lot, "--sim", scene, "--db", str(db), "--dry-run", "--procedure"]
+    ok = run_cli([*argv, test])
+    assert ok.code == 0, ok.err
+    refused = run_cli([*argv, other])
+    assert refused.code == 2 and f"--procedure {test}" in refused.err
