@@ -59,3 +59,22 @@ def test_the_sim_help_names_every_built_in_scene() -> None:
     names = Scene.builtin_names()
     assert "softball" in names and "composite" in names
     assert f"a built-in scene ({', '.join(names)};" in text
+
+
+def test_rig_help_lists_the_built_in_procedures_and_ball_tests() -> None:
+    from rig.measure.registry import BUILTIN_PROCEDURES
+    from rig.protocols.names import BALL_BUILTIN
+
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out), pytest.raises(SystemExit):
+        main(["--help"])
+    text = " ".join(out.getvalue().split())
+    assert f"certify a bat ({', '.join(n for _, n in BUILTIN_PROCEDURES)})" in text
+    assert f"ball tests ({', '.join(BALL_BUILTIN)})" in text
+    assert "fastpitch-bpf" in text and "ball-cor-fastpitch" in text
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    procedures = readme.split("- **Procedure**", 1)[1].split("\n- **", 1)[0]
+    for _, name in BUILTIN_PROCEDURES:
+        assert f"`{name}`" in procedures
+    for name in BALL_BUILTIN:
+        assert f"`{name}`" in procedures
