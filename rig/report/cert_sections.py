@@ -394,7 +394,7 @@ def _term_row(t: Term, inputs: dict[str, Any], total: float) -> tuple[str, str, 
         given = inputs.get(t.key) or {}
         kind = "systematic" if given.get("systematic") else "random"
         return (t.key, _input_name(t.key), _sig(given.get("u")), kind, _share(t.variance / total))
-    kind = {SCATTER: "random", "others": "", "u_from_ball_cor": "lot's COR"}.get(t.key, "ball")
+    kind = {SCATTER: "observed (random)", "others": "", "u_from_ball_cor": "lot's COR"}.get(t.key, "ball")
     return (
         t.key.removeprefix("u_"),
         what(t.key) or "",
