@@ -469,7 +469,7 @@ def add_parsers(sub: Any) -> None:
     """`rig certify|runs|report|verify|tui`, in this order: the everyday tasks lead `rig --help`."""
     p = sub.add_parser(
         "certify",
-        help=f"certify a bat ({', '.join(n for _, n in BUILTIN_PROCEDURES)})",
+        help=f"certify a bat ({', '.join(n for _, n in BUILTIN_PROCEDURES)}, abi)",
         description=cmd_certify.__doc__,
     )
     p.add_argument(

@@ -69,7 +69,7 @@ def test_rig_help_lists_the_built_in_procedures_and_ball_tests() -> None:
     with contextlib.redirect_stdout(out), pytest.raises(SystemExit):
         main(["--help"])
     text = " ".join(out.getvalue().split())
-    assert f"certify a bat ({', '.join(n for _, n in BUILTIN_PROCEDURES)})" in text
+    assert f"certify a bat ({', '.join(n for _, n in BUILTIN_PROCEDURES)}, abi)" in text
     assert f"ball tests ({', '.join(BALL_BUILTIN)})" in text
     assert "fastpitch-bpf" in text and "ball-cor-fastpitch" in text
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
@@ -78,3 +78,4 @@ def test_rig_help_lists_the_built_in_procedures_and_ball_tests() -> None:
         assert f"`{name}`" in procedures
     for name in BALL_BUILTIN:
         assert f"`{name}`" in procedures
+    assert "--procedure abi" in procedures
