@@ -1,1 +1,1 @@
-"""Certification procedures (NCAA BESR, BBCOR, BBS) run by a small runner."""
+"""Certification procedures and ball tests (each a TOML file here) run by a small runner."""

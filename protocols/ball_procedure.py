@@ -18,10 +18,10 @@ from pydantic import Field, StrictBool, model_validator
 
 from rig.core.ball import BallLot
 from rig.core.devices import STAGE_RANGE_MM
+from rig.protocols.names import BALL_BUILTIN
 from rig.protocols.procedure import Ball, Decision, EnvironmentLimits, Hits, _Model, load_table
 
 BUILTIN_DIR = Path(__file__).parent
-BALL_BUILTIN = ("ccor", "ball-cor", "ball-cor-fastpitch")
 CCOR_SPAN_M_S = (25.0, 60.0)  # the speeds a CCOR test must span at least (issue 20)
 CCOR_MIN_SPEEDS = 5  # the founding paper's five inbound speeds
 

@@ -71,7 +71,8 @@ class RigSpec:
         assert self.scene is not None
         balls = None if procedure is None else procedure.ball.ball_class
         speed = None if procedure is None else procedure.target_speed_m_s
-        config = sim_config(self.scene, bat=bat, ball_class=balls, speed_m_s=speed)
+        named = None if procedure is None else procedure.name
+        config = sim_config(self.scene, bat=bat, ball_class=balls, speed_m_s=speed, balls_of=named)
         return _override(config, self.overrides, self.source)
 
 

@@ -17,20 +17,27 @@ from rig.core import events as ev
 from rig.core.ball import BallLot, LotResult
 from rig.core.errors import ConfigError
 from rig.protocols.ball_terms import BallTerms, terms_from_lot
-from rig.protocols.procedure import Procedure
+from rig.protocols.procedure import Ball, Procedure
 
 
-def qualify(lot: BallLot, results: list[LotResult], procedure: Procedure) -> list[LotResult]:
-    """The lot's ball-cor results a certification may rest on; ConfigError names what is missing."""
+def qualify(
+    lot: BallLot, results: list[LotResult], procedure: Procedure, store: Any = None
+) -> list[LotResult]:
+    """The lot's ball-cor results a certification may rest on; ConfigError names what is missing.
+
+    With `store`, the latest test must have fired the procedure's balls (same_balls) before its COR
+    is held against the lot's specification: another ball's COR failing it says nothing of the lot."""
     cor = [r for r in results if r.procedure == "ball-cor"]
     where = f"--ball-lot {lot.id}"
     if not cor:
         raise ConfigError(
             f"lot {lot.id} is not qualified: no ball-cor test; run "
-            f"'rig balls test --procedure ball-cor --lot {lot.id}' first",
+            f"'{which_test(procedure.ball.ball_class)} --lot {lot.id}' first",
             source=where,
         )
     latest = cor[-1]
+    if store is not None:
+        same_balls(store, lot.id, latest.run_id, procedure)
     if lot.meets(latest.quantity, latest.mean, latest.U) is False:
         nominal = lot.specification.nominal_cor
         raise ConfigError(
@@ -73,18 +80,68 @@ def same_balls(store: Any, lot_id: str, run_id: str, procedure: Procedure) -> No
             f"lot {lot_id}'s ball-cor test (run {run_id[:12]}) fired balls of "
             f"{_balls(theirs_class, mass)}; {procedure.name} names "
             f"{_balls(ours_class, ours.mass_kg)}: test the lot with the procedure's balls "
-            f"({_which_test(ours_class)})",
+            f"({which_test(ours_class)})",
             source=f"--ball-lot {lot_id}",
         )
 
 
-def _which_test(ball_class: str | None) -> str:
-    """The built-in ball-cor test firing balls of `ball_class`, or how to write one."""
-    if ball_class is None:
-        return "rig balls test --procedure ball-cor"
-    if ball_class == "47/375":
-        return "rig balls test --procedure ball-cor-fastpitch"
+def which_test(ball_class: str | None) -> str:
+    """The built-in ball-cor test firing balls of `ball_class` (None: baseballs, no class), or how to
+    write one; from the built-in ball tests (rig.protocols.names.BALL_BUILTIN)."""
+    wanted = (ball_class or "").lstrip(".") or None
+    for name, test in _builtin_tests():
+        if test.test == "ball-cor" and ((test.ball.ball_class or "").lstrip(".") or None) == wanted:
+            return f"rig balls test --procedure {name}"
     return f'a ball-cor TOML file with [procedure.ball] ball_class = "{ball_class}"'
+
+
+def _builtin_tests() -> list[tuple[str, Any]]:
+    from rig.protocols.ball_procedure import BallProcedure
+    from rig.protocols.names import BALL_BUILTIN
+
+    return [(name, BallProcedure.load(name)) for name in BALL_BUILTIN]
+
+
+def tests_for_lot(lot: BallLot) -> list[str]:
+    """The built-in ball tests whose balls the lot's registration allows (balls_mismatch)."""
+    return [name for name, test in _builtin_tests() if balls_mismatch(lot, test.ball) is None]
+
+
+def balls_mismatch(lot: BallLot, ball: Ball) -> str | None:
+    """Why balls `ball` (a procedure's [procedure.ball]) are not the lot's as registered: its mass
+    more than BALL_MASS_REL_TOL from the lot's mass_kg, or (a softball's class COR/compression) a
+    COR outside the lot's nominal_cor +- its tolerance (0.01 if none) or a compression more than
+    5 % from its compression_lbf; None where the registration allows them (or states nothing)."""
+    spec, found = lot.specification, []
+    if spec.mass_kg is not None and abs(spec.mass_kg - ball.mass_kg) > BALL_MASS_REL_TOL * ball.mass_kg:
+        found.append(f"mass {spec.mass_kg:g} kg")
+    key = (ball.ball_class or "").lstrip(".")
+    if key:
+        cor, compression = int(key[:2]) / 100.0, float(key[3:])
+        tolerance = spec.cor_tolerance if spec.cor_tolerance is not None else 0.01
+        if spec.nominal_cor is not None and abs(spec.nominal_cor - cor) > tolerance + 1e-9:
+            found.append(f"COR {spec.nominal_cor:g}")
+        if spec.compression_lbf is not None and abs(spec.compression_lbf - compression) > 0.05 * compression:
+            found.append(f"compression {spec.compression_lbf:g} lbf")
+    return " and ".join(found) or None
+
+
+def refuse_other_balls(lot: BallLot, name: str, ball: Ball) -> None:
+    """ConfigError (one line) if the ball test `name` fires balls `ball` the lot is not registered as."""
+    found = balls_mismatch(lot, ball)
+    if found is None:
+        return
+    fits = tests_for_lot(lot)
+    advice = (
+        "test it with " + " or ".join(f"rig balls test --procedure {n}" for n in fits)
+        if fits
+        else "give a ball test whose [procedure.ball] are the lot's balls"
+    )
+    raise ConfigError(
+        f"lot {lot.id} is registered with {found}; {name} fires balls of "
+        f"{_balls((ball.ball_class or '').lstrip('.') or None, ball.mass_kg)}: {advice}",
+        source="--lot",
+    )
 
 
 def _balls(ball_class: str | None, mass: Any) -> str:
@@ -107,8 +164,7 @@ def lot_terms(
     it was fitted on another lot; without it, the lot's recorded ball law if it has one.
     """
     lot, results = store.ball_lot(lot_id)
-    cor = qualify(lot, results, procedure)
-    same_balls(store, lot.id, cor[-1].run_id, procedure)
+    cor = qualify(lot, results, procedure, store)
     law_from = f"--ball {law_file}" if law_file else "--ball"
     if law is None:
         recorded = lot_law(store, lot_id)

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from typing import Any
 
+from rig.ball_rules import refuse_other_balls
 from rig.certification import (
     Emit,
     NewRun,
@@ -82,6 +83,8 @@ def run_ball_test(
         )
     if registered != lot:
         raise ConfigError(f"ball lot {lot.id} is registered with other values", source="--lot")
+    if run_id is None:
+        refuse_other_balls(lot, procedure.name, procedure.ball)
     past = history(store, run_id) if run_id is not None else None
     problems = rehearse_test(procedure, lot, config, past).problems
     if problems:

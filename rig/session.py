@@ -16,6 +16,7 @@ from urllib.parse import quote
 
 from rig.core.bat import BatSpec
 from rig.core.config import DEVICE_KINDS, OPTIONAL_KINDS, RigConfig
+from rig.core.errors import ConfigError
 from rig.core.units import INCH
 from rig.drivers.registry import DriverContext, open_device
 from rig.drivers.traffic import TrafficRecord
@@ -43,6 +44,7 @@ def sim_config(
     session: str | None = None,
     ball_class: str | None = None,
     speed_m_s: float | None = None,
+    balls_of: str | None = None,
 ) -> RigConfig:
     """A rig config whose ports are simulated devices of `scene` (a built-in name or a TOML path).
 
@@ -58,6 +60,9 @@ def sim_config(
     `ball_class` (a procedure's "44/375"): the cannon fires softballs of that class, as the lab loads
     the balls its procedure names (Scene.with_ball_class). `speed_m_s`: the speed the run fires at;
     below the default aim table's reach (a BPF's 60 mph), the aim table reaches down as a ball test's.
+    `balls_of`: the procedure whose balls `ball_class` is (None for baseballs); with it, a scene
+    that loads baseballs refuses a softball class and a softball scene refuses baseballs
+    (refuse_other_balls): the lab loads other balls, it does not change its rig.
     """
     from rig.instruments import today_utc
     from rig.simulators.register import sample_register
@@ -71,6 +76,8 @@ def sim_config(
         loaded = scene_with_bat(loaded, bat)
     if target is not None:
         loaded = loaded.with_target(*target)
+    if balls_of is not None:
+        refuse_other_balls(loaded, scene, ball_class, balls_of)
     softball = loaded.with_ball_class(ball_class)
     changed = softball is not loaded
     loaded = softball
@@ -93,6 +100,24 @@ def sim_config(
     if not loaded.reports_recoil():  # as a lab states a clamp without an encoder: no recoil waited for
         data["devices"] = {"clamp": {"options": {"recoil_encoder": False}}}
     return RigConfig.from_dict(data, source=f"scene {scene}")
+
+
+def refuse_other_balls(loaded: Any, scene: str, ball_class: str | None, balls_of: str) -> None:
+    """ConfigError (one line) if the simulated rig `loaded` (scene `scene`) loads softballs and the
+    procedure `balls_of` fires baseballs (no `ball_class`), or the other way round; another class of
+    softball is loaded as the procedure names it (Scene.with_ball_class)."""
+    from rig.simulators.scene import Scene
+
+    if (ball_class is None) == (loaded.ball_class is None):
+        return
+    fitting = [n for n in Scene.builtin_names() if (Scene.load(n).ball_class is None) == (ball_class is None)]
+    theirs = f"softballs {loaded.ball_class}" if loaded.ball_class else "baseballs (no ball class)"
+    ours = f"softballs of class {ball_class}" if ball_class else "baseballs (no ball class)"
+    raise ConfigError(
+        f"{balls_of} fires {ours}; the simulated rig {scene!r} loads {theirs}: give "
+        + " or ".join(f"--sim {n}" for n in fitting),
+        source="--sim",
+    )
 
 
 def scene_with_bat(scene: Scene, bat: BatSpec) -> Scene:

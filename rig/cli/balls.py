@@ -25,6 +25,7 @@ from rig.cli.common import (
 from rig.cli.common import console as out
 from rig.core.dbpath import DB_HELP
 from rig.core.errors import ConfigError, RecordRefused
+from rig.protocols.names import BALL_BUILTIN
 
 
 def cmd_register(args: argparse.Namespace) -> int:
@@ -52,7 +53,9 @@ def _accepted(args: argparse.Namespace) -> Any:
 
 
 def cmd_test(args: argparse.Namespace) -> int:
-    """rig balls test: run a ball test (ccor, ball-cor) on a registered lot, recording everything."""
+    """rig balls test: run a ball test (a built-in one or a TOML file) on a registered lot, recording
+    everything."""
+    from rig.ball_rules import refuse_other_balls
     from rig.balls import recorded_test, rehearse_test, run_ball_test
     from rig.core import events as ev
     from rig.protocols.ball_procedure import BallProcedure
@@ -80,6 +83,7 @@ def cmd_test(args: argparse.Namespace) -> int:
                     source="--lot",
                 )
             lot, run_id = lots[args.lot], None
+            refuse_other_balls(lot, str(args.procedure), procedure.ball)
         config = _rig_config(args, procedure, sim_session(store))
         if args.dry_run:  # the rehearsal alone; a real test is rehearsed once, by run_ball_test
             past = ev.parse_log(store.entries(run_id)) if run_id is not None else None
@@ -133,7 +137,10 @@ def _rig_config(args: argparse.Namespace, procedure: Any, session: str) -> Any:
         at = None if args.sim_start is None else air_starting_at(args.sim_start)
         target = (procedure.target.kind, procedure.target.diameter_m)
         balls = procedure.ball.ball_class  # softballs of that class, as the lab loads them
-        return sim_config(args.sim, target=target, effects=at, session=session, ball_class=balls)
+        named = args.procedure or procedure.name
+        return sim_config(
+            args.sim, target=target, effects=at, session=session, ball_class=balls, balls_of=named
+        )
     if args.sim_start is not None:
         raise ConfigError("--sim-start is for a simulated rig (--sim)", source="command line")
     if args.config:
@@ -214,7 +221,10 @@ def cmd_show(args: argparse.Namespace) -> int:
         + (", ".join(f"{k} {v:g}" for k, v in cond.model_dump().items() if v is not None) or "not stated")
     )
     if not results:
-        print("  no results yet: rig balls test --procedure ball-cor|ccor --lot " + lot.id)
+        from rig.ball_rules import tests_for_lot
+
+        fits = "|".join(tests_for_lot(lot)) or "TEST.toml (no built-in test fires this lot's balls)"
+        print(f"  no results yet: rig balls test --procedure {fits} --lot {lot.id}")
     for r in results:
         print("  " + _result_line(lot.id, r.run_id, r.model_dump(mode="json")))
     for law in laws:
@@ -266,7 +276,7 @@ def cmd_law(args: argparse.Namespace) -> int:
 
 def add_parsers(sub: Any) -> None:
     """`rig balls ...`."""
-    balls = sub.add_parser("balls", help="ball lots and ball tests (ccor, ball-cor)")
+    balls = sub.add_parser("balls", help=f"ball lots and ball tests ({', '.join(BALL_BUILTIN)})")
     bsub = balls.add_subparsers(dest="balls_command", required=True, metavar="BALLS_COMMAND")
 
     p = bsub.add_parser(
@@ -277,9 +287,7 @@ def add_parsers(sub: Any) -> None:
     p.set_defaults(handler=cmd_register)
 
     p = bsub.add_parser("test", help="run a ball test on a registered lot", description=cmd_test.__doc__)
-    p.add_argument(
-        "--procedure", help="ccor, ball-cor, ball-cor-fastpitch (47/375 softballs), or a ball-test TOML file"
-    )
+    p.add_argument("--procedure", help=f"{', '.join(BALL_BUILTIN)} (built in), or a ball-test TOML file")
     p.add_argument("--lot", metavar="LOT", help="the registered lot's id")
     add_rig_options(p)
     p.add_argument("--db", metavar="FILE", help=DB_HELP)

@@ -143,7 +143,10 @@ def rig_config(
 
         ball_class = None if procedure is None else procedure.ball.ball_class
         speed = None if procedure is None else procedure.target_speed_m_s
-        return sim_config(args.sim, bat=bat, session=session, ball_class=ball_class, speed_m_s=speed)
+        named = None if procedure is None else (getattr(args, "procedure", None) or procedure.name)
+        return sim_config(
+            args.sim, bat=bat, session=session, ball_class=ball_class, speed_m_s=speed, balls_of=named
+        )
     if args.config:
         return RigConfig.load(args.config)
     if not hasattr(args, "cannon"):
@@ -258,6 +261,15 @@ def add_report_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+def scene_names() -> str:
+    """The built-in simulated scenes, from the scenes folder (simulators/scenes/*.toml), without
+    loading the simulator (a command's help stays light)."""
+    import rig.simulators
+
+    folder = Path(rig.simulators.__file__).with_name("scenes")
+    return ", ".join(sorted(p.stem for p in folder.glob("*.toml")))
+
+
 def add_rig_options(p: argparse.ArgumentParser) -> None:
     """--sim [SCENE] or --config RIG.toml, one of them."""
     where = p.add_mutually_exclusive_group()
@@ -266,6 +278,6 @@ def add_rig_options(p: argparse.ArgumentParser) -> None:
         nargs="?",
         const="ideal",
         metavar="SCENE",
-        help="simulated rig: ideal (default), lab, faulty or a scene TOML file",
+        help=f"simulated rig: a built-in scene ({scene_names()}; ideal if none named) or a scene TOML file",
     )
     where.add_argument("--config", metavar="RIG.toml", help="rig configuration file")

@@ -467,7 +467,11 @@ def _verify_json(report: Any) -> dict[str, Any]:
 
 def add_parsers(sub: Any) -> None:
     """`rig certify|runs|report|verify|tui`, in this order: the everyday tasks lead `rig --help`."""
-    p = sub.add_parser("certify", help="certify a bat (BBCOR, BESR, BBS)", description=cmd_certify.__doc__)
+    p = sub.add_parser(
+        "certify",
+        help=f"certify a bat ({', '.join(n for _, n in BUILTIN_PROCEDURES)}, abi)",
+        description=cmd_certify.__doc__,
+    )
     p.add_argument(
         "--procedure",
         help=f"{', '.join(n for _, n in BUILTIN_PROCEDURES)}, abi (the NCAA accelerated break-in of a "

@@ -12,6 +12,7 @@ from rig.cli.common import (
     emit,
     open_db,
     rig_config,
+    scene_names,
 )
 from rig.core.dbpath import DB_HELP
 from rig.core.errors import ConfigError
@@ -147,7 +148,9 @@ def add_parsers(sub: Any) -> None:
     p = ssub.add_parser(
         "serve", help="expose simulated devices out of process", description=cmd_sim_serve.__doc__
     )
-    p.add_argument("--scene", default="ideal", help="ideal, lab, faulty or a scene TOML file")
+    p.add_argument(
+        "--scene", default="ideal", help=f"a built-in scene ({scene_names()}) or a scene TOML file"
+    )
     p.add_argument("--kind", choices=("pty", "tcp"), help="pty (default) or tcp on 127.0.0.1")
     p.add_argument(
         "--instruments",

@@ -60,7 +60,7 @@ class Metric(Quantity):
     cross_check: bool = False
     needs_length: bool = False  # depends on the bat's length (the swing model)
     test_speed_m_s: float | None = None  # the speed its standard fires at; a procedure must match it
-    basis: str = ""  # the constraint its BBCOR assumes (rig.measure.bpf: PIVOTED or UNCONSTRAINED)
+    basis: str = ""  # the constraint its e_A or BBCOR assumes (rig.measure.bpf: PIVOTED or UNCONSTRAINED)
     # divided by the run's ball COR (BPF): computed only where the run has one (MetricTerms.ball_cor),
     # whose u enters the mean once, correlated across the hits (rig.measure.bpf.bpf_u)
     needs_ball_cor: bool = False
@@ -68,6 +68,10 @@ class Metric(Quantity):
     def scale(self, terms: MetricTerms) -> float:
         """The factor from the budget output's u to the metric's u (1 when it is the metric)."""
         return 1.0 if self.u_scale is None else self.u_scale(terms)
+
+
+# the basis of a metric from e_A alone (BESR, BBS): the e_A of the pivoted bat, as BBCOR's
+PIVOTED_E_A = "pivoted: e_A = v_out / v_in of the stationary bat on the rig's pivot (WSU SSL glossary)"
 
 
 def bbcor(e_a: float, k: float) -> float:
@@ -81,7 +85,7 @@ def ea_from_bbcor(bbcor_value: float, k: float) -> float:
 
 
 def besr(e_a: float) -> float:
-    """BESR = e_A + 1/2 (WSU SSL glossary; ASTM F2219)."""
+    """BESR = e_A + 1/2, e_A of the pivoted bat (WSU SSL glossary; the cannon method of ASTM F2219)."""
     return e_a + 0.5
 
 
@@ -136,6 +140,7 @@ def _softball_bbs(ed: softball.SoftballEdition) -> Metric:
         title=f"USA Softball BBS ({ed.key})",
         needs_length=True,
         test_speed_m_s=ed.cannon_speed_m_s,
+        basis=PIVOTED_E_A,
     )
 
 
@@ -164,19 +169,21 @@ _QUANTITIES: dict[str, Quantity] = {
             title="NCAA BBCOR",
             cross_check=True,
             # the stationary bat on the rig's pivot (WSU SSL glossary; standards.md's BBCOR formula [I])
-            basis=f"{bpf_table.PIVOTED} (the stationary bat, WSU SSL glossary)",
+            basis=f"{bpf_table.PIVOTED} (the stationary bat on the rig's pivot, WSU SSL glossary)",
         ),
         Metric(
             "besr",
             "BESR",
             "",
-            "BESR = e_A + 1/2 (WSU SSL glossary; ASTM F2219; Falcon BESR sheet, rearranged)",
+            "BESR = e_A + 1/2, e_A of the stationary bat on the rig's pivot (WSU SSL glossary; the cannon "
+            "test method of ASTM F2219; Falcon BESR sheet, rearranged)",
             value=lambda e_a, t: besr(e_a),
             e_a_of=lambda v, t: v - 0.5,
             limit_range=(0.5, 1.5),  # e_A + 1/2 with e_A in (0, 1]
             budget_output="besr",
             title="NCAA BESR",
             cross_check=True,
+            basis=PIVOTED_E_A,
         ),
         Quantity(
             "besr_eq3",
@@ -202,6 +209,7 @@ _QUANTITIES: dict[str, Quantity] = {
             title="BBS (batted-ball speed)",
             cross_check=True,
             needs_length=True,
+            basis=PIVOTED_E_A,
         ),
         *(_softball_bbs(e) for e in softball.EDITIONS),
         *(_bpf(s) for s in bpf_table.STANDARDS),

@@ -19,11 +19,17 @@ def _n(x: Any, digits: int = 4) -> str:
 
 
 def basis_rows(record: dict[str, Any]) -> list[tuple[str, str]]:
-    """('basis', ...) for a metric whose registry entry states the bat's constraint, else nothing."""
+    """('basis', ...) for a metric whose registry entry states the bat's constraint, else nothing; a
+    pivoted one says it is not F2219-23's unconstrained formula (the cannon method is F2219's)."""
     entry = registry.find(
         (record.get("verdict") or {}).get("metric") or (record.get("procedure") or {}).get("standard")
     )
-    return [("basis (the bat's constraint)", entry.basis)] if entry is not None and entry.basis else []
+    if entry is None or not entry.basis:
+        return []
+    if not entry.basis.startswith("pivoted"):
+        return [("basis (the bat's constraint)", entry.basis)]
+    other = UNCONSTRAINED if "BBCOR" in entry.basis else "unconstrained (ASTM F2219-23: the free bat's)"
+    return [("basis (the bat's constraint)", f"{entry.basis}; not {other}")]
 
 
 def _cor_rows(b: dict[str, Any], k: float) -> list[tuple[str, str]]:

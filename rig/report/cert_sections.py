@@ -9,6 +9,7 @@ from rig.core import events as ev
 from rig.measure import registry
 from rig.report.cert_doc import Block, Figure, Heading, Para, Table
 from rig.report.cert_plots import budget_scale, certification_hits, metric_label, unit_suffix
+from rig.report.cert_shares import SCATTER, Term, result_terms, what
 
 _PROMPT_SEQ = re.compile(r"-\d+$")  # ring-before-12 -> ring-before
 _INPUTS = {
@@ -333,7 +334,9 @@ def _share(share: float) -> str:
 
 
 def budget_blocks(record: dict[str, Any]) -> list[Block]:
-    """The uncertainty budget of the bat's mean (top contributions) and the lab-time trade-off.
+    """The uncertainty budget of the bat's mean: every term's share of the result's u² (the
+    measurement's inputs, the scatter, the ball's terms: rig.report.cert_shares), and the lab-time
+    trade-off.
 
     The record keeps the budget of the metric's registry output (BBS's is e_A's: BBS is linear in
     e_A); it is scaled here by the registry's u_scale so that every u shown is in the metric's unit.
@@ -348,61 +351,94 @@ def budget_blocks(record: dict[str, Any]) -> list[Block]:
         return []
     name, inputs = metric_label(metric), budget.get("inputs") or {}
     ball = v.get("ball") if isinstance(v.get("ball"), dict) else None
-    ranked = sorted((out_b.get("contributions") or {}).items(), key=lambda item: -item[1])
-    top = [(k, share) for k, share in ranked if share > 0]
-    rows = [
-        (
-            k,
-            _input_name(k),
-            _sig((inputs.get(k) or {}).get("u")),
-            "systematic" if (inputs.get(k) or {}).get("systematic") else "random",
-            _share(share),
-        )
-        for k, share in top
-    ]
-    rest = 1.0 - sum(share for _, share in top)
-    if rest > 5e-4:
-        rows.append(("others", "", "", "", _share(rest)))
+    split = result_terms(v, out_b, scale)
+    if split is None:
+        return []
+    terms, total = split
+    rows = [_term_row(t, inputs, total) for t in terms]
     sys_u = scale * out_b.get("systematic_variance", 0.0) ** 0.5
     rnd_u = scale * out_b.get("random_variance", 0.0) ** 0.5
-    lead = f"{_input_name(top[0][0])}, {_share(top[0][1])} of u²" if top else "—"
+    lead = f"{_term_name(terms[0])}, {_share(terms[0].variance / total)} of the result's u²" if terms else "—"
     note = ""
     if entry is not None and entry.u_scale is not None:
         by = f"{entry.u_scale_text} = {scale:.2f}{unit_suffix(metric)}"
         note = f" ({metric_label(entry.budget_output)}'s budget times {by})"
+    u_model = scale * out_b.get("u", 0.0)
     out: list[Block] = [
         Heading("Uncertainty budget of the mean"),
         Para(
             f"Result: u = {_sig(v.get('u'), 3)}, U = {_sig(v.get('U'), 3)} (k = {v.get('coverage_k', 2):g}). "
-            f"It combines the model budget below{note}, u = {_sig(scale * out_b.get('u', 0.0), 3)} "
+            f"It combines the model budget of the measurement{note}, u = {_sig(u_model, 3)} "
             f"(systematic {_sig(sys_u)}, random {_sig(rnd_u)} for the mean of {budget.get('n_hits', '?')} "
             "hits), with the hits' observed scatter (docs/measurement.md, section 3)" + _ball_clause(v, ball)
+        ),
+        Para(
+            f"Each term's share of the result's u² (u = {_sig(v.get('u'), 3)}), every term included; for a "
+            "term that is not an input of the model budget, 'u of input' is its u in the result's unit:"
         ),
         Table(("input", "what", "u of input", "kind", f"share of u²({name})"), tuple(rows)),
         Para(f"Largest contribution: {lead}. Shared (systematic) inputs are not reduced by more hits."),
         *drag_blocks(v.get("drag")),
         *moi_blocks(record.get("moi")),
     ]
+    return out + _tradeoff_blocks(record, v, name, scale, total - u_model**2)
+
+
+def _term_name(t: Term) -> str:
+    return _input_name(t.key) if t.measurement_input else (what(t.key) or t.key)
+
+
+def _term_row(t: Term, inputs: dict[str, Any], total: float) -> tuple[str, str, str, str, str]:
+    """A row of the budget table: an input of the measurement budget, or a term beside it."""
+    if t.measurement_input:
+        given = inputs.get(t.key) or {}
+        kind = "systematic" if given.get("systematic") else "random"
+        return (t.key, _input_name(t.key), _sig(given.get("u")), kind, _share(t.variance / total))
+    kind = {SCATTER: "observed (random)", "others": "", "u_from_ball_cor": "lot's COR"}.get(t.key, "ball")
+    return (
+        t.key.removeprefix("u_"),
+        what(t.key) or "",
+        _sig(t.variance**0.5),
+        kind,
+        _share(t.variance / total),
+    )
+
+
+def _tradeoff_blocks(
+    record: dict[str, Any], v: dict[str, Any], name: str, scale: float, other: float
+) -> list[Block]:
+    """The measurement's U against lab time for n valid hits, with the result's U beside it (the
+    terms more hits do not reduce, `other` (variance), held as in this run)."""
     trade = v.get("tradeoff") or []
-    if trade:
-        n_proc = ((record.get("procedure") or {}).get("hits") or {}).get("valid_hits")
-        rows_t = tuple(
-            (
-                str(r.get("hits")),
-                str(r.get("shots")),
-                _sig(scale * r.get("u", 0.0), 3),
-                _sig(scale * r.get("expanded", 0.0), 3),
-                f"{r.get('lab_time_s', 0) / 60:.1f} min",
-                "◀ this procedure" if r.get("hits") == n_proc else "",
-            )
-            for r in trade
+    if not trade:
+        return []
+    k = v.get("coverage_k", 2)
+    n_proc = ((record.get("procedure") or {}).get("hits") or {}).get("valid_hits")
+    rows_t = tuple(
+        (
+            str(r.get("hits")),
+            str(r.get("shots")),
+            _sig(scale * r.get("u", 0.0), 3),
+            _sig(scale * r.get("expanded", 0.0), 3),
+            _sig(k * (max(0.0, other) + (scale * r.get("u", 0.0)) ** 2) ** 0.5, 3),
+            f"{r.get('lab_time_s', 0) / 60:.1f} min",
+            "◀ this procedure" if r.get("hits") == n_proc else "",
         )
-        out += [
-            Heading("Accuracy against lab time"),
-            Para(f"U of the mean {name} from the model budget (without observed scatter) for n valid hits:"),
-            Table(("valid hits", "shots", "u", "U", "lab time", ""), rows_t),
-        ]
-    return out
+        for r in trade
+    )
+    return [
+        Heading("Accuracy against lab time"),
+        Para(
+            f"The measurement part of the mean {name}'s U, from the model budget (without observed scatter), "
+            f"for n valid hits; beside it the result's U (certified: {_sig(v.get('U'), 3)}, k = {k:g}) with "
+            "the terms more hits do not reduce here (the scatter, the ball's and the lot's terms) as in "
+            "this run:"
+        ),
+        Table(
+            ("valid hits", "shots", "u (measurement)", "U (measurement)", "U (result)", "lab time", ""),
+            rows_t,
+        ),
+    ]
 
 
 def drag_blocks(drag: dict[str, Any] | None) -> list[Block]:

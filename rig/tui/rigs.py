@@ -59,7 +59,8 @@ class RigChoice:
         if self.kind == "sim":
             balls = None if procedure is None else procedure.ball.ball_class
             speed = None if procedure is None else procedure.target_speed_m_s
-            return sim_config(self.ref, bat=bat, ball_class=balls, speed_m_s=speed)
+            named = None if procedure is None else procedure.name
+            return sim_config(self.ref, bat=bat, ball_class=balls, speed_m_s=speed, balls_of=named)
         return RigConfig.load(self.ref)
 
 

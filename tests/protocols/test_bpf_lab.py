@@ -378,3 +378,41 @@ def test_a_hot_bat_near_the_limit_with_the_lots_air_measured(tmp_path: Path) -> 
     true_bpf = truth.value / rigid_cor(sim.ball, 60 * MPH)
     assert true_bpf > 1.20 and code == 1 and verdict["verdict"] == "FAIL", err
     assert abs(verdict["mean"] - true_bpf) <= verdict["U"] < 0.02, (verdict["mean"], true_bpf, verdict["U"])
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_the_bpf_budget_shares_are_of_the_bpfs_u_with_the_lots_terms(lab: dict[str, Any], name: str) -> None:
+    """Every term of u(BPF) is in the budget table, its share of u(BPF)² the record's own: the
+    shared air, the COR's test and the hits' terms; the largest of them is named."""
+    from tests.report.test_budget_shares import budget_rows
+
+    verdict, md = lab[name]["record"]["verdict"], lab[name]["md"]
+    parts, u2 = verdict["bpf"], verdict["u"] ** 2
+    rows = budget_rows(md)
+    assert sum(share for _, share in rows.values()) == pytest.approx(100.0, abs=0.5)
+    for key in ("shared_air", "from_ball_cor"):
+        assert rows[key][1] == pytest.approx(100 * parts[f"u_{key}"] ** 2 / u2, rel=0.01, abs=0.01)
+    largest = max(rows, key=lambda k: rows[k][1])
+    lead = md.split("Largest contribution: ", 1)[1].split(" % of the result's u²", 1)[0]
+    assert lead.endswith(f"{rows[largest][1]:.1f}")
+
+
+def test_a_lot_tested_with_other_balls_is_blamed_on_its_balls_not_on_its_specification(
+    lab: dict[str, Any],
+) -> None:
+    """A lot registered as 47/375 softballs (COR .47, no mass stated) whose ball-cor test fired
+    baseballs: the baseballs' COR fails the lot's specification, but the cause is the balls."""
+    folder, db = lab["folder"], lab["db"]
+    (folder / "MIXED.toml").write_text(LOT.format(id="MIXED", model="mixed", cor=0.47), encoding="utf-8")
+    assert cli("balls", "register", str(folder / "MIXED.toml"), "--db", db)[0] == 0
+    scene = lab["usssa-bpf"]["scene"]
+    assert (
+        cli("balls", "test", "--procedure", "ball-cor", "--lot", "MIXED", "--sim", str(scene), "--db", db)[0]
+        == 0
+    )
+    case = lab["fastpitch-bpf"]
+    argv = ["certify", "--procedure", "fastpitch-bpf", "--bat", case["bat"], "--sim", str(case["scene"])]
+    code, _, err = cli(*argv, "--db", db, "--ball-lot", "MIXED")
+    assert code == 2 and err.count("\n") == 1, err
+    assert "fired balls of no ball class" in err and "fails its specification" not in err
+    assert "--procedure ball-cor-fastpitch" in err
