@@ -390,8 +390,8 @@ def test_the_bpf_budget_shares_are_of_the_bpfs_u_with_the_lots_terms(lab: dict[s
     parts, u2 = verdict["bpf"], verdict["u"] ** 2
     rows = budget_rows(md)
     assert sum(share for _, share in rows.values()) == pytest.approx(100.0, abs=0.5)
-    for key in ("shared_air", "from_ball_cor"):
-        assert rows[key][1] == pytest.approx(100 * parts[f"u_{key}"] ** 2 / u2, rel=0.01, abs=0.01)
+    for key in ("shared_air", "from_ball_cor"):  # the table rounds to 0.1 %
+        assert rows[key][1] == pytest.approx(100 * parts[f"u_{key}"] ** 2 / u2, rel=0.01, abs=0.05)
     largest = max(rows, key=lambda k: rows[k][1])
     lead = md.split("Largest contribution: ", 1)[1].split(" % of the result's u²", 1)[0]
     assert lead.endswith(f"{rows[largest][1]:.1f}")
