@@ -414,6 +414,53 @@ def solve_one(
 
 
 @nb.njit(cache=True)
+def solve_impact(
+    m1: float,
+    k1: float,
+    c1: float,
+    a: float,
+    b: float,
+    m2: float,
+    c2: float,
+    hoop: float,
+    body: float,
+    speed: float,
+    rtol: float,
+    max_steps: int,
+) -> tuple:
+    """One collision from the impact's own numbers (hoop 0: rigid barrel; body 0: clamped), for
+    `fast.solve`: the parameter vector, length scale, state count and time limit are made here, as
+    `fast.kernel_params`, `CollisionParams.compression_scale` and `reference._time_limit` make them
+    (the same operations, so the same numbers), instead of in Python on every call.
+
+    Returns (cor, contact_time, nfev, status, x1, v1, x2, v2, x3, v3): the state at the separation
+    as numbers, so that no array crosses into Python."""
+    rigid = hoop == 0.0
+    clamped = body == 0.0
+    p = np.empty(N_PARAMS)
+    p[0] = m1
+    p[1] = k1
+    p[2] = c1
+    p[3] = a
+    p[4] = b
+    p[5] = m2
+    p[6] = 0.0 if rigid else m2 * (2.0 * math.pi * hoop) ** 2
+    p[7] = c2
+    p[8] = 0.0 if clamped else 1.0 / body
+    p[9] = 0.0 if clamped else 1.0 / (m2 + body)
+    p[10] = 1.0 if rigid else 0.0
+    n = 2.0 + a
+    scale = (n * m1 * speed * speed / (2.0 * k1)) ** (1.0 / n)
+    t_max = 500.0 * scale / speed
+    if not rigid:
+        t_max = t_max + 20.0 / hoop * max(1.0, math.sqrt(m1 / m2))
+    n_active = 2 + (0 if rigid else 2) + (0 if clamped else 2)
+    s = np.zeros(6)
+    cor, tc, nfev, _, status = solve_one(p, speed, scale, rtol, n_active, t_max, max_steps, s)
+    return cor, tc, nfev, status, s[0], s[1], s[2], s[3], s[4], s[5]
+
+
+@nb.njit(cache=True)
 def may_meet_again(y0: np.ndarray, p: np.ndarray) -> bool:
     """After a separation: False when no later contact is possible (the separation is final).
 

@@ -39,16 +39,16 @@ INTERPRETED_SOLVES = 20  # ~0.3 s of interpreted solves, about what loading the 
 NUMPY_LANES = 5000  # a batch this small may run in numpy lanes: ~0.4 s, below numba's load (~1 s)
 _COMPILED = "rig.physics._dop853"
 _interpreted_left = INTERPRETED_SOLVES
-_solve_one: Any = None  # the compiled kernel's solve_one, once loaded
+_solve_impact: Any = None  # the compiled kernel's lean entry point, once loaded
 
 
 def compiled() -> ModuleType:
     """The compiled kernel (numba loads here, the first time)."""
-    global _interpreted_left, _solve_one
+    global _interpreted_left, _solve_impact
     from rig.physics import _dop853
 
     _interpreted_left = 0
-    _solve_one = _dop853.solve_one  # single solves go straight to it from now on
+    _solve_impact = _dop853.solve_impact  # single solves go straight to it from now on
     return _dop853
 
 
@@ -93,12 +93,48 @@ def _describe(imp: Impact, rtol: float) -> str:
 def solve(imp: Impact, rtol: float = DEFAULT_RTOL) -> CollisionResult:
     """Solve one collision with the DOP853 kernel (interpreted at first, then compiled: see above)."""
     rtol = check_tolerance(rtol)
+    if _solve_impact is None:
+        module = _single()
+        if module.__name__ != _COMPILED:
+            return solve_general(imp, rtol, module)
+    p, hoop, body = imp.params, imp.hoop_hz, imp.body_mass
+    out = _solve_impact(
+        p.m1,
+        p.k1,
+        p.c1,
+        p.a,
+        p.b,
+        p.m2,
+        p.c2,
+        hoop or 0.0,
+        0.0 if body is None else float(body),
+        imp.speed,
+        rtol,
+        MAX_STEPS,
+    )  # floats all (pydantic and Impact make them so): numba compiles one signature
+    if out[3] != kernel.STATUS_OK:  # a later contact to follow, or a failure: the general path's ending
+        return _finish(imp, rtol, out[0], out[1], out[2], out[3], np.array(out[4:]))
+    return CollisionResult(  # positional: a keyword call of the frozen dataclass costs twice as long
+        bounded_cor(out[0]), out[1], out[5], out[4:], out[2], "rig-DOP853", rtol, {}, 1
+    )
+
+
+def solve_general(imp: Impact, rtol: float, module: ModuleType) -> CollisionResult:
+    """`solve` through `module`'s solve_one (the interpreted or the compiled kernel), with the
+    parameter vector and limits made in Python: the path `solve`'s lean compiled entry must equal."""
+    rtol = check_tolerance(rtol)
     state = np.zeros(6)
     scale = imp.params.compression_scale(imp.speed)
-    run = _solve_one if _solve_one is not None else _single().solve_one
-    cor, tc, nfev, _, status = run(
+    cor, tc, nfev, _, status = module.solve_one(
         kernel_params(imp), imp.speed, scale, rtol, imp.n_states, _time_limit(imp, scale), MAX_STEPS, state
     )
+    return _finish(imp, rtol, cor, tc, nfev, status, state)
+
+
+def _finish(
+    imp: Impact, rtol: float, cor: float, tc: float, nfev: int, status: int, state: np.ndarray
+) -> CollisionResult:
+    """The result of a kernel solve: later contacts followed by the reference, failures raised."""
     contacts = 1
     if status == kernel.STATUS_FOLLOW:
         tc, last, contacts, more = continue_contacts(imp, tc, state, rtol)
