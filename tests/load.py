@@ -10,16 +10,24 @@ Each burner spins in pure Python until its deadline, or until its parent is gone
 process killed with SIGKILL does not leave it behind), whichever comes first. Leaving the block,
 normally or by an exception, kills and reaps every burner. The pytest fixture `cpu_load` in
 tests/conftest.py wraps this for a whole test.
+
+Burners take turns: a block first takes an exclusive lock (flock) on one file in the temporary
+folder, shared by every process of the user, so the test workers of a parallel run (pytest-xdist)
+do not multiply the load: at most one block's burners run at a time, and the others wait for it.
+The kernel releases the lock with the process, so a killed test process never leaves it held.
 """
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 BURNERS = 2
 LIMIT_S = 300.0  # no test that needs load runs longer; a burner never outlives this
@@ -36,34 +44,67 @@ while time.monotonic() < deadline and os.getppid() == parent:
 """
 
 
+_held = 0  # how deep this process is inside take_turns() (a block inside a block takes no lock)
+
+
+def lock_path() -> Path:
+    """The file the burners of every test process of this user take turns on."""
+    return Path(tempfile.gettempdir()) / f"rig-tests-load-{os.getuid()}.lock"
+
+
+@contextlib.contextmanager
+def take_turns() -> Iterator[None]:
+    """Hold the load lock while the block runs (waiting for another process's block to end)."""
+    global _held
+    if _held:
+        _held += 1
+        try:
+            yield
+        finally:
+            _held -= 1
+        return
+    fd = os.open(lock_path(), os.O_RDWR | os.O_CREAT, 0o600)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        _held = 1
+        try:
+            yield
+        finally:
+            _held = 0
+    finally:
+        os.close(fd)  # releases the lock
+
+
 @contextlib.contextmanager
 def cpu_load(n: int = BURNERS, limit_s: float = LIMIT_S) -> Iterator[list[subprocess.Popen[str]]]:
-    """Run `n` CPU-bound processes for at most `limit_s` s while the block runs; yield them."""
-    procs: list[subprocess.Popen[str]] = []
-    try:
-        for _ in range(n):
-            procs.append(
-                subprocess.Popen(
-                    [sys.executable, "-c", _BURN, repr(limit_s)],
-                    stdin=subprocess.DEVNULL,
-                    stdout=subprocess.PIPE,
-                    stderr=subprocess.DEVNULL,
-                    text=True,
+    """Run `n` CPU-bound processes for at most `limit_s` s while the block runs; yield them.
+    Waits first until no other test process runs burners (take_turns)."""
+    with take_turns():
+        procs: list[subprocess.Popen[str]] = []
+        try:
+            for _ in range(n):
+                procs.append(
+                    subprocess.Popen(
+                        [sys.executable, "-c", _BURN, repr(limit_s)],
+                        stdin=subprocess.DEVNULL,
+                        stdout=subprocess.PIPE,
+                        stderr=subprocess.DEVNULL,
+                        text=True,
+                    )
                 )
-            )
-        for proc in procs:  # each one is spinning before the block starts
-            assert proc.stdout is not None
-            if proc.stdout.readline().strip() != "burning":
-                raise RuntimeError(f"load process {proc.pid} did not start (exit {proc.poll()})")
-        yield procs
-    finally:
-        for proc in procs:
-            with contextlib.suppress(ProcessLookupError):
-                proc.kill()
-        for proc in procs:
-            proc.wait()
-            if proc.stdout is not None:
-                proc.stdout.close()
+            for proc in procs:  # each one is spinning before the block starts
+                assert proc.stdout is not None
+                if proc.stdout.readline().strip() != "burning":
+                    raise RuntimeError(f"load process {proc.pid} did not start (exit {proc.poll()})")
+            yield procs
+        finally:
+            for proc in procs:
+                with contextlib.suppress(ProcessLookupError):
+                    proc.kill()
+            for proc in procs:
+                proc.wait()
+                if proc.stdout is not None:
+                    proc.stdout.close()
 
 
 def cpu_seconds(pid: int) -> float:

@@ -69,3 +69,38 @@ def test_burners_outlive_no_killed_parent() -> None:
     while not all(_gone(p) for p in pids) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert all(_gone(p) for p in pids)
+
+
+def test_burners_take_turns_between_processes() -> None:
+    """While one process runs burners, another cannot take the load lock (a parallel test worker
+    waits); a block inside a block of the same process does not wait for itself."""
+    import fcntl
+    import os
+
+    from tests.load import lock_path
+
+    child = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "import sys\nfrom tests.load import cpu_load\nwith cpu_load(n=1):\n    print('in', flush=True)\n    sys.stdin.read()\n",
+        ],
+        cwd=ROOT,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert child.stdout is not None and child.stdin is not None
+    try:
+        assert child.stdout.readline().strip() == "in"
+        fd = os.open(lock_path(), os.O_RDWR)
+        try:
+            with pytest.raises(BlockingIOError):
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        finally:
+            os.close(fd)
+    finally:
+        child.stdin.close()
+        assert child.wait(timeout=60) == 0
+    with cpu_load(n=1) as outer, cpu_load(n=1) as inner:  # returns: the inner block took no lock
+        assert outer[0].poll() is None and inner[0].poll() is None
