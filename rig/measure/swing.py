@@ -81,17 +81,51 @@ def _quantization_deg(resolution_deg: float, time_resolution_s: float, rate_deg_
 
 
 def zero_crossings(t_s: Samples, angle_deg: Samples) -> list[int]:
-    """Indices i where the angle changes sign between samples i and i+1 (zeros skipped over at most
-    two samples; a trace that rests at zero has no crossings)."""
+    """Indices i where the angle changes sign between samples i and i+1 (across a run of zeros, about
+    its middle). Zeros between the two signs are skipped: up to two always, a longer run when the
+    angle moves through it at least half as fast as it moves on either side of it (a slow swing read
+    by a coarse encoder dwells at zero for a few samples). A trace that rests at zero, or stops there
+    and later moves off to the other side, has no crossing there."""
     _, a = _arrays(t_s, angle_deg, 2)
     out: list[int] = []
     last = -1  # index of the last non-zero sample
     for i, value in enumerate(a):
         if value == 0.0:
             continue
-        if last >= 0 and (value > 0.0) != (a[last] > 0.0) and i - last <= 3:
-            out.append(last)
+        if last >= 0 and (value > 0.0) != (a[last] > 0.0) and _passes_through(a, last, i):
+            out.append(last + max(0, (i - last - 2) // 2))  # a long run of zeros: its middle
         last = i
+    return out
+
+
+def _passes_through(a: np.ndarray, last: int, i: int) -> bool:
+    """Whether the zeros between the opposite-signed samples `last` and `i` are a crossing."""
+    gap = i - last  # the zeros between them, plus one
+    if gap <= 3:
+        return True
+    through = (abs(float(a[last])) + abs(float(a[i]))) / gap
+    before = abs(float(a[last] - a[max(0, last - gap)])) / gap
+    after = abs(float(a[min(len(a) - 1, i + gap)] - a[i])) / gap
+    return through >= 0.5 * max(before, after)
+
+
+def _merged(idx: list[int]) -> list[int]:
+    """Crossings with noise flicker merged: sign changes much closer together than a half swing
+    (a quarter of the median spacing) are noise about one crossing: an odd number of them is one
+    crossing, at their middle; an even number changes no sign and is none."""
+    if len(idx) < 3:
+        return idx
+    close = float(np.median(np.diff(idx))) / 4.0
+    out: list[int] = []
+    group = [idx[0]]
+    for i in [*idx[1:], None]:
+        if i is not None and i - group[-1] < close:
+            group.append(i)
+            continue
+        if len(group) % 2:
+            out.append(group[len(group) // 2])
+        if i is not None:
+            group = [i]
     return out
 
 
@@ -106,7 +140,7 @@ def swing_period(
     if cycles < 1:
         raise ParameterError("cycles", cycles, "need at least one cycle")
     t, a = _arrays(t_s, angle_deg, 4)
-    idx = zero_crossings(t, a)
+    idx = _merged(zero_crossings(t, a))
     need = 2 * cycles + 1
     if len(idx) < need:
         raise ParameterError(

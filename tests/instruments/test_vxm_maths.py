@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from rig.core.errors import ParameterError
@@ -68,6 +68,17 @@ def test_a_trace_at_rest_has_no_crossings() -> None:
     assert zero_crossings([0.0, 0.1, 0.2, 0.3], [0.0, 0.0, 5.0, 4.0]) == []
 
 
+def test_a_slow_crossing_read_coarsely_is_a_crossing() -> None:
+    """The angle moves through three zero readings as fast as it moves on either side of them."""
+    a = [-0.3, -0.2, -0.1, 0.0, 0.0, 0.0, 0.1, 0.2, 0.3]
+    assert zero_crossings(range(len(a)), a) == [3]
+
+
+def test_a_trace_that_stops_at_zero_and_moves_off_the_other_way_has_no_crossing() -> None:
+    a = [2.0, 1.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -0.5, -2.0, -4.0, -6.0, -8.0, -10.0, -12.0]
+    assert zero_crossings(range(len(a)), a) == []
+
+
 def _step(omega: float, rate: float, t_step: float, seconds: float, pendulum_hz: float | None = None):
     """theta = 0 before t_step; after it omega*tau (free) or (omega/W) sin(W tau) (linear pendulum)."""
     t = np.arange(0.0, seconds, 1.0 / rate)
@@ -119,6 +130,19 @@ def test_a_trace_that_never_moves_is_refused() -> None:
     res=st.sampled_from([0.0, 0.01, 0.05, 0.1]),
     noise=st.sampled_from([0.0, 0.005, 0.02]),
     seed=st.integers(0, 2**16),
+)
+# found in CI: a 2 deg swing read at 0.1 deg dwells 3 samples at zero per crossing (it was missed)
+@example(period=1.0, amp=2.0, per_period=263, cycles=1, phase=2.0, res=0.1, noise=0.0, seed=0)
+# found by a wider random sweep: noise flips the sign of a slow crossing three times in three samples
+@example(
+    period=1.8323444619452487,
+    amp=2.0,
+    per_period=363,
+    cycles=4,
+    phase=2.3650291977456597,
+    res=0.0,
+    noise=0.02,
+    seed=29910,
 )
 def test_period_hard_corners_stay_within_their_uncertainty(
     period: float, amp: float, per_period: int, cycles: int, phase: float, res: float, noise: float, seed: int
