@@ -17,9 +17,21 @@ from hypothesis import HealthCheck, settings
 
 from rig.physics.params import DEFAULT_PARAMS, CollisionParams
 from tests.load import cpu_load as _cpu_load
-from tests.pgfixtures import pg_cluster, pg_url, pytest_terminal_summary
+from tests.pgfixtures import (
+    pg_cluster,
+    pg_url,
+    pytest_sessionfinish,
+    pytest_terminal_summary,
+    pytest_testnodedown,
+)
 
-__all__ = ["pg_cluster", "pg_url", "pytest_terminal_summary"]  # PostgreSQL: tests/pgfixtures.py
+__all__ = [  # PostgreSQL: tests/pgfixtures.py
+    "pg_cluster",
+    "pg_url",
+    "pytest_sessionfinish",
+    "pytest_terminal_summary",
+    "pytest_testnodedown",
+]
 
 settings.register_profile(
     "ci",

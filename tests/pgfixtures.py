@@ -52,12 +52,35 @@ def pg_url(pg_cluster: PgCluster) -> Iterator[str]:
     pg_cluster.drop_db(name)
 
 
-def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
-    """One line on what the PostgreSQL cluster cost the session, if one was started."""
+_reported: list[str] = []  # summary lines from the test workers (pytest-xdist), on the controller
+
+
+def _summary_lines() -> list[str]:
+    lines = []
     for c in _clusters:
         made = sorted(c.create_times)
         median = f", median {made[len(made) // 2] * 1e3:.0f} ms each" if made else ""
-        terminalreporter.write_line(
+        lines.append(
             f"PostgreSQL test cluster ({c.bin_dir}): up in {c.timings.get('up', 0.0):.2f} s "
             f"(initdb {c.timings.get('initdb', 0.0):.2f} s), {len(made)} databases created{median}"
         )
+    return lines
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    """A test worker (pytest-xdist) hands its cluster's line to the controller, which prints it."""
+    workeroutput = getattr(session.config, "workeroutput", None)
+    if workeroutput is not None:
+        workeroutput["pg_cluster_summary"] = _summary_lines()
+
+
+@pytest.hookimpl(optionalhook=True)  # a pytest-xdist hook: absent when the plugin is not loaded
+def pytest_testnodedown(node: object, error: object) -> None:
+    """The controller collects the lines its workers handed over."""
+    _reported.extend(getattr(node, "workeroutput", {}).get("pg_cluster_summary", []))
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    """One line per PostgreSQL cluster the session (or each of its workers) started."""
+    for line in [*_reported, *_summary_lines()]:
+        terminalreporter.write_line(line)
