@@ -194,8 +194,8 @@ def test_rigid_barrel_is_the_limit_of_the_flexible_one(speed: float, a: float, b
     """
     params = CollisionParams.build(a=a, b=b, c1=c1)
     rigid = fast.solve(Impact(params, speed), 1e-12).cor
-    try:
-        cor, _ = curve.cor_grid(params, speed, RIGID_LIMIT_HOOPS, 1e-12)
+    try:  # the three hoops the assertions read (20 kHz, 96 kHz, 1 MHz): each lane solves alone
+        cor, _ = curve.cor_grid(params, speed, RIGID_LIMIT_HOOPS[[0, 2, -1]], 1e-12)
     except SolverError as exc:
         # b ~ 0 only (the issue allows a refusal at b = 0): an over-damped ball creeping off at
         # ~1e-9 m/s (0.01 m/s in, COR ~ 1e-7) is touched again and again by the ringing barrel for
@@ -205,7 +205,7 @@ def test_rigid_barrel_is_the_limit_of_the_flexible_one(speed: float, a: float, b
     gap = np.abs(cor - rigid)
     note(f"gaps {gap}")
     assert gap[-1] < 2e-5
-    assert gap[-1] < max(min(gap[0], gap[2]), NOISE)
+    assert gap[-1] < max(min(gap[0], gap[1]), NOISE)
 
 
 @given(
