@@ -83,7 +83,8 @@ def test_burners_take_turns_between_processes() -> None:
         [
             sys.executable,
             "-c",
-            "import sys\nfrom tests.load import cpu_load\nwith cpu_load(n=1):\n    print('in', flush=True)\n    sys.stdin.read()\n",
+            "import sys\nfrom tests.load import cpu_load\n"
+            "with cpu_load(n=1):\n    print('in', flush=True)\n    sys.stdin.read()\n",
         ],
         cwd=ROOT,
         stdin=subprocess.PIPE,
