@@ -25,7 +25,6 @@ import os
 import subprocess
 import sys
 import tempfile
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -112,14 +111,6 @@ def cpu_seconds(pid: int) -> float:
     with open(f"/proc/{pid}/stat", encoding="ascii") as f:
         fields = f.read().rsplit(")", 1)[1].split()
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-
-def wall_clock_share(procs: list[subprocess.Popen[str]], seconds: float = 1.0) -> float:
-    """CPU seconds the processes used together per wall second, measured over `seconds`."""
-    before = sum(cpu_seconds(p.pid) for p in procs)
-    t0 = time.monotonic()
-    time.sleep(seconds)
-    return (sum(cpu_seconds(p.pid) for p in procs) - before) / (time.monotonic() - t0)
 
 
 def stop_group(proc: subprocess.Popen[str], timeout_s: float = 10.0) -> None:
