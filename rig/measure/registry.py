@@ -119,6 +119,8 @@ def _bpf(std: bpf_table.BpfStandard) -> Metric:
         test_speed_m_s=bpf_table.BPF_SPEED_M_S,
         basis=f"{bpf_table.PIVOTED} ({bpf_table.F1890})",
         needs_ball_cor=True,
+        # calibrated on the runs' BBCOR at 60 mph; predicted as calibrated BBCOR / the run's ball COR
+        cross_check=True,
     )
 
 
@@ -141,6 +143,7 @@ def _softball_bbs(ed: softball.SoftballEdition) -> Metric:
         needs_length=True,
         test_speed_m_s=ed.cannon_speed_m_s,
         basis=PIVOTED_E_A,
+        cross_check=True,  # calibrated on the runs' BBCOR at the cannon speed; predicted from its e_A
     )
 
 
