@@ -269,6 +269,15 @@ def crosscheck_at(
     return _check(cal, row, float(predicted[0]), float(u_model[0]), measured, u_measured, coverage, to)
 
 
+def check_population_metric(cal: CalibrationFile) -> None:
+    """CrossCheckRefused unless a population file has a column for the calibration's metric."""
+    if cal.fitted_metric != cal.metric:
+        raise CrossCheckRefused(
+            f"a {cal.metric} calibration fitted the runs' {cal.fitted_metric}; its cross-check is made in"
+            " rig certify (a population file has no column for the metric)"
+        )
+
+
 def crosscheck_bats(
     cal: CalibrationFile,
     bats: Sequence[PopulationBat],
@@ -281,11 +290,7 @@ def crosscheck_bats(
     else is unknown (0). CrossCheckRefused names the first bat lacking MOI or length.
     """
     t_factor(cal, coverage)
-    if cal.fitted_metric != cal.metric:
-        raise CrossCheckRefused(
-            f"a {cal.metric} calibration fitted the runs' {cal.fitted_metric}; its cross-check is made in"
-            " rig certify (a population file has no column for the metric)"
-        )
+    check_population_metric(cal)
     if not bats:
         return []
     missing = missing_column(bats, ("moi_kgm2", "length_in"))
