@@ -80,6 +80,12 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         print(f"rig: {note}", file=sys.stderr)
     ball = None
     kwargs: dict[str, Any] = {}
+    if standard is None and args.ball_mass_kg is not None:
+        raise ConfigError(
+            f"--ball-mass-kg is for a BPF or USA Softball BBS calibration; {args.metric} fits the"
+            " lab's baseball",
+            source="rig model calibrate",
+        )
     if standard is not None:
         speed, mass = _standard_conditions(args, conditions)
         kwargs["speed_m_s"] = speed

@@ -55,8 +55,10 @@ class Metric(Quantity):
     e_a_of: Callable[[float, MetricTerms], float] | None = None  # the inverse, where one exists
     u_scale: Callable[[MetricTerms], float] | None = None  # d(metric)/d(budget output); None: 1
     u_scale_text: str = ""  # u_scale in words, for the certificate
-    # rig model calibrate and the calibrated cross-check support it (needs a population column,
-    # rig.population.dataset, and a metric affine in e_A); the uncalibrated prediction needs neither
+    # rig model calibrate and the calibrated cross-check support it (needs a metric affine in e_A and
+    # a population column, rig.population.dataset: its own, else the runs' BBCOR is fitted and the
+    # metric predicted through e_A, rig.population.calibrate.fitted_quantity); the uncalibrated
+    # prediction needs neither
     cross_check: bool = False
     needs_length: bool = False  # depends on the bat's length (the swing model)
     test_speed_m_s: float | None = None  # the speed its standard fires at; a procedure must match it

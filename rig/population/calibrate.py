@@ -75,6 +75,7 @@ def metric_line(
     q: float,
     moi: float,
     length_m: float,
+    *,
     ball_mass_kg: float = BALL_MASS_KG,
     ball_cor: float | None = None,
 ) -> tuple[float, float]:
@@ -107,7 +108,7 @@ def fit_bats(
         q = (b.length_in - location) * INCH - PIVOT_FROM_KNOB_M
         if q <= 0.05:
             raise CalibrationRefused(f"bat {b.bat_id}: impact {location:g} in from the end is off the barrel")
-        alpha, beta = metric_line(metric, q, b.moi_kgm2, b.length_in * INCH, ball_mass_kg)
+        alpha, beta = metric_line(metric, q, b.moi_kgm2, b.length_in * INCH, ball_mass_kg=ball_mass_kg)
         value = b.metric(metric)
         assert value is not None
         out.append(

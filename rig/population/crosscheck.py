@@ -117,7 +117,7 @@ def _q(bat_id: str, length_in: float, location_in: float) -> float:
 def _row(cal: CalibrationFile, bat_id: str, hoop_hz: float, moi: float, q: float, length_in: float) -> FitBat:
     """The bat as the calibration's prediction code takes it (the same geometry, speed and ball as
     its fit): the line of the quantity it fitted."""
-    alpha, beta = metric_line(cal.fitted_metric, q, moi, length_in * INCH, cal.model_params.m1)
+    alpha, beta = metric_line(cal.fitted_metric, q, moi, length_in * INCH, ball_mass_kg=cal.model_params.m1)
     pivoted = PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q)
     if pivoted.effective_mass <= cal.model_params.m2:
         raise CrossCheckRefused(
@@ -155,7 +155,7 @@ def _to_metric(
         )
     cor, u_cor = ball_cor if needs_cor and ball_cor is not None else (None, 0.0)
     q, moi, m1 = row.pivoted.impact_from_pivot_m, row.pivoted.moi_kgm2, cal.model_params.m1
-    a, slope = metric_line(cal.metric, q, moi, length_in * INCH, m1, cor)
+    a, slope = metric_line(cal.metric, q, moi, length_in * INCH, ball_mass_kg=m1, ball_cor=cor)
     return _ToMetric(a, slope / row.beta, row.alpha, 0.0 if cor is None else u_cor / cor)
 
 
