@@ -230,3 +230,19 @@ def test_a_bpf_or_softball_calibration_from_data_alone_needs_the_ball_mass(runs:
         "model", "crosscheck", "--data", str(data), "--calibration", str(runs["usssa_bpf"]["cal"])
     )
     assert code == 2 and "its cross-check is made in rig certify" in err and err.count("\n") == 1
+
+
+def test_the_store_runs_feed_the_calibration_with_their_speed_and_ball(runs: dict[str, Any]) -> None:
+    """--db with --data: the store's certified BPF run joins the rows, and its recorded speed and
+    ball mass are the calibration's (no --ball-mass-kg)."""
+    folder: Path = runs["folder"]
+    case = runs["usssa_bpf"]
+    out = folder / "with-store.json"
+    code, _, err = cli(
+        "model", "calibrate", "--data", str(folder / "usssa_bpf.csv"), "--db", case["db"],
+        "--metric", "usssa_bpf", "--output", str(out), "--no-progress",
+    )  # fmt: skip
+    assert code == 0, err
+    f = json.loads(out.read_text(encoding="utf-8"))
+    assert f["provenance"]["n_bats"] == len(HOOPS) + 1 and "ONE-usssa_bpf" in [b["bat_id"] for b in f["bats"]]
+    assert f["speed_m_s"] == 26.82 and f["model_params"]["m1"] == 0.145 and f["fitted"] == "bbcor"
