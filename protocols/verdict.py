@@ -110,7 +110,19 @@ def verdict(p: Procedure, bat: BatSpec, state: RunState, config: RigConfig) -> R
         ball={**ball.as_dict(), "u_measurement": u_measured} if ball is not None else None,
         bpf=normalised,
         drag=drag_summary(config, state, inputs, name, per_bat.value(name)),
-        cross_check=cross_check(p, bat, v_in_mean, q, moi, mean, u, state.calibration, law),
+        cross_check=cross_check(
+            p,
+            bat,
+            v_in_mean,
+            q,
+            moi,
+            mean,
+            # a BPF: the measurement's part, the ball COR's u the prediction carries (taken once)
+            u_measured if p.metric.needs_ball_cor else u,
+            state.calibration,
+            law,
+            wall_cor(state)[:2] if p.metric.needs_ball_cor else None,
+        ),
         tradeoff=[
             r.as_dict() for r in tradeoff_table(per_hit, name, max_hits=12, cycle_s=config.cannon_cycle_s)
         ],
@@ -200,6 +212,12 @@ def run_calibration(p: Procedure, config: RigConfig) -> dict[str, Any] | None:
             f"calibrated at {cal.speed_m_s:g} m/s; the procedure shoots at {p.target_speed_m_s:g} m/s",
             source=path,
         )
+    if cal.ball is None and abs(cal.model_params.m1 - p.ball.mass_kg) > 1e-6:
+        raise ConfigError(
+            f"calibrated with {cal.model_params.m1:g} kg balls;"
+            f" the procedure fires {p.ball.mass_kg:g} kg balls",
+            source=path,
+        )
     return {
         "path": str(path),
         "named_by": by,
@@ -286,8 +304,10 @@ def cross_check(
     u: float | None = None,
     calibration: dict[str, Any] | None = None,
     law: dict[str, float] | None = None,
+    ball_cor: tuple[float, float] | None = None,
 ) -> dict[str, Any]:
-    """The model's prediction at the bat's hoop frequency next to the measured value (u: its k = 1 u).
+    """The model's prediction at the bat's hoop frequency next to the measured value (u: its k = 1 u;
+    `ball_cor`: a BPF run's ball COR and its u, which the calibrated prediction divides by).
 
     With `calibration` (as run_calibration records it) the calibrated prediction interval and the
     flag; without, the uncalibrated prediction and no flag. `law`: the run's recorded ball law
@@ -313,7 +333,16 @@ def cross_check(
             note = f"the calibration was made with {which}, not this run's: {UNCALIBRATED}"
             return _uncalibrated(p, bat, v_in, q, moi, measured, note, law)
         c = crosscheck_at(
-            cal, bat.hoop_hz, moi, q, bat.length_in, measured, u, p.cross_check_coverage, bat_id=bat.id
+            cal,
+            bat.hoop_hz,
+            moi,
+            q,
+            bat.length_in,
+            measured,
+            u,
+            p.cross_check_coverage,
+            bat_id=bat.id,
+            ball_cor=ball_cor,
         )
     except (RigError, ValueError, KeyError) as exc:  # the cross-check informs; it never stops a verdict
         errors = getattr(exc, "errors", None)  # a pydantic ValidationError: its first message

@@ -14,11 +14,18 @@ from rig.core.errors import ConfigError
 from rig.measure.registry import cross_checked
 
 
-def gather(data: str | None, db: str | None, who: str) -> tuple[list[Any], bytes, str, list[str]]:
+def gather(
+    data: str | None,
+    db: str | None,
+    who: str,
+    standard: str | None = None,
+    conditions: list[Any] | None = None,
+) -> tuple[list[Any], bytes, str, list[str]]:
     """The bats of a population file and/or a record store's certified runs (ids unique across both).
 
     Returns the bats, the bytes the provenance hashes (the file's bytes, then the store's rows as
-    canonical JSON), a name for the sources, and notes on store bats left out.
+    canonical JSON), a name for the sources, and notes on store bats left out. `standard`: only the
+    store's runs of that metric, their speeds and ball masses appended to `conditions`.
     """
     from rig.population.dataset import read_population
 
@@ -38,7 +45,7 @@ def gather(data: str | None, db: str | None, who: str) -> tuple[list[Any], bytes
         from rig.store import Store
 
         with Store.open(db, create=False) as store:
-            stored, notes = bats_from_store(store)
+            stored, notes = bats_from_store(store, standard, conditions)
         bats += stored
         rows = [b.model_dump(mode="json") for b in stored]
         blob += json.dumps(rows, sort_keys=True, separators=(",", ":")).encode()
@@ -53,7 +60,7 @@ def gather(data: str | None, db: str | None, who: str) -> tuple[list[Any], bytes
 def cmd_calibrate(args: argparse.Namespace) -> int:
     """rig model calibrate: the fit, its covariance, scatter and leave-one-out error; writes CAL.json."""
     from rig.population.calfile import calibration_record, write_calibration
-    from rig.population.calibrate import calibrate
+    from rig.population.calibrate import PAPER_BASE, calibrate, fitted_quantity
 
     output = output_file(args.output, "--output")
     assert output is not None  # a required flag
@@ -65,15 +72,27 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
             and output.resolve() == Path(source).resolve()
         ):
             raise ConfigError("--output would overwrite a data source", source=str(output))
-    bats, blob, names, store_notes = gather(args.data, args.db, "rig model calibrate")
+    fitted = fitted_quantity(args.metric)
+    standard = None if fitted == args.metric else args.metric  # read only the runs of its standard
+    conditions: list[Any] = []
+    bats, blob, names, store_notes = gather(args.data, args.db, "rig model calibrate", standard, conditions)
     for note in store_notes:
         print(f"rig: {note}", file=sys.stderr)
     ball = None
     kwargs: dict[str, Any] = {}
+    if standard is None and args.ball_mass_kg is not None:
+        raise ConfigError(
+            f"--ball-mass-kg is for a BPF or USA Softball BBS calibration; {args.metric} fits the"
+            " lab's baseball",
+            source="rig model calibrate",
+        )
+    if standard is not None:
+        speed, mass = _standard_conditions(args, conditions)
+        kwargs["speed_m_s"] = speed
+        kwargs["base"] = PAPER_BASE.model_copy(update={"m1": mass})
     if args.ball:
         from rig.cli.fit_ball import load_ball
         from rig.physics.ball_law import ball_record
-        from rig.population.calibrate import PAPER_BASE
 
         law, sha = load_ball(args.ball)
         ball = ball_record(law, sha, args.ball)
@@ -96,6 +115,35 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         _print(record)
     print(f"wrote {output}", file=sys.stderr)
     return 0
+
+
+def _standard_conditions(args: argparse.Namespace, found: list[Any]) -> tuple[float, float]:
+    """The inbound speed (m/s) and ball mass (kg) a calibration of a BPF or a USA Softball BBS solves
+    at: the store runs' own (all alike), else the standard's speed and --ball-mass-kg."""
+    from rig.measure.registry import metric
+
+    who = "rig model calibrate"
+    speeds = sorted({c.speed_m_s for c in found})
+    masses = sorted({c.ball_mass_kg for c in found})
+    if len(speeds) > 1 or len(masses) > 1:
+        raise ConfigError(
+            f"the store's {args.metric} runs fired at {', '.join(f'{v:g}' for v in speeds)} m/s with"
+            f" {', '.join(f'{v:g}' for v in masses)} kg balls: calibrate one speed and ball at a time",
+            source=who,
+        )
+    if masses and args.ball_mass_kg is not None and abs(masses[0] - args.ball_mass_kg) > 1e-9:
+        raise ConfigError(
+            f"--ball-mass-kg {args.ball_mass_kg:g}: the store's {args.metric} runs fired"
+            f" {masses[0]:g} kg balls",
+            source=who,
+        )
+    speed = speeds[0] if speeds else metric(args.metric).test_speed_m_s
+    mass = masses[0] if masses else args.ball_mass_kg
+    if speed is None or mass is None:
+        raise ConfigError(
+            f"a {args.metric} calibration from --data alone needs --ball-mass-kg (the runs' ball)", source=who
+        )
+    return speed, mass
 
 
 def _print(record: dict[str, Any]) -> None:
@@ -167,6 +215,12 @@ def add_parser(msub: Any) -> None:
     p.add_argument("--db", metavar="STORE", help="also (or only) the certified bats of this record store")
     p.add_argument("--metric", choices=cross_checked(), default="bbcor", help="metric to fit")
     p.add_argument("--output", required=True, metavar="CAL.json", help="where to write the calibration")
+    p.add_argument(
+        "--ball-mass-kg",
+        type=float,
+        metavar="KG",
+        help="a BPF or USA Softball BBS calibration from --data: the runs' ball mass (a store gives it)",
+    )
     p.add_argument(
         "--ball",
         metavar="BALL.json",

@@ -24,7 +24,7 @@ def cmd_crosscheck(args: argparse.Namespace) -> int:
     """rig model crosscheck: prediction, interval, measured, z and flagged for each bat."""
     from rig.population import load_population
     from rig.population.calfile import load_calibration
-    from rig.population.crosscheck import crosscheck_bats, dof, t_factor
+    from rig.population.crosscheck import check_population_metric, crosscheck_bats, dof, t_factor
 
     cal = load_calibration(args.calibration)
     if args.ball:
@@ -35,6 +35,7 @@ def cmd_crosscheck(args: argparse.Namespace) -> int:
     bats = load_population(args.data)
     if not bats:
         raise ConfigError("no bats in the file", source=args.data)
+    check_population_metric(cal)
     if all(b.metric(cal.metric) is None for b in bats):
         raise ConfigError(
             f"no {cal.metric} values: the calibration is for {cal.metric} and the column is absent or empty",

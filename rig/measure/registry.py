@@ -55,8 +55,10 @@ class Metric(Quantity):
     e_a_of: Callable[[float, MetricTerms], float] | None = None  # the inverse, where one exists
     u_scale: Callable[[MetricTerms], float] | None = None  # d(metric)/d(budget output); None: 1
     u_scale_text: str = ""  # u_scale in words, for the certificate
-    # rig model calibrate and the calibrated cross-check support it (needs a population column,
-    # rig.population.dataset, and a metric affine in e_A); the uncalibrated prediction needs neither
+    # rig model calibrate and the calibrated cross-check support it (needs a metric affine in e_A and
+    # a population column, rig.population.dataset: its own, else the runs' BBCOR is fitted and the
+    # metric predicted through e_A, rig.population.calibrate.fitted_quantity); the uncalibrated
+    # prediction needs neither
     cross_check: bool = False
     needs_length: bool = False  # depends on the bat's length (the swing model)
     test_speed_m_s: float | None = None  # the speed its standard fires at; a procedure must match it
@@ -119,6 +121,8 @@ def _bpf(std: bpf_table.BpfStandard) -> Metric:
         test_speed_m_s=bpf_table.BPF_SPEED_M_S,
         basis=f"{bpf_table.PIVOTED} ({bpf_table.F1890})",
         needs_ball_cor=True,
+        # calibrated on the runs' BBCOR at 60 mph; predicted as calibrated BBCOR / the run's ball COR
+        cross_check=True,
     )
 
 
@@ -141,6 +145,7 @@ def _softball_bbs(ed: softball.SoftballEdition) -> Metric:
         needs_length=True,
         test_speed_m_s=ed.cannon_speed_m_s,
         basis=PIVOTED_E_A,
+        cross_check=True,  # calibrated on the runs' BBCOR at the cannon speed; predicted from its e_A
     )
 
 

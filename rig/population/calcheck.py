@@ -65,6 +65,7 @@ class Calibration(Protocol):
 
 
 SPEED_RANGE = (1.0, 100.0)  # m/s, as every speed a user gives
+BALL_MASS_RANGE_KG = (0.1, 0.25)  # a baseball (0.142-0.149 kg) to a 12 in softball (0.177-0.198 kg)
 LOCATION_MAX_IN = 36.0  # an impact location is on the bat: at most 36 in from the tip, as a scan's
 REL_TOL = 1e-6  # an uncertainty against sqrt(variance), model constants against the parameters'
 PSD_TOL = 1e-9  # the correlation matrix's eigenvalues may fall this far below 0 (round-off)
@@ -91,6 +92,9 @@ def check_calibration(cal: Calibration) -> None:
     _within("loo_rmse", cal.loo_rmse, 0.0, span, cal.metric)
     _covariance(np.array(cal.covariance, dtype=float), cal.uncertainty)
     base = _ball(cal.ball)
+    if cal.ball is None:  # the paper's ball at the runs' ball mass (a baseball, a softball)
+        _within("model_params.m1", cal.model_params.m1, *BALL_MASS_RANGE_KG, "kg")
+        base = base.model_copy(update={"m1": cal.model_params.m1})
     _model_params(cal.model_params, model_params(cal.parameters, base))
     _provenance(cal)
 

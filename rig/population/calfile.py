@@ -30,10 +30,10 @@ from rig.population.calibrate import (
     VARIANTS,
     Calibration,
     FitBat,
+    fitted_quantity,
     model_params,
     predict,
 )
-from rig.population.model import SPEED_M_S
 
 KIND = "rig-model-calibration"
 FORMAT = 1
@@ -108,6 +108,14 @@ class CalibrationFile(BaseModel):
     # the fitted ball the calibration solved with (file name, sha256, lot, variant, constants);
     # None: the paper's ball
     ball: dict[str, Any] | None = None
+    # what the bats' measured values are when not the metric: "bbcor" for a BPF or a USA Softball
+    # BBS (rig.population.calibrate.fitted_quantity); None: the metric itself
+    fitted: Literal["bbcor"] | None = None
+
+    @property
+    def fitted_metric(self) -> str:
+        """The quantity the calibration fitted (its bats' measured values, its scatter's unit)."""
+        return self.fitted or self.metric
 
     @model_validator(mode="before")
     @classmethod
@@ -132,14 +140,18 @@ class CalibrationFile(BaseModel):
             raise ValueError(f"variant {self.variant} has parameters {', '.join(names)}")
         if len(self.covariance) != len(names) or any(len(r) != len(names) for r in self.covariance):
             raise ValueError(f"covariance must be {len(names)} x {len(names)}")
+        if self.fitted is not None and self.fitted != fitted_quantity(self.metric):
+            raise ValueError(
+                f"a {self.metric} calibration fits {fitted_quantity(self.metric)}, not {self.fitted}"
+            )
         check_calibration(self)  # physical ranges, a covariance that is one (ParameterError)
         return self
 
 
 def calibration_base(cal: CalibrationFile) -> CollisionParams:
     """The ball's constants a calibration was made with: its recorded ball's, else the paper's."""
-    if cal.ball is None:
-        return PAPER_BASE
+    if cal.ball is None:  # the paper's ball at the mass of the runs' balls
+        return PAPER_BASE.model_copy(update={"m1": cal.model_params.m1})
     return PAPER_BASE.model_copy(update=dict(cal.ball["constants"]))
 
 
@@ -158,7 +170,8 @@ def calibration_record(
         "kind": KIND,
         "format": FORMAT,
         "metric": cal.metric,
-        "speed_m_s": SPEED_M_S,
+        "speed_m_s": cal.speed_m_s,
+        **({} if cal.fitted == cal.metric else {"fitted": cal.fitted}),
         "default_location_in": DEFAULT_LOCATION_IN,
         "variant": cal.chosen,
         "parameters": fit.values,

@@ -60,17 +60,42 @@ class FitBat:
     measured: float
     length_in: float = math.nan  # the bat's length and where it was struck, kept for the record
     location_in: float = math.nan
+    speed_m_s: float = SPEED_M_S  # the inbound speed its collision is solved at (the standard's)
 
 
-def metric_line(metric: str, q: float, moi: float, length_m: float) -> tuple[float, float]:
-    """alpha, beta with metric = alpha + beta e_A, from the rig's own metric code at e_A = 0 and 1."""
-    m0 = compute_metrics(SPEED_M_S, 0.0, q, moi, BALL_MASS_KG, length_m).value(metric)
-    m1 = compute_metrics(SPEED_M_S, SPEED_M_S, q, moi, BALL_MASS_KG, length_m).value(metric)
+def fitted_quantity(metric: str) -> str:
+    """What a calibration of `metric` fits: the metric itself where the population has its column
+    (bbcor, besr, bbs), else the runs' BBCOR (a BPF, a USA Softball BBS), the same e_A mapped by
+    another line per bat, from which the cross-check predicts the metric."""
+    return metric if metric in METRICS else "bbcor"
+
+
+def metric_line(
+    metric: str,
+    q: float,
+    moi: float,
+    length_m: float,
+    *,
+    ball_mass_kg: float = BALL_MASS_KG,
+    ball_cor: float | None = None,
+) -> tuple[float, float]:
+    """alpha, beta with metric = alpha + beta e_A, from the rig's own metric code at e_A = 0 and 1
+    (`ball_cor`: the run's ball COR, which a BPF divides by)."""
+    args = (q, moi, ball_mass_kg, length_m)
+    m0 = compute_metrics(SPEED_M_S, 0.0, *args, ball_cor=ball_cor).value(metric)
+    m1 = compute_metrics(SPEED_M_S, SPEED_M_S, *args, ball_cor=ball_cor).value(metric)
     return m0, m1 - m0
 
 
-def fit_bats(bats: Sequence[PopulationBat], metric: str) -> list[FitBat]:
-    """Check the rows the fit needs; CalibrationRefused names the first missing value."""
+def fit_bats(
+    bats: Sequence[PopulationBat],
+    metric: str,
+    speed_m_s: float = SPEED_M_S,
+    ball_mass_kg: float = BALL_MASS_KG,
+) -> list[FitBat]:
+    """Check the rows the fit needs; CalibrationRefused names the first missing value.
+
+    `metric` is what is fitted (a population column: fitted_quantity's)."""
     if metric not in METRICS:
         raise CalibrationRefused(f"unknown metric {metric!r}; known: {', '.join(METRICS)}")
     missing = missing_column(bats, ("moi_kgm2", "length_in", metric))
@@ -83,7 +108,7 @@ def fit_bats(bats: Sequence[PopulationBat], metric: str) -> list[FitBat]:
         q = (b.length_in - location) * INCH - PIVOT_FROM_KNOB_M
         if q <= 0.05:
             raise CalibrationRefused(f"bat {b.bat_id}: impact {location:g} in from the end is off the barrel")
-        alpha, beta = metric_line(metric, q, b.moi_kgm2, b.length_in * INCH)
+        alpha, beta = metric_line(metric, q, b.moi_kgm2, b.length_in * INCH, ball_mass_kg=ball_mass_kg)
         value = b.metric(metric)
         assert value is not None
         out.append(
@@ -96,6 +121,7 @@ def fit_bats(bats: Sequence[PopulationBat], metric: str) -> list[FitBat]:
                 value,
                 b.length_in,
                 location,
+                speed_m_s,
             )
         )
     return out
@@ -129,7 +155,8 @@ def predict_many(
     alpha = np.array([b.alpha for b in bats])
     beta = np.array([b.beta for b in bats])
     params = [model_params(values, base) for values in sets]
-    e_a, _ = pivoted_cor_sets(params, SPEED_M_S, hoops, eff, rtol, numpy_lanes)
+    speed = bats[0].speed_m_s if bats else SPEED_M_S  # one calibration, one speed
+    e_a, _ = pivoted_cor_sets(params, speed, hoops, eff, rtol, numpy_lanes)
     offsets = np.array([values.get("offset", 0.0) for values in sets])
     return alpha + beta * e_a + offsets[:, None]
 
@@ -252,6 +279,12 @@ class Calibration:
     chosen: str
     notes: tuple[str, ...] = field(default=())
     base: CollisionParams = PAPER_BASE  # the ball's constants the fit solved with
+    speed_m_s: float = SPEED_M_S  # the inbound speed the collisions were solved at
+
+    @property
+    def fitted(self) -> str:
+        """The quantity the bats' measured values are (fitted_quantity of the metric)."""
+        return fitted_quantity(self.metric)
 
     @property
     def fit(self) -> Fit:
@@ -288,17 +321,20 @@ def calibrate(
     variants: Sequence[str] = tuple(VARIANTS),
     base: CollisionParams = PAPER_BASE,
     budget: Budget | None = None,
+    speed_m_s: float = SPEED_M_S,
 ) -> Calibration:
     """Fit every variant, check the residuals for structure, score each variant by leave-one-out
     prediction error, choose one.
 
     `base` gives the ball's constants (m1, k1, c1, a, b: the paper's, or a fitted ball's);
-    `budget` the time limit and the progress sink (CalibrationStopped past the limit).
+    `budget` the time limit and the progress sink (CalibrationStopped past the limit);
+    `speed_m_s` the inbound speed of the metric's standard (base.m1 its ball's mass). A metric
+    without a population column (a BPF, a USA Softball BBS) fits the runs' BBCOR (fitted_quantity).
     """
     from rig.population.structure import check_structure  # scipy.special: on first use
 
     budget = budget or Budget()
-    rows = fit_bats(bats, metric)
+    rows = fit_bats(bats, fitted_quantity(metric), speed_m_s, base.m1)
     check_identifiable(rows)
     reports, notes = {}, []
     start: dict[str, float] = {}
@@ -357,4 +393,4 @@ def calibrate(
             budget.say(f"leave-one-out of {name} on {len(rows)} bats")
             reports[name] = VariantReport(report.fit, leave_one_out(rows, report.fit, base, budget), True)
     budget.say("done", f"done: {budget.evaluations} model evaluations")
-    return Calibration(metric, tuple(rows), reports, choose(reports), tuple(notes), base)
+    return Calibration(metric, tuple(rows), reports, choose(reports), tuple(notes), base, speed_m_s)

@@ -27,12 +27,12 @@ import numpy as np
 from rig.core.bat import PIVOT_FROM_KNOB_M
 from rig.core.errors import ConfigError
 from rig.core.units import INCH
+from rig.measure.registry import metric
 from rig.measure.student import quantile as t_quantile
 from rig.physics import PivotedBat
 from rig.population.calfile import CalibrationFile, calibration_base, covariance_matrix
 from rig.population.calibrate import BOUNDS, FitBat, metric_line, predict_many
 from rig.population.dataset import PopulationBat, missing_column
-from rig.population.model import SPEED_M_S
 
 GRADIENT_STEP = 0.05  # of each parameter's sigma: the delta method's central-difference step
 
@@ -61,11 +61,12 @@ class CrossCheck:
     dof: int = 0
     extrapolated: bool = False  # hoop frequency or MOI outside the calibration's range
     u_measured_known: bool = True
+    u_ball_cor: float = 0.0  # a BPF's: the prediction BBCOR / COR carries the ball COR's u once
 
     @property
     def u_total(self) -> float:
-        """sqrt(u_model^2 + u_scatter^2 + u_measured^2)."""
-        return math.sqrt(self.u_model**2 + self.u_scatter**2 + self.u_measured**2)
+        """sqrt(u_model^2 + u_scatter^2 + u_measured^2 + u_ball_cor^2)."""
+        return math.sqrt(self.u_model**2 + self.u_scatter**2 + self.u_measured**2 + self.u_ball_cor**2)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready: bat_id, predicted, measured, interval, flagged, z and the uncertainty's parts."""
@@ -83,6 +84,7 @@ class CrossCheck:
             "u_scatter": self.u_scatter,
             "u_measured": self.u_measured,
             "u_measured_known": self.u_measured_known,
+            "u_ball_cor": self.u_ball_cor,
             "u_total": self.u_total,
             "t_factor": self.t_factor,
             "dof": self.dof,
@@ -105,13 +107,6 @@ def t_factor(cal: CalibrationFile, coverage: float) -> float:
     return t_quantile(0.5 * (1.0 + coverage), dof(cal))
 
 
-def _check_calibration(cal: CalibrationFile) -> None:
-    if cal.speed_m_s != SPEED_M_S:
-        raise CrossCheckRefused(
-            f"calibration made at {cal.speed_m_s:g} m/s; this software predicts at {SPEED_M_S:g} m/s"
-        )
-
-
 def _q(bat_id: str, length_in: float, location_in: float) -> float:
     q = (length_in - location_in) * INCH - PIVOT_FROM_KNOB_M
     if q <= 0.05:
@@ -120,16 +115,48 @@ def _q(bat_id: str, length_in: float, location_in: float) -> float:
 
 
 def _row(cal: CalibrationFile, bat_id: str, hoop_hz: float, moi: float, q: float, length_in: float) -> FitBat:
-    """The bat as the calibration's prediction code takes it (the same geometry as its fit)."""
-    _check_calibration(cal)
-    alpha, beta = metric_line(cal.metric, q, moi, length_in * INCH)
+    """The bat as the calibration's prediction code takes it (the same geometry, speed and ball as
+    its fit): the line of the quantity it fitted."""
+    alpha, beta = metric_line(cal.fitted_metric, q, moi, length_in * INCH, ball_mass_kg=cal.model_params.m1)
     pivoted = PivotedBat(moi_kgm2=moi, impact_from_pivot_m=q)
     if pivoted.effective_mass <= cal.model_params.m2:
         raise CrossCheckRefused(
             f"bat {bat_id}: I/Q^2 = {pivoted.effective_mass:.3g} kg is below the calibrated m2"
             f" = {cal.model_params.m2:.3g} kg"
         )
-    return FitBat(bat_id, hoop_hz, pivoted, alpha, beta, math.nan)
+    return FitBat(bat_id, hoop_hz, pivoted, alpha, beta, math.nan, speed_m_s=cal.speed_m_s)
+
+
+@dataclass(frozen=True)
+class _ToMetric:
+    """From the fitted quantity to the calibration's metric at one bat: metric = a + r (fitted - b)
+    (the same e_A on two lines; identity where the calibration fitted the metric itself), and the
+    ball COR's u a BPF's prediction carries (k = 1)."""
+
+    a: float = 0.0
+    r: float = 1.0
+    b: float = 0.0
+    u_cor: float = 0.0  # u(COR) / COR: times the predicted BPF, its u from the ball COR
+
+    def value(self, fitted: float) -> float:
+        return self.a + self.r * (fitted - self.b)
+
+
+def _to_metric(
+    cal: CalibrationFile, row: FitBat, length_in: float, ball_cor: tuple[float, float] | None
+) -> _ToMetric:
+    if cal.fitted_metric == cal.metric:
+        return _ToMetric()
+    needs_cor = metric(cal.metric).needs_ball_cor
+    if needs_cor and ball_cor is None:
+        raise CrossCheckRefused(
+            f"a {cal.metric} prediction needs the run's ball COR (BPF = BBCOR / ball COR): cross-check it"
+            " in rig certify --ball-lot LOT"
+        )
+    cor, u_cor = ball_cor if needs_cor and ball_cor is not None else (None, 0.0)
+    q, moi, m1 = row.pivoted.impact_from_pivot_m, row.pivoted.moi_kgm2, cal.model_params.m1
+    a, slope = metric_line(cal.metric, q, moi, length_in * INCH, ball_mass_kg=m1, ball_cor=cor)
+    return _ToMetric(a, slope / row.beta, row.alpha, 0.0 if cor is None else u_cor / cor)
 
 
 def _steps(
@@ -172,10 +199,15 @@ def _check(
     measured: float | None,
     u_measured: float | None,
     coverage: float,
+    to: _ToMetric | None = None,
 ) -> CrossCheck:
+    """`predicted` and `u_model` of the quantity fitted; `to` carries them to the metric."""
+    to = to or _ToMetric()
     t = t_factor(cal, coverage)
+    predicted, u_model, scatter = to.value(predicted), abs(to.r) * u_model, abs(to.r) * cal.scatter
+    u_cor = abs(predicted) * to.u_cor
     u_meas = 0.0 if u_measured is None else float(u_measured)
-    u = math.sqrt(u_model**2 + cal.scatter**2 + u_meas**2)
+    u = math.sqrt(u_model**2 + scatter**2 + u_meas**2 + u_cor**2)
     z = None if measured is None else (measured - predicted) / u
     prov = cal.provenance
     return CrossCheck(
@@ -184,7 +216,7 @@ def _check(
         measured=measured,
         interval=(predicted - t * u, predicted + t * u),
         u_model=u_model,
-        u_scatter=cal.scatter,
+        u_scatter=scatter,
         u_measured=u_meas,
         z=z,
         flagged=None if z is None else abs(z) > t,
@@ -195,6 +227,7 @@ def _check(
         dof=dof(cal),
         extrapolated=not prov.covers(row.hoop_hz, row.pivoted.moi_kgm2),
         u_measured_known=u_measured is not None,
+        u_ball_cor=u_cor,
     )
 
 
@@ -225,11 +258,24 @@ def crosscheck_at(
     u_measured: float | None,
     coverage: float = 0.95,
     bat_id: str = "bat",
+    ball_cor: tuple[float, float] | None = None,
 ) -> CrossCheck:
-    """One bat's cross-check struck `impact_from_pivot_m` from the pivot (Q), as the rig records it."""
+    """One bat's cross-check struck `impact_from_pivot_m` from the pivot (Q), as the rig records it.
+
+    `ball_cor`: the run's ball COR and its standard u, which a BPF's prediction needs."""
     row = _row(cal, bat_id, hoop_hz, moi_kgm2, impact_from_pivot_m, length_in)
+    to = _to_metric(cal, row, length_in, ball_cor)
     predicted, u_model = _predict(cal, [row])
-    return _check(cal, row, float(predicted[0]), float(u_model[0]), measured, u_measured, coverage)
+    return _check(cal, row, float(predicted[0]), float(u_model[0]), measured, u_measured, coverage, to)
+
+
+def check_population_metric(cal: CalibrationFile) -> None:
+    """CrossCheckRefused unless a population file has a column for the calibration's metric."""
+    if cal.fitted_metric != cal.metric:
+        raise CrossCheckRefused(
+            f"a {cal.metric} calibration fitted the runs' {cal.fitted_metric}; its cross-check is made in"
+            " rig certify (a population file has no column for the metric)"
+        )
 
 
 def crosscheck_bats(
@@ -244,6 +290,7 @@ def crosscheck_bats(
     else is unknown (0). CrossCheckRefused names the first bat lacking MOI or length.
     """
     t_factor(cal, coverage)
+    check_population_metric(cal)
     if not bats:
         return []
     missing = missing_column(bats, ("moi_kgm2", "length_in"))

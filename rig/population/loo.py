@@ -40,7 +40,6 @@ from rig.population.calibrate import (
     predict,
     predict_many,
 )
-from rig.population.model import SPEED_M_S
 
 FD_STEP = 1e-2  # of each parameter's scale (START, at least 0.01): the derivatives' central differences
 MAX_LEVERAGE = 0.5  # above it a bat is refitted exactly
@@ -52,7 +51,7 @@ def predict_pairs(
 ) -> np.ndarray:
     """The metric predicted for bat i under set i: one batch of len(bats) solves."""
     impacts = [
-        impact_for(model_params(v, base), SPEED_M_S, b.hoop_hz, b.pivoted)
+        impact_for(model_params(v, base), b.speed_m_s, b.hoop_hz, b.pivoted)
         for b, v in zip(bats, sets, strict=True)
     ]
     e_a, _ = solve_batch(impacts, rtol=FIT_RTOL)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import statistics
 from collections import defaultdict
+from dataclasses import dataclass
 from typing import Any
 
 from rig.core import events as ev
@@ -27,13 +28,37 @@ from rig.population.dataset import METRICS, PopulationBat
 from rig.store import Store
 
 
-def _run_metrics(store: Store, run_id: str) -> tuple[dict[str, list[float]], float | None]:
+@dataclass(frozen=True)
+class RunConditions:
+    """What a certified run fired: its procedure's inbound speed (m/s) and ball mass (kg)."""
+
+    speed_m_s: float
+    ball_mass_kg: float
+
+
+def _conditions(setup: dict[str, Any] | None) -> RunConditions | None:
+    procedure = (setup or {}).get("procedure") or {}
+    speed, ball = procedure.get("target_speed_m_s"), procedure.get("ball") or {}
+    mass = ball.get("mass_kg")
+    if not isinstance(speed, int | float) or not isinstance(mass, int | float):
+        return None
+    return RunConditions(float(speed), float(mass))
+
+
+def _run_metrics(
+    store: Store, run_id: str, standard: str | None = None, conditions: list[RunConditions] | None = None
+) -> tuple[dict[str, list[float]], float | None]:
     kinds = [ev.SHOT_REQUESTED, ev.SHOT_MEASURED, ev.SHOT_REJECTED, ev.SHOT_OVERRULED, ev.RUN_FINISHED]
+    kinds += [ev.RUN_STARTED] if standard is not None else []
     state = fold(ev.parse_log(store.entries(run_id, kinds=kinds)))
     out: dict[str, list[float]] = defaultdict(list)
     v = state.verdict
-    if v is None:
+    if v is None or (standard is not None and v.metric != standard):
         return out, None
+    if conditions is not None:
+        found = _conditions(state.setup)
+        if found is not None:
+            conditions.append(found)
     location = v.location_in
     for shot in state.shots:
         o = shot.outcome
@@ -50,8 +75,14 @@ def _run_metrics(store: Store, run_id: str) -> tuple[dict[str, list[float]], flo
     return out, float(v.moi_kgm2) if isinstance(v.moi_kgm2, int | float) else None
 
 
-def bats_from_store(store: Store) -> tuple[list[PopulationBat], list[str]]:
-    """The store's bats as population rows, and notes on those left out."""
+def bats_from_store(
+    store: Store, standard: str | None = None, conditions: list[RunConditions] | None = None
+) -> tuple[list[PopulationBat], list[str]]:
+    """The store's bats as population rows, and notes on those left out.
+
+    `standard`: only the runs that certified this metric (a BPF, a USA Softball BBS: their shots'
+    BBCOR at the standard's speed), each run's speed and ball mass appended to `conditions`; a bat
+    with no such run is left out."""
     per_bat: dict[str, dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
     mois: dict[str, list[float]] = defaultdict(list)
     checked: set[str] = set()
@@ -60,7 +91,7 @@ def bats_from_store(store: Store) -> tuple[list[PopulationBat], list[str]]:
         (checked if run.procedure == ev.CHECK_KIND else tested).add(run.bat_id)
         if run.status != "finished" or run.procedure == ev.CHECK_KIND:
             continue
-        values, moi = _run_metrics(store, run.run_id)
+        values, moi = _run_metrics(store, run.run_id, standard, conditions)
         for name, vals in values.items():
             per_bat[run.bat_id][name] += vals
         if moi is not None:
@@ -77,6 +108,9 @@ def bats_from_store(store: Store) -> tuple[list[PopulationBat], list[str]]:
             continue
         bending = (modal or {}).get("bending_hz") or []
         metrics = {name: statistics.fmean(v) for name, v in per_bat[bat_id].items() if v}
+        if standard is not None and not metrics:
+            notes.append(f"bat {bat_id}: no certified {standard} run: left out")
+            continue
         moi = spec.get("moi_kgm2") or (statistics.fmean(mois[bat_id]) if mois[bat_id] else None)
         bats.append(
             PopulationBat(
