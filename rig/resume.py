@@ -17,7 +17,7 @@ from rig.core.bat import BatSpec
 from rig.core.errors import ConfigError
 from rig.core.events import ONE_SHOT_KIND as ONE_SHOT
 from rig.protocols.procedure import Procedure
-from rig.store import Store
+from rig.store import RUN_CREATED, Store
 
 
 @dataclass(frozen=True)
@@ -47,7 +47,7 @@ def recorded_inputs(store: Store, run_id: str, procedure: Procedure | None = Non
             True,
             payload.get("plan"),
         )
-    created = store.entries(run_id, kinds=["RunCreated"])
+    created = store.entries(run_id, kinds=[RUN_CREATED])
     payload = created[0].payload if created else {}
     meta: dict[str, Any] = payload["meta"] if isinstance(payload.get("meta"), dict) else {}
     standard, name = payload.get("procedure"), meta.get("procedure")
@@ -65,6 +65,18 @@ def recorded_inputs(store: Store, run_id: str, procedure: Procedure | None = Non
         raise ConfigError(f"run {run_id} never started and its bat is not registered", "--resume")
     plan = meta.get("plan")
     return Recorded(chosen, BatSpec.model_validate(spec), False, plan if isinstance(plan, str) else None)
+
+
+def recorded_plan_name(store: Store, run_id: str) -> str | None:
+    """The plan `run_id` records (RunStarted's, else RunCreated's meta; None: the standard steps)."""
+    started = store.entries(run_id, kinds=[ev.RUN_STARTED])
+    if started:
+        plan = started[0].payload.get("plan")
+    else:
+        created = store.entries(run_id, kinds=[RUN_CREATED])
+        meta = created[0].payload.get("meta") if created else None
+        plan = meta.get("plan") if isinstance(meta, dict) else None
+    return plan if isinstance(plan, str) else None
 
 
 def _builtin(standard: str) -> Procedure | None:

@@ -371,7 +371,7 @@ def cmd_tui(args: argparse.Namespace) -> int:
 
     if args.sim is None and not args.config:
         raise ConfigError("give --sim [SCENE] or --config RIG.toml", source="command line")
-    if args.procedure == "abi":  # refused before the console starts: one line (rig.tui.jobs)
+    if args.procedure:  # the break-in is refused before the console starts: one line (rig.tui.jobs)
         from rig.tui.jobs import refuse_break_in
 
         refuse_break_in(args.procedure)

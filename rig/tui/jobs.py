@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from rig.break_in import ABI
 from rig.certification import Outcome, prepare, run_prepared
 from rig.core import events as ev
 from rig.core.bat import BatSpec
@@ -18,12 +19,10 @@ from rig.protocols.control import RunControl
 from rig.protocols.evaluate import cross_check, run_calibration
 from rig.protocols.procedure import Procedure
 from rig.request import CertifyRequest, ConfigFor, Prepared
+from rig.resume import recorded_plan_name
 from rig.store import Store
 from rig.tui.operator import ConsoleOperator
 from rig.tui.rigs import ConsoleSettings, RigChoice, RunJob
-
-BREAK_IN = "abi"  # rig.break_in.ABI: the name `rig certify --procedure` takes
-
 
 NO_BREAK_IN = (
     "the console cannot run the accelerated break-in (abi) yet: it has no rolling prompts; run it with "
@@ -33,17 +32,13 @@ NO_BREAK_IN = (
 
 def refuse_break_in(procedure: str) -> None:
     """ConfigError (one line) for the accelerated break-in, which the console cannot run yet."""
-    if procedure == BREAK_IN:
+    if procedure == ABI:
         raise ConfigError(NO_BREAK_IN, source="procedure")
 
 
 def _refuse_break_in_run(store: Store, run_id: str) -> None:
     """ConfigError (one line) for resuming a run the accelerated break-in's plan started."""
-    started = store.entries(run_id, kinds=[ev.RUN_STARTED])
-    created = store.entries(run_id, kinds=["RunCreated"])
-    meta = created[0].payload.get("meta") if created else None
-    plan = started[0].payload.get("plan") if started else (meta or {}).get("plan")
-    if plan == ev.ABI_PLAN:
+    if recorded_plan_name(store, run_id) == ev.ABI_PLAN:
         raise ConfigError(NO_BREAK_IN, source="resume")
 
 
