@@ -213,6 +213,11 @@ def main(argv: list[str] | None = None) -> int:
         },
     )
     scipy_time, curve_time = median(curve_rounds["scipy"]), median(curve_rounds["curve"])
+    # The floor: the curve's own right-hand side evaluations at their chained cost, on every core,
+    # with no other work; the ratio no kernel of these steps can pass on this machine.
+    evaluations = np.zeros(POINTS, dtype=np.int64)
+    cor_grid(DEFAULT_PARAMS, SPEED, hoops, rtol=kernel_rtol, evaluations=evaluations)
+    floor_time = float(evaluations.sum()) * (work / (steps * STAGES)) / threads
     ratio = median(round_ratios(curve_rounds["scipy"], curve_rounds["curve"]))
     load_after = load_average()
 
@@ -256,6 +261,10 @@ def main(argv: list[str] | None = None) -> int:
             f"{r:.4g}" for r in round_ratios(curve_rounds["scipy"], curve_rounds["curve"])
         ),
         "ratio_1_thread": scipy_time / curve_time_1t,
+        "curve_evaluations (all points)": int(evaluations.sum()),
+        "curve_floor_s (evaluations x rhs / cores)": floor_time,
+        "ratio at that floor (the rhs alone, every core)": scipy_time / floor_time,
+        "curve / floor": curve_time / floor_time,
     }
     targets = [
         ("ratio >= 100x", ratio >= 100.0),

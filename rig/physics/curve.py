@@ -40,9 +40,11 @@ def cor_grid(
     hoops: np.ndarray,
     rtol: float = fast.DEFAULT_RTOL,
     contacts: np.ndarray | None = None,
+    evaluations: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """COR and contact time (to the last separation) of a clamped barrel at each hoop frequency,
-    in parallel lanes; `contacts`, if given, receives the number of contacts at each."""
+    in parallel lanes; `contacts` and `evaluations`, if given, receive the number of contacts and of
+    right-hand side evaluations at each."""
     speed = check_speed(speed)
     rtol = check_tolerance(rtol)
     hoops = np.asarray(hoops, dtype=float)
@@ -58,7 +60,7 @@ def cor_grid(
     n_active = np.full(n, 4, dtype=np.int64)
     t_max = contact_time_limit(params, speed, hoops)
     impacts = _LazyImpacts(params, speed, hoops)
-    return fast._run_batch(P, v0, length, rtol, n_active, t_max, impacts, contacts)
+    return fast._run_batch(P, v0, length, rtol, n_active, t_max, impacts, contacts, evaluations=evaluations)
 
 
 class _LazyImpacts:

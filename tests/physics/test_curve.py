@@ -86,6 +86,19 @@ def test_cor_grid_matches_single_and_batch_solves(paper_params: CollisionParams)
     np.testing.assert_allclose(batch_tc, tc, rtol=1e-14)
 
 
+def test_cor_grid_counts_each_points_evaluations(paper_params: CollisionParams) -> None:
+    """`evaluations` (the benchmark's floor) holds each point's right-hand side evaluations, those of
+    later contacts too (150 Hz: the ball meets the barrel again), as a single solve counts them."""
+    hoops = np.array([150.0, 1250.0, 2e4])
+    counts = np.zeros(hoops.size, dtype=np.int64)
+    contacts = np.zeros(hoops.size, dtype=np.int64)
+    curve.cor_grid(paper_params, 60.8, hoops, contacts=contacts, evaluations=counts)
+    single = [fast.solve(Impact(paper_params, 60.8, float(f))) for f in hoops]
+    assert contacts[0] > 1
+    assert counts.tolist() == [r.nfev for r in single]
+    assert counts[2] > counts[1] > 12  # a stiffer barrel takes more steps, each 12 evaluations
+
+
 def test_batch_lanes_with_mixed_models(paper_params: CollisionParams) -> None:
     """Rigid, flexible and pivoted impacts (2, 4 and 6 states) in one batch match single solves."""
     impacts = [

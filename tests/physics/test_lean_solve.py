@@ -7,6 +7,7 @@ and low hoop frequencies whose ball meets the barrel again (the general path's e
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import pytest
@@ -96,3 +97,18 @@ def test_a_failure_reads_the_same_on_both_paths(monkeypatch: pytest.MonkeyPatch)
     with pytest.raises(SolverError) as general:
         fast.solve_general(imp, 1e-12, kernel)
     assert str(lean.value) == str(general.value)
+
+
+def test_the_lean_result_is_the_dataclass_built_by_its_own_init() -> None:
+    """`fast.solve`'s result is built without CollisionResult.__init__ (for speed): it must be the
+    object that __init__ builds, field for field and in order, still frozen, with its own energy dict."""
+    args = (0.5, 1e-3, -30.4, (1.0, -30.4, 2.0, 3.0, 0.0, 0.0), 295, 3e-8)
+    built = fast._single_contact(*args)
+    cor, tc, v, state, nfev, rtol = args
+    init = CollisionResult(cor, tc, v, state, nfev, "rig-DOP853", rtol, {}, 1)
+    assert type(built) is CollisionResult
+    assert list(vars(built).items()) == list(vars(init).items()) and built == init
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        built.cor = 0.4  # type: ignore[misc]
+    assert dataclasses.replace(built, cor=0.4).cor == 0.4
+    assert built.energy is not fast._single_contact(*args).energy
