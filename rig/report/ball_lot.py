@@ -116,8 +116,8 @@ def _rows(record: dict[str, Any]) -> tuple[list[tuple[str, str]], list[list[str]
     return summary, speeds, hits
 
 
-SPEED_HEAD = ["target m/s", "measured m/s", "mean", "u", "SD", "hits"]
-HIT_HEAD = ["shot", "ball", "ball's hit", "target m/s", "at impact m/s", "COR", "u"]
+SPEED_HEAD = ["target m/s", "measured m/s", "mean", "u of the mean (k = 1)", "SD of the hits", "hits"]
+HIT_HEAD = ["shot", "ball", "ball's hit", "target m/s", "at impact m/s", "COR", "u of the COR (k = 1)"]
 
 
 def render(record: dict[str, Any], fmt: str) -> str:
