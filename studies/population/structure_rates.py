@@ -34,7 +34,7 @@ def refused(kind: Residuals, n: int, trials: int) -> int:
         rng = np.random.default_rng(seed)
         hoops = rng.uniform(1400.0, 3000.0, n)
         try:
-            check_structure(hoops, kind(rng, n), "study")
+            check_structure(hoops.tolist(), kind(rng, n).tolist(), "study")
         except ModelFamilyRefused:
             count += 1
     return count
