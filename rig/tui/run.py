@@ -83,6 +83,7 @@ class RunScreen(RunKeys, Screen[None]):
         self._closing = False
         self._logged = 0
         self._keys_state: tuple[object, ...] = ()
+        self._shown: dict[str, Text] = {}  # each panel's text as last drawn
         self.control = RunControl()
         self.operator = ConsoleOperator(self._notice, poll_s=settings.poll_s)
         self._worker: Worker[None] | None = None
@@ -273,11 +274,13 @@ class RunScreen(RunKeys, Screen[None]):
         panels |= {"budget": render.budget_panel}
         rows = self.query_one("#traffic", Static).content_size.height
         panels["traffic"] = lambda live: render.traffic_panel(live, max(rows, 1))  # the newest lines
-        for name, draw in panels.items():
-            self.query_one(f"#{name}", Static).update(draw(self.live))
         now = self.situation()
-        self.query_one("#prompt", Static).update(situation.prompt_text(now))
-        self.query_one("#message", Static).update(situation.message_text(now, self.live))
+        texts = {name: draw(self.live) for name, draw in panels.items()}
+        texts |= {"prompt": situation.prompt_text(now), "message": situation.message_text(now, self.live)}
+        for name, text in texts.items():
+            if self._shown.get(name) != text:  # an unchanged panel is not laid out and drawn again
+                self._shown[name] = text
+                self.query_one(f"#{name}", Static).update(text)
         log = self.query_one("#log", RichLog)
         for line in self.live.log[self._logged :]:
             log.write(line)
