@@ -4,7 +4,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install demo test lint typecheck bench accuracy clean
+.PHONY: install demo test test-caches lint typecheck bench accuracy clean
 
 install: $(STAMP)
 
@@ -43,8 +43,20 @@ typecheck: $(STAMP)
 # on a quiet 2-core machine 3 workers took 315 s against 351 s for 2), at most 8; TEST_WORKERS=1 for
 # one process, or a number; --dist loadfile keeps a file's tests (and its module fixtures) in one worker
 TEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 1); echo $$(( n < 8 ? n + 1 : 8 )))
-test: lint
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+# Bytecode is written (even where PYTHONDONTWRITEBYTECODE is set) but into .venv/pycache, not the
+# checkout: otherwise every worker and each of the hundreds of rig commands the tests start compiles
+# rig from source, and every worker rewrites the asserts of all 200 test files (~6 s each time).
+TEST_ENV := PYTHONDONTWRITEBYTECODE= PYTHONPYCACHEPREFIX=$(CURDIR)/$(VENV)/pycache
+test: $(STAMP)
+	$(MAKE) --no-print-directory -j2 --output-sync=target lint test-caches
+	$(TEST_ENV) $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
+
+# Run beside lint (one core each) before the suite: numba compiles the collision kernel once (~9 s;
+# in a fresh checkout each worker and each rig command would compile it at the same time) and the
+# test files' asserts are rewritten once, into the bytecode cache above.
+test-caches: $(STAMP)
+	$(TEST_ENV) $(BIN)/python -c 'from rig.physics import fast; fast.warm_up()'
+	$(TEST_ENV) $(BIN)/python -m pytest -q --collect-only -p no:cacheprovider > /dev/null
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_startup.py
