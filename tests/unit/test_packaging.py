@@ -40,17 +40,22 @@ SKIP = {".venv", ".git", "build", "dist", "out", "__pycache__", ".mypy_cache", "
 def _sources() -> list[Path]:
     """Every Python file of the repository once (the links rig/drivers etc. are not walked twice)."""
     found: list[Path] = []
-    for path in sorted(ROOT.rglob("*.py")):
-        parts = path.relative_to(ROOT).parts
-        if SKIP.intersection(parts) or ".hypothesis" in parts or (parts[0] == "rig" and parts[1] in BARE):
-            continue
-        found.append(path)
-    return found
+    for folder, dirs, files in os.walk(ROOT):  # the skipped folders (.venv: ~10 s) are not entered
+        here = Path(folder)
+        rel = here.relative_to(ROOT).parts
+        dirs[:] = [
+            d for d in dirs if d not in SKIP and d != ".hypothesis" and not (rel == ("rig",) and d in BARE)
+        ]
+        found += [here / name for name in files if name.endswith(".py")]
+    return sorted(found)
 
 
 def _bare_imports(path: Path) -> list[str]:
     """`import drivers...`, `from protocols... import`, and strings that name a bare module."""
-    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    text = path.read_text(encoding="utf-8")
+    if not any(name in text for name in BARE):  # every hit names one: a file without them has none
+        return []
+    tree = ast.parse(text, filename=str(path))
     hits: list[str] = []
     for node in ast.walk(tree):
         names: list[str] = []
