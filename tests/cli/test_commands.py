@@ -96,11 +96,13 @@ def test_result_lines_hold_no_python_values(store_db: Path) -> None:
         ("runs", "--db", str(store_db)),
         ("verify", "--db", str(store_db)),
     ]
+    printed = []
     for args in commands:
         done = rig(*args)
         assert done.returncode == 0, (args, done.stderr)
         assert not PY_REPR.search(done.stdout), (args, done.stdout)
-    cor = rig(*commands[0]).stdout
+        printed.append(done.stdout)
+    cor = printed[0]  # the first command's output (not a second run of it)
     assert re.search(r"params\.m1 +\| +0\.145 \|", cor)  # the nested values, one per row
 
 
