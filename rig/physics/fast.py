@@ -36,6 +36,8 @@ from rig.physics.reference import CollisionResult, _time_limit, bounded_cor, con
 DEFAULT_RTOL = 1e-10
 MAX_STEPS = 2_000_000
 INTERPRETED_SOLVES = 20  # ~0.3 s of interpreted solves, about what loading the compiled kernel costs
+INTERPRETED_MAX_STEPS = 2_000  # ~1 s interpreted: a longer solve goes to the compiled kernel (a stiff
+# one of 2e6 steps took 4 minutes interpreted, seconds compiled)
 NUMPY_LANES = 5000  # a batch this small may run in numpy lanes: ~0.4 s, below numba's load (~1 s)
 _COMPILED = "rig.physics._dop853"
 _interpreted_left = INTERPRETED_SOLVES
@@ -96,7 +98,10 @@ def solve(imp: Impact, rtol: float = DEFAULT_RTOL) -> CollisionResult:
     if _solve_impact is None:
         module = _single()
         if module.__name__ != _COMPILED:
-            return solve_general(imp, rtol, module)
+            done = _interpreted_solve(imp, rtol, module)
+            if done is not None:
+                return done
+            compiled()  # a long solve: the compiled kernel takes it from the start
     p, hoop, body = imp.params, imp.hoop_hz, imp.body_mass
     out = _solve_impact(
         p.m1,
@@ -138,6 +143,20 @@ def _single_contact(
     fields["energy"] = {}
     fields["contacts"] = 1
     return result
+
+
+def _interpreted_solve(imp: Impact, rtol: float, module: ModuleType) -> CollisionResult | None:
+    """`solve_general` through the interpreted kernel, None if it takes more than
+    INTERPRETED_MAX_STEPS (the compiled kernel then solves it from the start: the same numbers)."""
+    state = np.zeros(6)
+    scale = imp.params.compression_scale(imp.speed)
+    limit = min(INTERPRETED_MAX_STEPS, MAX_STEPS)
+    cor, tc, nfev, _, status = module.solve_one(
+        kernel_params(imp), imp.speed, scale, rtol, imp.n_states, _time_limit(imp, scale), limit, state
+    )
+    if status == kernel.STATUS_MAX_STEPS and limit < MAX_STEPS:
+        return None
+    return _finish(imp, rtol, cor, tc, nfev, status, state)
 
 
 def solve_general(imp: Impact, rtol: float, module: ModuleType) -> CollisionResult:

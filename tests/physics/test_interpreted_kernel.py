@@ -59,6 +59,28 @@ def test_single_solves_start_interpreted_and_switch_to_the_compiled_kernel() -> 
     assert out.split() == ["False", "True", "True"]
 
 
+def test_a_long_solve_goes_to_the_compiled_kernel_at_once() -> None:
+    """A single solve longer than INTERPRETED_MAX_STEPS (cut to 10 here) is not left to the
+    interpreter (a stiff one of 2e6 steps took 4 minutes there): the compiled kernel solves it, with
+    the numbers it gives any solve, and an ordinary solve after it is the compiled one too."""
+    code = (
+        "import sys\n"
+        "from rig.physics import fast\n"
+        "from rig.physics.equations import Impact\n"
+        "from rig.physics.params import DEFAULT_PARAMS\n"
+        "fast.INTERPRETED_MAX_STEPS = 10\n"
+        "res = fast.solve(Impact(DEFAULT_PARAMS, 60.8, 1276.0))\n"
+        "print('rig.physics._dop853' in sys.modules, repr(res.cor), res.nfev)\n"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=300
+    ).stdout.split()
+    fast.compiled()
+    ref = fast.solve(Impact(DEFAULT_PARAMS, 60.8, 1276.0))
+    assert out == ["True", repr(ref.cor), str(ref.nfev)]
+    assert ref.nfev > 12 * 10  # more than 10 steps: the interpreter's budget was indeed too short
+
+
 def test_the_interpreted_kernel_is_the_compiled_kernels_file_unedited_and_needs_no_numba() -> None:
     """One source: the interpreted kernel is _dop853.py executed as it is, under another name, and
     loading it does not load numba (the point of having it)."""
