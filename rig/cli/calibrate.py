@@ -6,12 +6,15 @@ import argparse
 import json
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from rig.cli.common import console as out
 from rig.cli.common import new_table, output_file
 from rig.core.errors import ConfigError
 from rig.measure.registry import cross_checked
+
+if TYPE_CHECKING:
+    from rig.population.budget import Budget
 
 
 def gather(
@@ -58,12 +61,44 @@ def gather(
 
 
 def cmd_calibrate(args: argparse.Namespace) -> int:
-    """rig model calibrate: the fit, its covariance, scatter and leave-one-out error; writes CAL.json."""
-    from rig.population.calfile import calibration_record, write_calibration
-    from rig.population.calibrate import PAPER_BASE, calibrate, fitted_quantity
+    """rig model calibrate: the fit, its covariance, scatter and leave-one-out error; writes CAL.json.
+
+    Ctrl-C (SIGINT) ends it with one line saying what it was doing and whether the file was
+    written (whole or not at all: a temporary file beside it, then a rename), exit 130.
+    """
+    from rig.population.budget import Budget
 
     output = output_file(args.output, "--output")
     assert output is not None  # a required flag
+    show = sys.stderr.isatty() if args.progress is None else args.progress
+
+    def progress(line: str) -> None:
+        print(line, file=sys.stderr, flush=True)
+
+    budget = Budget(max_seconds=args.max_seconds, progress=progress if show else None)
+    budget.doing = "reading the bats"  # the time limit counts from the command's start
+    existed = output.exists()
+    try:
+        return _calibrate(args, output, budget)
+    except KeyboardInterrupt:
+        if budget.doing == WRITTEN:
+            told = f"{output} was written"
+        else:
+            told = f"no calibration written ({output} {'left as it was' if existed else 'not created'})"
+        at = f"{budget.doing}, {budget.elapsed():.1f} s in"
+        print(f"rig model calibrate: interrupted ({at}); {told}", file=sys.stderr)
+        return 130
+
+
+WRITTEN = "printing the calibration"  # the stage after the file is in place
+
+
+def _calibrate(args: argparse.Namespace, output: Path, budget: Budget) -> int:
+    """cmd_calibrate's work, `budget.doing` saying what it is doing."""
+    from rig.population.calfile import calibration_record, write_calibration
+    from rig.population.calibrate import PAPER_BASE, calibrate, fitted_quantity
+    from rig.report.export import atomic_write
+
     for source in (args.data, args.db):
         if (
             source
@@ -97,17 +132,15 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         law, sha = load_ball(args.ball)
         ball = ball_record(law, sha, args.ball)
         kwargs["base"] = law.apply(PAPER_BASE)
-    from rig.population.budget import Budget
-
-    show = sys.stderr.isatty() if args.progress is None else args.progress
-
-    def progress(line: str) -> None:
-        print(line, file=sys.stderr, flush=True)
-
-    kwargs["budget"] = Budget(max_seconds=args.max_seconds, progress=progress if show else None)
-    cal = calibrate(bats, metric=args.metric, **kwargs)
+    cal = calibrate(bats, metric=args.metric, budget=budget, **kwargs)
+    budget.doing = "writing the calibration"
     record = calibration_record(cal, blob, names, ball=ball)
-    write_calibration(record, output)
+
+    def write(tmp: Path) -> None:
+        write_calibration(record, tmp)
+
+    atomic_write(output, write)
+    budget.doing = WRITTEN
     if args.json:
         json.dump(record, sys.stdout, indent=2, allow_nan=False)
         sys.stdout.write("\n")

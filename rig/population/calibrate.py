@@ -331,7 +331,8 @@ def calibrate(
     `speed_m_s` the inbound speed of the metric's standard (base.m1 its ball's mass). A metric
     without a population column (a BPF, a USA Softball BBS) fits the runs' BBCOR (fitted_quantity).
     """
-    from rig.population.structure import check_structure  # scipy.special: on first use
+    from rig.population.structure import MIN_BATS as STRUCTURE_MIN_BATS  # scipy.special: on first use
+    from rig.population.structure import check_structure
 
     budget = budget or Budget()
     rows = fit_bats(bats, fitted_quantity(metric), speed_m_s, base.m1)
@@ -388,6 +389,11 @@ def calibrate(
         )
     best = min(fitted, key=lambda f: f.scatter)  # the family's best description of the bats
     check_structure([b.hoop_hz for b in rows], best.residuals.tolist(), best.variant)
+    if len(rows) < STRUCTURE_MIN_BATS:
+        notes.append(
+            f"the residual-structure check (a trend with hoop frequency, two groups of bats) needs"
+            f" {STRUCTURE_MIN_BATS} bats; with {len(rows)} it was not made"
+        )
     for name, report in list(reports.items()):
         if report.identified:
             budget.say(f"leave-one-out of {name} on {len(rows)} bats")

@@ -27,15 +27,31 @@ def burners(n: int = 2) -> Iterator[None]:
 
 def certify_child(db: Path, *args: str) -> subprocess.Popen[str]:
     """`rig certify ... --db DB` in a child process (python -m rig.cli)."""
+    return rig_child("certify", *args, "--db", str(db))
+
+
+def rig_child(*argv: str) -> subprocess.Popen[str]:
+    """`rig ARGV...` in a child process (python -m rig.cli), unbuffered, stdout and stderr piped."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     return subprocess.Popen(
-        [sys.executable, "-m", "rig.cli", "certify", *args, "--db", str(db)],
+        [sys.executable, "-m", "rig.cli", *argv],
         cwd=ROOT,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         env=env,
     )
+
+
+@contextlib.contextmanager
+def reaped(proc: subprocess.Popen[str]) -> Iterator[subprocess.Popen[str]]:
+    """The child, killed and reaped if the block leaves it running (a failed assert, a timeout)."""
+    try:
+        yield proc
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
 
 
 def count(db: Path, kind: str) -> int:

@@ -3,6 +3,9 @@ residuals showed, a time limit stops it with one line, and progress lines go to 
 
 from __future__ import annotations
 
+import json
+import re
+import signal
 from pathlib import Path
 
 import numpy as np
@@ -12,8 +15,11 @@ from rig.cli import main
 from rig.population import write_population_csv
 from rig.population.budget import Budget, CalibrationStopped
 from rig.population.calibrate import calibrate
+from rig.population.structure import MIN_BATS as STRUCTURE_MIN_BATS
 from rig.population.structure import ModelFamilyRefused, check_structure, hoop_trend, two_modes
 from studies.population.twomode import two_mode_population
+from tests.e2e.procs import reaped, rig_child
+from tests.population.test_calibrate import population
 
 
 @pytest.fixture(scope="module")
@@ -117,3 +123,43 @@ def test_the_dip_is_deep_between_two_groups_and_flat_over_one() -> None:
     groups = np.concatenate([rng.normal(0.0, 1.0, 850), rng.normal(5.0, 1.0, 150)])
     assert dip(groups, (0.0, 5.0), 1.0) < 0.5  # the 15 % group still leaves a gap before it
     assert dip(rng.uniform(-1.0, 1.0, 1000), (-0.5, 0.5), 0.29) > 0.7
+
+
+def test_ctrl_c_says_where_it_was_and_writes_no_file(tmp_path: Path) -> None:
+    """SIGINT to a real `rig model calibrate` child once its first progress line is out: one line
+    on stderr naming the stage and that no calibration was written, exit 130, no file (and no
+    temporary file) left. No timing: the signal follows the progress line, whenever it comes."""
+    data = write_population_csv(population(n=60, seed=7), tmp_path / "pop.csv")
+    out = tmp_path / "cal.json"
+    argv = ["model", "calibrate", "--data", str(data), "--output", str(out), "--progress"]
+    with reaped(rig_child(*argv)) as child:
+        assert child.stderr is not None
+        first = child.stderr.readline()  # blocks until the calibration has started fitting
+        assert first.startswith("calibrate [") and "fitting m2+c2 to 60 bats" in first, first
+        child.send_signal(signal.SIGINT)
+        _, err = child.communicate(timeout=300)
+    lines = [line for line in err.splitlines() if not line.startswith("calibrate [")]
+    assert child.returncode == 130, err
+    assert len(lines) == 1, err
+    assert re.fullmatch(
+        rf"rig model calibrate: interrupted \((fitt|leave-one-out).* 60 bats.*, [\d.]+ s in\);"
+        rf" no calibration written \({re.escape(str(out))} not created\)",
+        lines[0],
+    ), lines[0]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pop.csv"]
+
+
+def test_a_population_below_the_structure_checks_minimum_says_it_was_not_checked(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """19 bats calibrate (the fit needs 8) but the residual-structure check needs 20: one note line
+    says so, and the calibration record (what --json prints) carries it."""
+    assert STRUCTURE_MIN_BATS == 20
+    data = write_population_csv(population(n=STRUCTURE_MIN_BATS - 1, seed=5), tmp_path / "pop.csv")
+    out = tmp_path / "cal.json"
+    assert main(["model", "calibrate", "--data", str(data), "--output", str(out)]) == 0
+    said = [line for line in capsys.readouterr().out.splitlines() if "residual-structure check" in line]
+    wanted = "the residual-structure check (a trend with hoop frequency, two groups of bats) needs 20 bats"
+    assert said == [f"note: {wanted}; with 19 it was not made"]
+    notes = json.loads(out.read_text())["notes"]
+    assert [n for n in notes if "residual-structure" in n] == [f"{wanted}; with 19 it was not made"]
