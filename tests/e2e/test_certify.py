@@ -18,7 +18,7 @@ from rig.core.bat import BatSpec
 from rig.protocols.procedure import Procedure
 from rig.report.record import run_record
 from rig.session import sim_config
-from rig.store import Store
+from rig.store import LogEntry, Store
 
 ROOT = Path(__file__).resolve().parents[2]
 SAMPLE_BAT = ROOT / "protocols" / "examples" / "sample-bat.toml"
@@ -170,19 +170,31 @@ CHILD = textwrap.dedent("""
 """)
 
 
+def _named(entry: LogEntry) -> str:
+    """An entry's kind and, for a shot's, its index: 'ShotMeasured#7'."""
+    index = entry.payload.get("index")
+    return entry.kind if index is None else f"{entry.kind}#{index}"
+
+
 @pytest.mark.parametrize(
-    ("kind", "nth"),
+    ("kind", "nth", "last_on_disk", "lost"),
     [
-        ("MoiMeasured", 1),
-        ("ShotRequested", 3),
-        ("ShotFired", 5),
-        ("ShotMeasured", 7),
-        ("LocationChosen", 1),
-        ("Traffic", 10),
+        # a commit point killed right after it was recorded: on disk, never made again, nothing lost
+        ("MoiMeasured", 1, "MoiMeasured", None),
+        ("ShotMeasured", 7, "ShotMeasured#7", None),
+        # the shot's intent is on disk, its fire (or traffic) was held: the shot is recorded lost
+        ("ShotRequested", 3, "ShotRequested#3", 3),
+        ("ShotFired", 5, "ShotRequested#5", 5),
+        ("Traffic", 10, "ShotRequested#10", 10),
+        # a location waits for the next commit point: the last shot before it is on disk, the
+        # resumed run chooses the location again, nothing lost
+        ("LocationChosen", 1, "ShotMeasured#6", None),
     ],
 )
 @pytest.mark.usefixtures("cpu_load")  # crosses a process boundary: CI machines are busy
-def test_killed_run_resumes_without_loss_or_double_fire(tmp_path: Path, kind: str, nth: int) -> None:
+def test_killed_run_resumes_without_loss_or_double_fire(
+    tmp_path: Path, kind: str, nth: int, last_on_disk: str, lost: int | None
+) -> None:
     db = tmp_path / "r.db"
     proc = subprocess.run(
         [sys.executable, "-c", CHILD, kind, str(nth), str(db), str(SAMPLE_BAT)],
@@ -197,6 +209,7 @@ def test_killed_run_resumes_without_loss_or_double_fire(tmp_path: Path, kind: st
         assert store.verify().ok
         (run,) = store.open_runs()
         before = store.entries(run.run_id)
+        assert _named(before[-1]) == last_on_disk, [_named(e) for e in before[-8:]]
         # a shot's raw record, traffic and outcome are one transaction: all on disk, or none of them
         for index in {e.payload["index"] for e in before if e.kind == "ShotRequested"}:
             written = {e.kind for e in before if e.payload.get("index") == index} - {"ShotRequested"}
@@ -219,9 +232,14 @@ def test_killed_run_resumes_without_loss_or_double_fire(tmp_path: Path, kind: st
         assert all(n == 1 for n in requested.values())  # every shot index requested once
         assert all(n == 1 for n in fired.values())  # and fired at most once
         assert set(outcomes) == set(requested) and all(n == 1 for n in outcomes.values())
-        if kind in ("ShotRequested", "ShotFired", "Traffic"):  # killed after the intent: lost, not re-fired
-            lost = [e.payload for e in after if e.kind == "ShotLost"]
-            assert any(p["index"] == nth for p in lost)
+        # the shot in flight, and only it, is recorded lost (not re-fired); none when nothing was in flight
+        assert [e.payload["index"] for e in after if e.kind == "ShotLost"] == ([] if lost is None else [lost])
+        # a shot whose outcome was on disk is not touched on resume: its entries are those before the kill
+        for index in {e.payload["index"] for e in before if e.kind == "ShotMeasured"}:
+            shot = [_named(e) for e in after if e.payload.get("index") == index]
+            assert shot == [_named(e) for e in before if e.payload.get("index") == index], shot
+        kinds = Counter(e.kind for e in after)
+        assert kinds["MoiMeasured"] == 1 and kinds["LocationChosen"] == 1  # made once, whatever was killed
         record = run_record(store, run.run_id)
         assert record["verdict"]["n_hits"] == 6
         assert any(i["kind"] == "RunResumed" for i in record["interruptions"])
