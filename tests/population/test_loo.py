@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from rig.measure.selection import VariantReport
-from rig.population.calibrate import START, VARIANTS, choose, fit_bats, fit_variant
+from rig.population.calibrate import PAPER_BASE, START, VARIANTS, choose, fit_bats, fit_variant
 from rig.population.loo import exact_leave_one_out, leave_one_out
 from rig.simulators.scene import Scene
 from studies.population.lab import best_scan_location, measured_population
@@ -79,8 +79,15 @@ def flat_valley() -> tuple[list, object]:
 def test_in_a_flat_valley_the_untrusted_update_gives_way_to_refits(
     flat_valley: tuple[list, object], monkeypatch: pytest.MonkeyPatch
 ) -> None:
+    """The checked update against exact refits of the bats the unchecked update gets most wrong
+    (and two more): equal within 2e-5 there, where the unchecked one misses by more than 1e-3."""
+    from rig.population.loo import _refit_error
+
     rows, fit = flat_valley
-    exact = exact_leave_one_out(rows, fit)
-    assert np.max(np.abs(leave_one_out(rows, fit) - exact)) < 2e-5
+    checked = leave_one_out(rows, fit)
     monkeypatch.setattr("rig.population.loo.PROBE_TOL", float("inf"))  # the surrogate trusted blindly
-    assert np.max(np.abs(leave_one_out(rows, fit) - exact)) > 1e-3
+    blind = leave_one_out(rows, fit)
+    worst = [int(i) for i in np.argsort(-np.abs(blind - checked))[:6]] + [0, len(rows) - 1]
+    exact = np.array([_refit_error(rows, i, fit, PAPER_BASE) for i in worst])
+    assert np.max(np.abs(checked[worst] - exact)) < 2e-5
+    assert np.max(np.abs(blind[worst] - exact)) > 1e-3
