@@ -299,8 +299,7 @@ def test_stiff_light_barrel_is_never_silently_wrong() -> None:
     """m2 = 1 mg with b = 0: the damping rate c1/m2 = 5e9 /s makes the model stiff.
 
     Radau, BDF and LSODA agree (~17,000 Radau steps, a few seconds); the explicit kernel exhausts its
-    2e6-step budget (~2 s)
-    and must say so with SolverError, or else agree with them.
+    2e6-step budget (~2 s) and must say so with SolverError, or else agree with them.
     """
     imp = Impact(CollisionParams.build(m2=1e-6, b=0.0), 1.0, 1e4)
     radau = solve_reference(imp, "Radau", 1e-10)
