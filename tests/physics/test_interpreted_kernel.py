@@ -43,38 +43,42 @@ def test_the_tables_are_scipys() -> None:
         assert np.array_equal(getattr(kernel, f"_{name}"), getattr(scipy_tables, name))
 
 
+def fresh_python(*lines: str, timeout: float = 300) -> list[str]:
+    """The words a fresh interpreter prints running `lines` (rig's imports as a process starts)."""
+    code = "\n".join(lines) + "\n"
+    return subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=timeout
+    ).stdout.split()
+
+
 def test_single_solves_start_interpreted_and_switch_to_the_compiled_kernel() -> None:
-    code = (
-        "import sys\n"
-        "from rig.physics import fast\n"
-        "from rig.physics.equations import Impact\n"
-        "from rig.physics.params import DEFAULT_PARAMS\n"
-        "imp = Impact(DEFAULT_PARAMS, 60.8, 1276.0)\n"
-        "first = fast.solve(imp).cor\n"
-        "print('numba' in sys.modules)\n"
-        "for _ in range(fast.INTERPRETED_SOLVES): fast.solve(imp)\n"
-        "print('numba' in sys.modules, fast.solve(imp).cor == first)\n"
+    out = fresh_python(
+        "import sys",
+        "from rig.physics import fast",
+        "from rig.physics.equations import Impact",
+        "from rig.physics.params import DEFAULT_PARAMS",
+        "imp = Impact(DEFAULT_PARAMS, 60.8, 1276.0)",
+        "first = fast.solve(imp).cor",
+        "print('numba' in sys.modules)",
+        "for _ in range(fast.INTERPRETED_SOLVES): fast.solve(imp)",
+        "print('numba' in sys.modules, fast.solve(imp).cor == first)",
     )
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
-    assert out.split() == ["False", "True", "True"]
+    assert out == ["False", "True", "True"]
 
 
 def test_a_long_solve_goes_to_the_compiled_kernel_at_once() -> None:
     """A single solve longer than INTERPRETED_MAX_STEPS (cut to 10 here) is not left to the
     interpreter (a stiff one of 2e6 steps took 4 minutes there): the compiled kernel solves it, with
-    the numbers it gives any solve, and an ordinary solve after it is the compiled one too."""
-    code = (
-        "import sys\n"
-        "from rig.physics import fast\n"
-        "from rig.physics.equations import Impact\n"
-        "from rig.physics.params import DEFAULT_PARAMS\n"
-        "fast.INTERPRETED_MAX_STEPS = 10\n"
-        "res = fast.solve(Impact(DEFAULT_PARAMS, 60.8, 1276.0))\n"
-        "print('rig.physics._dop853' in sys.modules, repr(res.cor), res.nfev)\n"
+    the numbers it gives any solve."""
+    out = fresh_python(
+        "import sys",
+        "from rig.physics import fast",
+        "from rig.physics.equations import Impact",
+        "from rig.physics.params import DEFAULT_PARAMS",
+        "fast.INTERPRETED_MAX_STEPS = 10",
+        "res = fast.solve(Impact(DEFAULT_PARAMS, 60.8, 1276.0))",
+        "print('rig.physics._dop853' in sys.modules, repr(res.cor), res.nfev)",
     )
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=300
-    ).stdout.split()
     fast.compiled()
     ref = fast.solve(Impact(DEFAULT_PARAMS, 60.8, 1276.0))
     assert out == ["True", repr(ref.cor), str(ref.nfev)]
@@ -84,17 +88,14 @@ def test_a_long_solve_goes_to_the_compiled_kernel_at_once() -> None:
 def test_the_interpreted_kernel_is_the_compiled_kernels_file_unedited_and_needs_no_numba() -> None:
     """One source: the interpreted kernel is _dop853.py executed as it is, under another name, and
     loading it does not load numba (the point of having it)."""
-    code = (
-        "import sys\n"
-        "from rig.physics import _interpreted\n"
-        "k = _interpreted.load()\n"
+    numba_loaded, file, solve_file, rhs_file = fresh_python(
+        "import sys",
+        "from rig.physics import _interpreted",
+        "k = _interpreted.load()",
         "print('numba' in sys.modules, k.__file__, k.solve_one.__code__.co_filename,"
-        " k._rhs.__code__.co_filename)\n"
+        " k._rhs.__code__.co_filename)",
+        timeout=120,
     )
-    out = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120
-    )
-    numba_loaded, file, solve_file, rhs_file = out.stdout.split()
     assert numba_loaded == "False"
     assert file == solve_file == _dop853.__file__
     assert rhs_file == _kernel_model.__file__  # the model's functions: their one definition
