@@ -23,6 +23,10 @@ KINDS: dict[str, Residuals] = {
     "two groups, 30 % at +5 SD": lambda g, n: np.where(g.random(n) < 0.3, 0.02, 0.0) + g.normal(0, 0.004, n),
     "two groups, 15 % at +5 SD": lambda g, n: np.where(g.random(n) < 0.15, 0.02, 0.0) + g.normal(0, 0.004, n),
     "two groups, 50 % at +4 SD": lambda g, n: np.where(g.random(n) < 0.5, 0.016, 0.0) + g.normal(0, 0.004, n),
+    "two groups, 15 % at +4 SD": lambda g, n: (
+        np.where(g.random(n) < 0.15, 0.016, 0.0) + g.normal(0, 0.004, n)
+    ),
+    "lognormal (skewed, one group)": lambda g, n: 0.005 * g.lognormal(0.0, 1.0, n),
 }
 SIZES = (20, 40, 200, 1000)
 
