@@ -148,27 +148,31 @@ def _single_contact(
 def _interpreted_solve(imp: Impact, rtol: float, module: ModuleType) -> CollisionResult | None:
     """`solve_general` through the interpreted kernel, None if it takes more than
     INTERPRETED_MAX_STEPS (the compiled kernel then solves it from the start: the same numbers)."""
-    state = np.zeros(6)
-    scale = imp.params.compression_scale(imp.speed)
     limit = min(INTERPRETED_MAX_STEPS, MAX_STEPS)
-    cor, tc, nfev, _, status = module.solve_one(
-        kernel_params(imp), imp.speed, scale, rtol, imp.n_states, _time_limit(imp, scale), limit, state
-    )
+    cor, tc, nfev, status, state = _solve_one(imp, rtol, module, limit)
     if status == kernel.STATUS_MAX_STEPS and limit < MAX_STEPS:
         return None
     return _finish(imp, rtol, cor, tc, nfev, status, state)
+
+
+def _solve_one(
+    imp: Impact, rtol: float, module: ModuleType, max_steps: int
+) -> tuple[float, float, int, int, np.ndarray]:
+    """`module`'s solve_one with the parameter vector and limits made in Python: (cor, contact
+    time, nfev, status, the state at the separation)."""
+    state = np.zeros(6)
+    scale = imp.params.compression_scale(imp.speed)
+    cor, tc, nfev, _, status = module.solve_one(
+        kernel_params(imp), imp.speed, scale, rtol, imp.n_states, _time_limit(imp, scale), max_steps, state
+    )
+    return cor, tc, nfev, status, state
 
 
 def solve_general(imp: Impact, rtol: float, module: ModuleType) -> CollisionResult:
     """`solve` through `module`'s solve_one (the interpreted or the compiled kernel), with the
     parameter vector and limits made in Python: the path `solve`'s lean compiled entry must equal."""
     rtol = check_tolerance(rtol)
-    state = np.zeros(6)
-    scale = imp.params.compression_scale(imp.speed)
-    cor, tc, nfev, _, status = module.solve_one(
-        kernel_params(imp), imp.speed, scale, rtol, imp.n_states, _time_limit(imp, scale), MAX_STEPS, state
-    )
-    return _finish(imp, rtol, cor, tc, nfev, status, state)
+    return _finish(imp, rtol, *_solve_one(imp, rtol, module, MAX_STEPS))
 
 
 def _finish(

@@ -181,11 +181,12 @@ def leave_one_out(
     sets = [{**full.values, **dict(zip(free, row, strict=True))} for row in moved]
     predicted = predict_pairs(bats, sets, base)
     out = measured - predicted
-    own = np.abs(predicted - _quadratic(measured + r, g, hs, steps))  # each bat's model at its own step
+    f0 = measured + r  # each bat's prediction at the fit
+    own = np.abs(predicted - _quadratic(f0, g, hs, steps))  # each bat's model at its own step
     untrusted = own > PROBE_TOL
-    if not trusted(bats, full, free, base, measured + r, g, hs, steps, budget):
+    if not trusted(bats, sets, base, f0, g, hs, steps, budget):
         untrusted[:] = True
-    untrusted |= leaves_its_bound(bats, full, free, base, r, g, steps)
+    untrusted |= leaves_its_bound(bats, full, base, f0, g, steps)
     if budget is not None and (exact | untrusted).any():
         budget.say(
             budget.doing,
@@ -211,8 +212,7 @@ def _quadratic(f0: np.ndarray, g: np.ndarray, hs: np.ndarray, steps: np.ndarray)
 
 def trusted(
     bats: Sequence[FitBat],
-    full: Fit,
-    free: Sequence[str],
+    sets: Sequence[dict[str, float]],
     base: CollisionParams,
     f0: np.ndarray,
     g: np.ndarray,
@@ -220,19 +220,17 @@ def trusted(
     steps: np.ndarray,
     budget: Budget | None = None,
 ) -> bool:
-    """Whether the surrogate may be trusted: at its MAX_PROBES longest steps, every bat's quadratic
+    """Whether the surrogate may be trusted (`sets[i]`: the parameters at bat i's step, `steps[i]`
+    in scaled units): at its MAX_PROBES longest steps, every bat's quadratic
     model against the model's prediction there (one batch of n solves each), all within PROBE_TOL.
     One miss and no step is trusted, short ones included: in a flat valley a bat's true step can
     lie beyond where the surrogate holds while the surrogate's own step stays short (trusting the
     steps shorter than a miss left one of 62 sample bats off by 5.6e-3)."""
-    x = np.array([full.values[n] for n in free])
-    scale = np.array([_scale(n) for n in free])
     size = np.max(np.abs(steps), axis=1)
     for i in np.argsort(-size, kind="stable")[:MAX_PROBES]:
         if budget is not None:
             budget.tick()
-        values = {**full.values, **dict(zip(free, x + steps[i] * scale, strict=True))}
-        model = predict_pairs(bats, [values] * len(bats), base)
+        model = predict_pairs(bats, [sets[i]] * len(bats), base)
         step = np.broadcast_to(steps[i], steps.shape)
         if np.max(np.abs(model - _quadratic(f0, g, hs, step))) > PROBE_TOL:
             return False
@@ -240,27 +238,22 @@ def trusted(
 
 
 def leaves_its_bound(
-    bats: Sequence[FitBat],
-    full: Fit,
-    free: Sequence[str],
-    base: CollisionParams,
-    r: np.ndarray,
-    g: np.ndarray,
-    d: np.ndarray,
+    bats: Sequence[FitBat], full: Fit, base: CollisionParams, f0: np.ndarray, g: np.ndarray, d: np.ndarray
 ) -> np.ndarray:
     """Bats whose leaving-out may lift a parameter the full fit holds at a bound off it: the update
     keeps it there, a refit need not (an outside review: c2 at 0 moved to 78 N s/m, the bat's LOO
     error off by 1.3e-3, every other check passed). For each such parameter q the slope of the
     others' sum of squares in q, to first order at the bat's updated step (a_k = d f_k / dq, one
     batch of n solves a step into the bounds), is what holds q at its bound: a bat that takes away
-    half of it or more is refitted."""
+    half of it or more is refitted (f0: each bat's prediction at the fit, d: its step)."""
     out = np.zeros(len(bats), dtype=bool)
+    r = f0 - np.array([b.measured for b in bats])  # the fit's residuals
+    r_i = r + np.einsum("na,na->n", g, d)  # each bat's residual at its updated step
     for name, value, lo, hi in _at_bounds(bats, full):
         inward = 1.0 if value - lo <= hi - value else -1.0  # the direction into the allowed range
         h = inward * FD_STEP * _scale(name)
         moved = predict_pairs(bats, [{**full.values, name: value + h}] * len(bats), base)
-        a = (moved - (np.array([b.measured for b in bats]) + r)) / h * inward  # slope inward, per unit
-        r_i = r + np.einsum("na,na->n", g, d)  # each bat's residual at its updated step
+        a = (moved - f0) / h * inward  # slope inward, per unit
         hold = float(r @ a)  # >= 0 at a bound the fit presses on
         held = hold + d @ (g.T @ a) - r_i * a  # the others' slope at bat i's step
         out |= held <= 0.5 * hold

@@ -16,9 +16,9 @@ more than 25 minutes. Two checks on the residuals of the family's best in-sample
   a component SD of the valley between them lie at most MODE_DIP times as many as within half an
   SD of the emptier mean, or fewer by MODE_DIP_Z standard errors of the two counts (many bats tell
   a shallow dip from a flat top: a second review saw a 15 % group 4 SD out missed more often at
-  4,000 bats than at 40). Without the dip a flat-topped spread passes the other three (a uniform one fits two
-  normals 3.5 SD apart: an outside review saw one-construction populations whose contact stiffness
-  varied by +-35 % refused as "two constructions").
+  4,000 bats than at 40). Without the dip a flat-topped spread passes the other three (a uniform
+  one fits two normals 3.5 SD apart: an outside review saw one-construction populations whose
+  contact stiffness varied by +-35 % refused as "two constructions").
 Either refuses the calibration with the structure seen. Fewer than MIN_BATS bats are not checked.
 """
 
