@@ -8,7 +8,7 @@ the barrel comes back and hits the ball again) it hands the state at the first s
 20-40 ms a collision, against ~50 us for a kernel solve). The first call in a fresh checkout
 compiles the kernel (a few seconds); the machine code is cached on disk for later runs.
 
-numba and the cached machine code take about a second to load, so the kernel loads only when a
+numba and the cached machine code take half a second to a second to load, so the kernel loads only when a
 solve needs it: the first `INTERPRETED_SOLVES` single solves of a process run the same kernel
 source in the interpreter (`_interpreted`, 10-20 ms each, the same numbers), batches and later
 solves the compiled kernel. `warm_up` loads the compiled kernel at once. A caller that asks for it
@@ -35,7 +35,10 @@ from rig.physics.reference import CollisionResult, _time_limit, bounded_cor, con
 
 DEFAULT_RTOL = 1e-10
 MAX_STEPS = 2_000_000
-INTERPRETED_SOLVES = 20  # ~0.3 s of interpreted solves, about what loading the compiled kernel costs
+INTERPRETED_SOLVES = 45  # ~0.55 s of interpreted solves (~12 ms each): what loading numba and the compiled
+# kernel costs at the least (0.5-0.6 s measured in a warm process; more when cold). At that break-even a
+# process spends at most about twice the least it could have; a simulated BBCOR certification's ~40
+# solves stay interpreted (its `rig certify` took 1.0-1.1 s, against 1.5-2.3 s with 20)
 INTERPRETED_MAX_STEPS = 2_000  # ~1 s interpreted: a longer solve goes to the compiled kernel (a stiff
 # one of 2e6 steps took 4 minutes interpreted, seconds compiled)
 NUMPY_LANES = 5000  # a batch this small may run in numpy lanes: ~0.4 s, below numba's load (~1 s)
