@@ -38,6 +38,7 @@ MODE_SHARE = 0.1
 MODE_LR = 16.0
 MODE_DIP = 0.5
 MODE_DIP_Z = 2.0
+EM_TOL = 1e-10  # EM stops once a step gains less log-likelihood than this (at most `steps` steps)
 
 
 class ModelFamilyRefused(CalibrationRefused):
@@ -90,7 +91,8 @@ def two_modes(
     residuals: Sequence[float], steps: int = 300
 ) -> tuple[float, float, float, tuple[float, float]]:
     """(Ashman's D, smaller weight, 2 x log-likelihood gain over one normal, the two means) of a
-    two-component equal-variance normal mixture fitted by EM (the best of three starts)."""
+    two-component equal-variance normal mixture fitted by EM (the best of three starts, each until a
+    step gains less than EM_TOL in log-likelihood)."""
     r = np.asarray(residuals, dtype=float)
     n = len(r)
     m, s = float(r.mean()), float(r.std())
@@ -111,7 +113,9 @@ def two_modes(
             top = d.max(axis=1, keepdims=True)
             w = np.exp(d - top)
             tot = w.sum(axis=1, keepdims=True)
-            ll = float(np.sum(top[:, 0] + np.log(tot[:, 0])) - 0.5 * n * np.log(2.0 * np.pi * var))
+            last, ll = ll, float(np.sum(top[:, 0] + np.log(tot[:, 0])) - 0.5 * n * np.log(2.0 * np.pi * var))
+            if ll - last < EM_TOL:
+                break  # EM never lowers the likelihood: this start has converged
             w /= tot
             nk = w.sum(axis=0)
             if np.any(nk < 1e-9):
