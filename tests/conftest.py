@@ -16,6 +16,7 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 from rig.physics.params import DEFAULT_PARAMS, CollisionParams
+from tests.load import ROOT_ENV
 from tests.load import cpu_load as _cpu_load
 from tests.pgfixtures import (
     pg_cluster,
@@ -84,6 +85,12 @@ def cpu_load() -> Iterator[None]:
     """Two CPU-bound processes beside the test (tests/load.py): for tests that cross a process boundary."""
     with _cpu_load():
         yield
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """The test run's first process (the controller under pytest-xdist, whose workers inherit it):
+    the processes of the run that count as load beside a test in `cpu_load` are its descendants."""
+    os.environ.setdefault(ROOT_ENV, str(os.getpid()))
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:

@@ -13,22 +13,25 @@ tests/conftest.py wraps this for a whole test.
 
 Burners fill in, they do not pile on: what a test needs is `n` CPU-bound processes beside it, and in
 a parallel run the other test workers (and the processes they start, burners of their own included)
-often are that already. Every TICK_S a thread of the block counts the running processes on the
-machine that are neither the test's own (its process and every descendant, but for the burners of
-its other blocks) nor this block's burners, and lets as many burners spin as that count falls short
-of `n` (all of them on an otherwise idle machine); a shortfall is made up in the next ticks, so over
-the block the count beside the test, burners included, averages at least `n`. The others wait on
-the control file, checking it, the deadline and their parent every 10 ms. So parallel test workers
-need no turns: two blocks at once keep `n` burners spinning between them, not 2 `n`.
-`fill=False` keeps every burner spinning. RIG_TEST_LOAD_LOG=FILE appends one line per block: its
-length, the mean number of running processes beside the test and the share of ticks it was `n` or
-more, and the burners' mean.
+often are that already. Every TICK_S a thread of the block counts the running processes of the test
+run (the descendants of the process RIG_TEST_LOAD_ROOT names, which tests/conftest.py sets to the
+pytest controller) that are not the test's own (its process and every descendant, but for the
+burners of its other blocks), and lets as many burners spin as that count falls short of `n`. A
+burner starts at once (within a tick) and waits again only after the count was high enough on
+HOLD_TICKS ticks in a row; while the block is short of `n` on average, every burner spins; if the
+thread fails, every burner spins and the block raises. Outside a test run (no root set) nothing else
+counts and every burner spins, as it does with `fill=False`. The waiting burners check the control
+file, the deadline and their parent every 10 ms. Parallel workers need no turns: two blocks at once
+keep about `n` burners spinning between them, not 2 `n`. RIG_TEST_LOAD_LOG=FILE appends one line
+per block: its length, the mean count beside the test (burners included), the share of ticks with
+`n` or more, and the burners' mean.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import random
 import subprocess
 import sys
 import tempfile
@@ -51,7 +54,7 @@ print("burning", flush=True)
 while time.monotonic() < deadline and os.getppid() == parent:
     try:
         with open(control, "rb") as f:
-            turn = int(f.read(1) or b"9") > index
+            turn = (f.read(1) or b"\\xff")[0] > index
     except (OSError, ValueError):
         turn = True
     if not turn:
@@ -63,10 +66,25 @@ while time.monotonic() < deadline and os.getppid() == parent:
 """
 
 
-def running_beside(own: int) -> tuple[int, list[int]]:
-    """(running processes that are not `own` or its descendants, the running descendants' pids), from
-    one pass over /proc (a process's state is its main thread's: 'R', running or runnable)."""
-    parent: dict[int, int] = {}
+ROOT_ENV = "RIG_TEST_LOAD_ROOT"  # the test run's first process (tests/conftest.py sets it)
+HOLD_TICKS = 3  # a burner waits only once the count beside was high enough for this many ticks
+
+
+def load_root() -> int:
+    """The process whose descendants make up the test run (the pytest controller and its workers);
+    this process when it is not set, so that nothing else counts and every burner spins."""
+    try:
+        return int(os.environ[ROOT_ENV])
+    except (KeyError, ValueError):
+        return os.getpid()
+
+
+def running_beside(own: int, root: int) -> tuple[list[int], list[int]]:
+    """(the running descendants of `root` that are not `own` or its descendants, the running ones
+    that are), from one pass over /proc: only the test run's own processes count as load, not a
+    server it left to init, a kernel thread or another user's work (on a busy machine that errs
+    towards more load). A process's state is its main thread's: 'R', running or runnable."""
+    children: dict[int, list[int]] = {}
     running: set[int] = set()
     for name in os.listdir("/proc"):
         if not name.isdigit():
@@ -77,42 +95,67 @@ def running_beside(own: int) -> tuple[int, list[int]]:
         except OSError:
             continue  # gone meanwhile
         pid = int(name)
-        parent[pid] = int(fields[1])
+        children.setdefault(int(fields[1]), []).append(pid)
         if fields[0] == b"R":
             running.add(pid)
-    mine = {own}
-    grew = True
-    while grew:
-        grew = False
-        for pid, ppid in parent.items():
-            if ppid in mine and pid not in mine:
-                mine.add(pid)
-                grew = True
-    return len(running - mine), sorted(running & mine)
+
+    def tree(top: int) -> set[int]:
+        seen, todo = {top}, [top]
+        while todo:
+            for child in children.get(todo.pop(), ()):
+                if child not in seen:
+                    seen.add(child)
+                    todo.append(child)
+        return seen
+
+    mine = tree(own)
+    run = tree(root) if root != own else mine
+    return sorted((run - mine) & running), sorted(mine & running)
+
+
+def burners_to_spin(n: int, recent: list[int], credit: float) -> int:
+    """How many of `n` burners spin, from the counts beside the test (burners aside) of the last
+    HOLD_TICKS ticks, the newest last: at once as many as the newest count falls short of `n`, but
+    one waits only when the count was high enough on every recent tick (a neighbour that comes and
+    goes leaves no gap); all of them while the block is short of `n` on average (credit < 0)."""
+    if credit < 0 or not recent:
+        return n
+    return max(0, min(n, n - min(recent[-HOLD_TICKS:])))
 
 
 class _Governor(threading.Thread):
-    """Every TICK_S: counts the running processes beside the test and writes how many burners spin."""
+    """Every TICK_S (jittered, so that two blocks do not tick in step): counts the running processes
+    beside the test and writes how many burners spin; if it fails, every burner spins."""
 
     def __init__(self, n: int, control: int, burners: list[int]) -> None:
         super().__init__(daemon=True)
         self.n, self.control, self.burners = n, control, set(burners)
         self.done = threading.Event()
+        self.failed: BaseException | None = None
         self.beside: list[int] = []  # each tick's count beside the test, burners included
         self.spinning: list[int] = []
 
     def run(self) -> None:
+        try:
+            self._govern()
+        except BaseException as exc:  # reported by cpu_load, after every burner spins
+            self.failed = exc
+            os.pwrite(self.control, bytes([self.n]), 0)
+
+    def _govern(self) -> None:
         credit = 0.0  # process-ticks beside the test above n so far (below 0: a shortfall to make up)
+        recent: list[int] = []
+        root, jitter = load_root(), random.Random(os.getpid())
         while True:
-            others, mine = running_beside(os.getpid())
+            beside, mine = running_beside(os.getpid(), root)
             spinning = len(self.burners.intersection(mine))
-            others += len(_ACTIVE.intersection(mine) - self.burners)  # this process's other blocks
+            others = len(beside) + len(_ACTIVE.intersection(mine) - self.burners)  # + other blocks here
             self.beside.append(others + spinning)
             self.spinning.append(spinning)
             credit += others + spinning - self.n
-            turn = self.n if credit < 0 else max(0, min(self.n, self.n - others))
-            os.pwrite(self.control, str(turn).encode(), 0)
-            if self.done.wait(TICK_S):
+            recent = [*recent[-HOLD_TICKS + 1 :], others]
+            os.pwrite(self.control, bytes([burners_to_spin(self.n, recent, credit)]), 0)
+            if self.done.wait(TICK_S * jitter.uniform(0.8, 1.2)):
                 return
 
     def report(self, seconds: float) -> str:
@@ -135,11 +178,13 @@ _ACTIVE: set[int] = set()  # the burners of every block open in this process
 def cpu_load(
     n: int = BURNERS, limit_s: float = LIMIT_S, fill: bool = True
 ) -> Iterator[list[subprocess.Popen[str]]]:
-    """Keep `n` CPU-bound processes beside the block for at most `limit_s` s, burners filling in for
-    what else runs (all `n` spin with fill=False); yield the burners."""
+    """Keep `n` (at most 255) CPU-bound processes beside the block for at most `limit_s` s, burners
+    filling in for what else the test run runs (all `n` spin with fill=False); yield the burners."""
+    if not 0 <= n <= 255:
+        raise ValueError(f"cpu_load: n = {n} burners; 0 to 255")
     with tempfile.TemporaryFile() as control_file:
         control = control_file.fileno()
-        os.pwrite(control, str(n).encode(), 0)  # every burner spins until the first count
+        os.pwrite(control, bytes([n]), 0)  # every burner spins until the first count
         procs: list[subprocess.Popen[str]] = []
         governor: _Governor | None = None
         started = time.monotonic()
@@ -174,11 +219,6 @@ def cpu_load(
             if governor is not None:
                 governor.done.set()
                 governor.join()
-                line = governor.report(time.monotonic() - started)
-                LAST_BLOCK[:] = [line]
-                if log := os.environ.get("RIG_TEST_LOAD_LOG"):
-                    with open(log, "a", encoding="utf-8") as out:
-                        out.write(line + "\n")
             _ACTIVE.difference_update(p.pid for p in procs)
             for proc in procs:
                 with contextlib.suppress(ProcessLookupError):
@@ -187,6 +227,19 @@ def cpu_load(
                 proc.wait()
                 if proc.stdout is not None:
                     proc.stdout.close()
+            if governor is not None:
+                _report(governor, time.monotonic() - started)
+
+
+def _report(governor: _Governor, seconds: float) -> None:
+    """Keep the block's report line (and log it); raise what stopped the governor, if anything did."""
+    line = governor.report(seconds)
+    LAST_BLOCK[:] = [line]
+    if log := os.environ.get("RIG_TEST_LOAD_LOG"):
+        with contextlib.suppress(OSError), open(log, "a", encoding="utf-8") as out:
+            out.write(line + "\n")
+    if governor.failed is not None:
+        raise RuntimeError(f"the load governor failed: {governor.failed!r}") from governor.failed
 
 
 def cpu_seconds(pid: int) -> float:

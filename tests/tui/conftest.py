@@ -49,8 +49,9 @@ def one_key_rig(folder: Path, scene: str = "ideal") -> RigChoice:
     return RigChoice("config", str(path))
 
 
-async def until(pilot: Pilot, cond: Callable[[], object], what: str, timeout: float = 30.0) -> None:
-    """Let the app run until `cond()` holds."""
+async def until(pilot: Pilot, cond: Callable[[], object], what: str, timeout: float = 120.0) -> None:
+    """Let the app run until `cond()` holds (at most `timeout` s: generous, since on a busy machine
+    (seven runnable processes on two cores were seen) opening the run screen took more than 30 s)."""
     deadline = time.monotonic() + timeout
     while not cond():
         if time.monotonic() > deadline:
@@ -73,7 +74,7 @@ async def start_run(pilot: Pilot) -> RunScreen:
     return run_screen(app)
 
 
-async def answer_prompts(pilot: Pilot, screen: RunScreen, timeout: float = 60.0) -> None:
+async def answer_prompts(pilot: Pilot, screen: RunScreen, timeout: float = 300.0) -> None:
     """Until the run ends: confirm every fire (f) and pass every ring check, one prompt at a time (y)."""
 
     def actionable() -> bool:
