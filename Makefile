@@ -3,24 +3,29 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+COMPILED := $(VENV)/.compiled
 
 .PHONY: install demo test test-caches lint typecheck bench accuracy clean
 
-install: $(STAMP)
+install: $(STAMP) $(COMPILED)
 
 # PYTHONWARNINGS: setuptools' notice that a folder named like the package may shadow it is
-# expected here, where rig/ is the package. pip byte-compiles what it installs on one core (~14 s of
-# a ~30 s install); compileall does the same on every core.
+# expected here, where rig/ is the package.
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	PYTHONWARNINGS='ignore:Editable installation' $(BIN)/python -m pip install --quiet --no-compile -e '.[dev]'
-	$(BIN)/python -m compileall -q -j 0 $$($(BIN)/python -c 'import sysconfig; print(sysconfig.get_path("purelib"))')
 	touch $(STAMP)
+
+# The installed packages' bytecode, on every core (pip would compile them on one: ~14 s of a ~30 s
+# install). `make test` does without: its processes keep their bytecode in .venv/pycache (TEST_ENV).
+$(COMPILED): $(STAMP)
+	$(BIN)/python -m compileall -q -j 0 $$($(BIN)/python -c 'import sysconfig; print(sysconfig.get_path("purelib"))')
+	touch $(COMPILED)
 
 # A simulated NCAA BBCOR certification of the sample bat (lab scene), then its certificate.
 # `rig certify` exits 1 for a FAIL verdict, which is a result, not an error of the demo.
-demo: $(STAMP)
+demo: $(STAMP) $(COMPILED)
 	mkdir -p out
 	$(BIN)/rig certify --procedure bbcor --bat protocols/examples/sample-bat.toml --sim lab \
 		--db out/demo.db; test $$? -le 1
@@ -60,7 +65,7 @@ test-caches: $(STAMP)
 	$(TEST_ENV) $(BIN)/python -c 'from rig.physics import fast; fast.warm_up()'
 	$(TEST_ENV) $(BIN)/python -m pytest -q --collect-only -p no:cacheprovider > /dev/null
 
-bench: $(STAMP)
+bench: $(STAMP) $(COMPILED)
 	$(BIN)/python benchmarks/bench_startup.py
 	$(BIN)/python benchmarks/bench_curve.py
 	$(BIN)/python benchmarks/bench_scene.py
@@ -74,7 +79,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/bench_instruments.py --repeat 3
 	$(BIN)/python benchmarks/bench_modal.py --speed
 
-accuracy: $(STAMP)
+accuracy: $(STAMP) $(COMPILED)
 	$(BIN)/python benchmarks/accuracy_doc.py
 
 clean:
