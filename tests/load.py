@@ -55,7 +55,7 @@ while time.monotonic() < deadline and os.getppid() == parent:
     try:
         with open(control, "rb") as f:
             turn = (f.read(1) or b"\\xff")[0] > index
-    except (OSError, ValueError):
+    except OSError:
         turn = True
     if not turn:
         time.sleep(0.01)

@@ -82,9 +82,9 @@ def dip(residuals: Sequence[float], means: tuple[float, float], sd: float) -> tu
     )
     valley = float(grid[int(np.argmin(density))])
     near = [int(np.sum(np.abs(r - c) <= 0.5 * sd)) for c in (low, high, valley)]
-    peak, valley = min(near[0], near[1]), near[2]
-    z = (peak - valley) / np.sqrt(peak + valley) if peak + valley else 0.0
-    return valley / max(1, peak), float(z)
+    peak, between = min(near[0], near[1]), near[2]
+    z = (peak - between) / np.sqrt(peak + between) if peak + between else 0.0
+    return between / max(1, peak), float(z)
 
 
 def two_modes(
