@@ -18,7 +18,7 @@ from textual.app import ComposeResult
 from textual.binding import Binding, BindingType
 from textual.containers import Grid, Horizontal
 from textual.screen import Screen
-from textual.widgets import Footer, Header, RichLog, Static
+from textual.widgets import Header, RichLog, Static
 from textual.worker import Worker
 
 from rig.certification import Outcome
@@ -28,6 +28,7 @@ from rig.core.run_phase import CLOSED, RunPhase
 from rig.protocols.control import RunControl
 from rig.tui import render, situation
 from rig.tui.jobs import JobResult, predict, run_job
+from rig.tui.keybar import KeyBar
 from rig.tui.live import LiveRun
 from rig.tui.messages import RunEnded
 from rig.tui.operator import CannonRead, ConsoleOperator, GatesRead, Notice, PromptPending
@@ -37,6 +38,7 @@ from rig.tui.situation import Situation
 
 log = logging.getLogger(__name__)
 WIDE = ("scan-plot", "hits-plot", "budget")
+SIZED_BY_TEXT = ("prompt", "message")  # height: auto in the CSS below
 
 
 class RunScreen(RunKeys, Screen[None]):
@@ -102,7 +104,7 @@ class RunScreen(RunKeys, Screen[None]):
         with Horizontal(id="bottom"):
             yield RichLog(id="log", wrap=True, markup=False, max_lines=500)
             yield Static(id="traffic", classes="box")
-        yield Footer()
+        yield KeyBar()  # not the Footer: this screen's keys change with every prompt
 
     def on_mount(self) -> None:
         self.sub_title = "run"
@@ -280,13 +282,15 @@ class RunScreen(RunKeys, Screen[None]):
         for name, text in texts.items():
             if self._shown.get(name) != text:  # an unchanged panel is not laid out and drawn again
                 self._shown[name] = text
-                self.query_one(f"#{name}", Static).update(text)
+                # the boxes' sizes are fixed by the CSS: only the prompt and message lines, whose
+                # height follows their text, need the screen laid out again
+                self.query_one(f"#{name}", Static).update(text, layout=name in SIZED_BY_TEXT)
         log = self.query_one("#log", RichLog)
         for line in self.live.log[self._logged :]:
             log.write(line)
         self._logged = len(self.live.log)
         keys = tuple(situation.allowed(now, action) for action in situation.RUN_KEYS)
-        if keys != self._keys_state:  # the footer redraws on every refresh: only when keys change
+        if keys != self._keys_state:  # the key bar and bindings: only when the keys change
             self._keys_state = keys
             self.refresh_bindings()
 

@@ -1,0 +1,83 @@
+"""The run screen's key bar (which replaced Textual's Footer there): it offers exactly the keys the
+screen allows now, dims the ones it does not, follows the prompts, and a click on an offered key
+does what the key does, while a click on a dimmed one does nothing."""
+
+from __future__ import annotations
+
+import asyncio
+from collections.abc import Callable
+
+from rig.tui import ConsoleSettings, RigConsole
+from rig.tui.keybar import KeyBar
+from rig.tui.modals import ConfirmScreen
+from rig.tui.run import RunScreen
+from tests.tui.conftest import start_run, until
+
+SIZE = (100, 30)
+
+
+def shown(screen: RunScreen) -> tuple[list[str], list[str]]:
+    """The screen's own view of its keys: (offered, dimmed) descriptions, one per action."""
+    offered: list[str] = []
+    dimmed: list[str] = []
+    seen: set[str] = set()
+    for _, binding, enabled, _ in screen.active_bindings.values():
+        if binding.show and binding.action not in seen:
+            seen.add(binding.action)
+            (offered if enabled else dimmed).append(binding.description)
+    return offered, dimmed
+
+
+def column_of(bar: KeyBar, description: str) -> int:
+    """The column of a key's description in the bar's text."""
+    text = str(bar.render())
+    at = text.find(f" {description} ")
+    assert at >= 0, f"{description!r} not in the key bar: {text!r}"
+    return at + 1
+
+
+def test_the_key_bar_follows_the_prompts_and_a_click_is_a_key_press(
+    make_settings: Callable[..., ConsoleSettings],
+) -> None:
+    settings = make_settings()
+    seen: dict[str, object] = {}
+
+    async def body() -> None:
+        async with RigConsole(settings).run_test(size=SIZE) as pilot:
+            screen = await start_run(pilot)
+            bar = screen.query_one(KeyBar)
+            op = screen.operator
+            await until(pilot, lambda: op.pending is not None and not op.pending.is_fire, "a ring check")
+            await pilot.pause()
+            offered, dimmed = shown(screen)
+            text = str(bar.render())
+            seen["ring"] = (offered, dimmed, text)
+            for description in offered + dimmed:
+                assert f" {description} " in text
+            assert len(bar._spans) == len(offered)  # a click region for each offered key, none dimmed
+            # a click on the dimmed Fire: nothing happens (no fire, no answer)
+            pending = op.pending
+            assert "Fire" in dimmed
+            await pilot.click(KeyBar, offset=(column_of(bar, "Fire"), 0))
+            await pilot.pause()
+            assert op.pending is pending and not isinstance(pilot.app.screen, ConfirmScreen)
+            # a click on OK answers the ring check as Enter does; the bar then offers the next keys
+            await pilot.click(KeyBar, offset=(column_of(bar, "OK"), 0))
+            await until(pilot, lambda: op.pending is not pending, "the click's answer")
+            await until(pilot, lambda: op.pending is not None and op.pending.is_fire, "the fire prompt")
+            await until(pilot, lambda: not screen.fire_block(), "the cannon to be ready")
+            await until(pilot, lambda: "Fire" in shown(screen)[0], "Fire to be offered")
+            await pilot.pause()
+            assert " Fire " in str(bar.render())
+            assert any(key == "f" for _, _, key in bar._spans)
+            # a click on Abort asks first, as the a key does
+            await pilot.click(KeyBar, offset=(column_of(bar, "Abort"), 0))
+            await until(pilot, lambda: isinstance(pilot.app.screen, ConfirmScreen), "the abort question")
+            await pilot.press("y")
+            await until(pilot, lambda: not screen.running, "the run to stop")
+            seen["stopped"] = screen.outcome
+
+    asyncio.run(body())
+    offered, dimmed, _ = seen["ring"]  # type: ignore[misc]
+    assert "Abort" in offered and "Fire" in dimmed
+    assert seen["stopped"] is not None
