@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 COMPILED := $(VENV)/.compiled
 
-.PHONY: install demo test test-caches lint typecheck bench accuracy clean
+.PHONY: install demo test suite test-caches test-kernel test-asserts lint typecheck bench accuracy clean
 
 install: $(STAMP) $(COMPILED)
 
@@ -54,15 +54,24 @@ TEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 1); echo $$(( n < 8 ? n +
 # checkout: otherwise every worker and each of the hundreds of rig commands the tests start compiles
 # rig from source, and every worker rewrites the asserts of all 200 test files (~6 s each time).
 TEST_ENV := PYTHONDONTWRITEBYTECODE= PYTHONPYCACHEPREFIX=$(CURDIR)/$(VENV)/pycache
+# Lint runs beside the suite, in the time its workers wait on sockets and child processes; either
+# failing fails `make test` (make waits for both). -Oline keeps each line of their output whole.
 test: $(STAMP)
-	$(MAKE) --no-print-directory -j2 --output-sync=target lint test-caches
+	$(MAKE) --no-print-directory -j2 test-kernel test-asserts
+	$(MAKE) --no-print-directory -j2 -Oline lint suite
+
+suite: $(STAMP)
 	$(TEST_ENV) $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
-# Run beside lint (one core each) before the suite: numba compiles the collision kernel once (~9 s;
-# in a fresh checkout each worker and each rig command would compile it at the same time) and the
-# test files' asserts are rewritten once, into the bytecode cache above.
-test-caches: $(STAMP)
+# Before the suite, one core each: numba compiles the collision kernel once (~9 s; in a fresh
+# checkout each worker and each rig command would compile it at the same time), and the test files'
+# asserts are rewritten once, into the bytecode cache above.
+test-caches: test-kernel test-asserts
+
+test-kernel: $(STAMP)
 	$(TEST_ENV) $(BIN)/python -c 'from rig.physics import fast; fast.warm_up()'
+
+test-asserts: $(STAMP)
 	$(TEST_ENV) $(BIN)/python -m pytest -q --collect-only -p no:cacheprovider > /dev/null
 
 bench: $(STAMP) $(COMPILED)
