@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 COMPILED := $(VENV)/.compiled
 
-.PHONY: install demo test suite test-caches test-kernel test-asserts lint typecheck bench accuracy clean
+.PHONY: install demo test suite lint-log test-caches test-kernel test-asserts lint typecheck bench accuracy clean
 
 install: $(STAMP) $(COMPILED)
 
@@ -54,11 +54,14 @@ TEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 1); echo $$(( n < 8 ? n +
 # checkout: otherwise every worker and each of the hundreds of rig commands the tests start compiles
 # rig from source, and every worker rewrites the asserts of all 200 test files (~6 s each time).
 TEST_ENV := PYTHONDONTWRITEBYTECODE= PYTHONPYCACHEPREFIX=$(CURDIR)/$(VENV)/pycache
-# Lint runs beside the suite, in the time its workers wait on sockets and child processes; either
-# failing fails `make test` (make waits for both). -Oline keeps each line of their output whole.
+# Lint runs beside the suite, in the time its workers wait on sockets and child processes, its output
+# kept in $(VENV)/lint.log and shown after the suite's; either failing fails `make test`.
 test: $(STAMP)
 	$(MAKE) --no-print-directory -j2 test-kernel test-asserts
-	$(MAKE) --no-print-directory -j2 -Oline lint suite
+	$(MAKE) --no-print-directory -j2 lint-log suite; status=$$?; cat $(VENV)/lint.log; exit $$status
+
+lint-log: $(STAMP)
+	$(MAKE) --no-print-directory lint > $(VENV)/lint.log 2>&1
 
 suite: $(STAMP)
 	$(TEST_ENV) $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
