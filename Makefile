@@ -37,10 +37,9 @@ demo: $(STAMP) $(COMPILED)
 	@echo "(or, without activating: .venv/bin/rig runs --db out/demo.db)"
 
 # ruff, the import contracts and mypy (strict on the lower floors; [tool.mypy] in pyproject.toml)
+LINT = $(BIN)/ruff check . && $(BIN)/lint-imports && $(BIN)/mypy
 lint: $(STAMP)
-	$(BIN)/ruff check .
-	$(BIN)/lint-imports
-	$(BIN)/mypy
+	$(LINT)
 
 # mypy alone
 typecheck: $(STAMP)
@@ -60,8 +59,10 @@ test: $(STAMP)
 	$(MAKE) --no-print-directory -j2 test-kernel test-asserts
 	$(MAKE) --no-print-directory -j2 lint-log suite; status=$$?; cat $(VENV)/lint.log; exit $$status
 
+# lint into its log, which ends with its outcome
 lint-log: $(STAMP)
-	$(MAKE) --no-print-directory lint > $(VENV)/lint.log 2>&1
+	($(LINT)) > $(VENV)/lint.log 2>&1; s=$$?; [ $$s = 0 ] && r=ok || r=FAILED; \
+		echo "lint (beside the suite): $$r" >> $(VENV)/lint.log; exit $$s
 
 suite: $(STAMP)
 	$(TEST_ENV) $(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile

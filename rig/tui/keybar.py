@@ -9,9 +9,9 @@ A click on an offered key presses it, as on the Footer.
 
 from __future__ import annotations
 
+from rich.cells import cell_len
 from textual import events
 from textual.content import Content
-from textual.markup import escape
 from textual.screen import Screen
 from textual.widgets import Static
 
@@ -33,7 +33,7 @@ class KeyBar(Static):
 
     def __init__(self, *, id: str | None = None) -> None:
         super().__init__(id=id)
-        self._shown = ""
+        self._shown: list[tuple[str, str]] = []
         self._spans: list[tuple[int, int, str]] = []  # (first column, end column, key) of each offered key
 
     def on_mount(self) -> None:
@@ -49,28 +49,26 @@ class KeyBar(Static):
 
     def show_keys(self) -> None:
         """Redraw from the screen's active bindings (only when they changed)."""
-        parts: list[str] = []
+        parts: list[tuple[str, str]] = []
         spans: list[tuple[int, int, str]] = []
         seen: set[str] = set()
-        column = 0
+        column = 0  # in screen cells: a key or name may hold wide characters
         for _, binding, enabled, _tooltip in self.screen.active_bindings.values():
             if not binding.show or binding.action in seen:
                 continue
             seen.add(binding.action)
-            key = self.app.get_key_display(binding)
-            label = f"[b $footer-key-foreground] {escape(key)} [/]{escape(binding.description)} "
-            width = len(key) + len(binding.description) + 3
+            key = f" {self.app.get_key_display(binding)} "
+            name = f"{binding.description} "
+            dim = "" if enabled else " dim"
+            parts += [(key, f"b $footer-key-foreground{dim}"), (name, dim.strip())]
+            width = cell_len(key) + cell_len(name)
             if enabled:
-                parts.append(label)
                 spans.append((column, column + width, binding.key))
-            else:
-                parts.append(f"[dim]{label}[/]")
             column += width
-        markup = "".join(parts)
         self._spans = spans
-        if markup != self._shown:
-            self._shown = markup
-            self.update(Content.from_markup(markup), layout=False)  # one line, always
+        if parts != self._shown:
+            self._shown = parts
+            self.update(Content.assemble(*parts), layout=False)  # one line, always
 
     def on_click(self, event: events.Click) -> None:
         for first, end, key in self._spans:

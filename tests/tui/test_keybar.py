@@ -7,6 +7,11 @@ from __future__ import annotations
 import asyncio
 from collections.abc import Callable
 
+from rich.cells import cell_len
+from textual.app import App, ComposeResult
+from textual.binding import Binding
+from textual.screen import Screen
+
 from rig.tui import ConsoleSettings, RigConsole
 from rig.tui.keybar import KeyBar
 from rig.tui.modals import ConfirmScreen
@@ -29,18 +34,19 @@ def shown(screen: RunScreen) -> tuple[list[str], list[str]]:
 
 
 def column_of(bar: KeyBar, description: str) -> int:
-    """The column of a key's description in the bar's text."""
+    """The screen column (cells, not characters) of a key's description in the bar."""
     text = str(bar.render())
     at = text.find(f" {description} ")
     assert at >= 0, f"{description!r} not in the key bar: {text!r}"
-    return at + 1
+    return cell_len(text[: at + 1])
 
 
 def test_the_key_bar_follows_the_prompts_and_a_click_is_a_key_press(
     make_settings: Callable[..., ConsoleSettings],
 ) -> None:
     settings = make_settings()
-    seen: dict[str, object] = {}
+    ring: list[tuple[list[str], list[str]]] = []
+    stopped: list[object] = []
 
     async def body() -> None:
         async with RigConsole(settings).run_test(size=SIZE) as pilot:
@@ -51,13 +57,14 @@ def test_the_key_bar_follows_the_prompts_and_a_click_is_a_key_press(
             await pilot.pause()
             offered, dimmed = shown(screen)
             text = str(bar.render())
-            seen["ring"] = (offered, dimmed, text)
+            ring.append((offered, dimmed))
             for description in offered + dimmed:
                 assert f" {description} " in text
             assert len(bar._spans) == len(offered)  # a click region for each offered key, none dimmed
             # a click on the dimmed Fire: nothing happens (no fire, no answer)
             pending = op.pending
             assert "Fire" in dimmed
+            assert "f" not in [key for _, _, key in bar._spans]  # a dimmed key has no click region
             await pilot.click(KeyBar, offset=(column_of(bar, "Fire"), 0))
             await pilot.pause()
             assert op.pending is pending and not isinstance(pilot.app.screen, ConfirmScreen)
@@ -75,9 +82,62 @@ def test_the_key_bar_follows_the_prompts_and_a_click_is_a_key_press(
             await until(pilot, lambda: isinstance(pilot.app.screen, ConfirmScreen), "the abort question")
             await pilot.press("y")
             await until(pilot, lambda: not screen.running, "the run to stop")
-            seen["stopped"] = screen.outcome
+            stopped.append(screen.outcome)
 
     asyncio.run(body())
-    offered, dimmed, _ = seen["ring"]  # type: ignore[misc]
+    ((offered, dimmed),) = ring
     assert "Abort" in offered and "Fire" in dimmed
-    assert seen["stopped"] is not None
+    assert stopped and stopped[0] is not None
+
+
+class Odd(Screen[None]):
+    """Keys and names with markup characters and wide (two-cell) characters."""
+
+    BINDINGS = [  # noqa: RUF012
+        Binding("left_square_bracket", "hit('open')", "[Open]"),
+        Binding("w", "hit('wide')", "全角 name", key_display="キー"),
+        Binding("g", "hit('off')", "Off"),
+        Binding("v", "hit('after')", "After $x"),
+        Binding("backslash", "hit('back')", "Back\\"),
+    ]
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.hits: list[str] = []
+
+    def compose(self) -> ComposeResult:
+        yield KeyBar()
+
+    def check_action(self, action: str, parameters: tuple[object, ...]) -> bool | None:
+        return None if parameters == ("off",) else True  # g is known but off: dimmed
+
+    def action_hit(self, what: str) -> None:
+        self.hits.append(what)
+
+
+class OddApp(App[None]):
+    def on_mount(self) -> None:
+        self.push_screen(Odd())
+
+
+def test_the_bar_shows_names_as_written_and_a_click_lands_on_the_key_under_it() -> None:
+    async def body() -> None:
+        app = OddApp()
+        async with app.run_test(size=(100, 5)) as pilot:
+            await pilot.pause()
+            screen = app.screen
+            assert isinstance(screen, Odd)
+            bar = screen.query_one(KeyBar)
+            text = str(bar.render())
+            for shown in (" [ [Open] ", " キー 全角 name ", " g Off ", " v After $x ", " \\ Back\\ "):
+                assert shown in text, (shown, text)
+            for name, expected in (
+                ("After $x", ["after"]),
+                ("Off", ["after"]),
+                ("全角 name", ["after", "wide"]),
+            ):
+                await pilot.click(KeyBar, offset=(column_of(bar, name), 0))
+                await pilot.pause()
+                assert screen.hits == expected, (name, screen.hits)
+
+    asyncio.run(body())
