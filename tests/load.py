@@ -90,13 +90,12 @@ def running_beside(own: int, root: int) -> tuple[list[int], list[int]]:
         if not name.isdigit():
             continue
         try:
-            with open(f"/proc/{name}/stat", "rb") as f:
-                fields = f.read().rsplit(b")", 1)[1].split()
+            fields = _stat(int(name))
         except OSError:
             continue  # gone meanwhile
         pid = int(name)
         children.setdefault(int(fields[1]), []).append(pid)
-        if fields[0] == b"R":
+        if fields[0] == "R":
             running.add(pid)
 
     def tree(top: int) -> set[int]:
@@ -242,10 +241,16 @@ def _report(governor: _Governor, seconds: float) -> None:
         raise RuntimeError(f"the load governor failed: {governor.failed!r}") from governor.failed
 
 
+def _stat(pid: int) -> list[str]:
+    """A process's /proc stat fields after its name (state first, then the parent's pid, ...): the
+    name, in parentheses, may hold spaces and parentheses of its own."""
+    with open(f"/proc/{pid}/stat", encoding="ascii", errors="replace") as f:
+        return f.read().rsplit(")", 1)[1].split()
+
+
 def cpu_seconds(pid: int) -> float:
     """User + system CPU time a running process has used, s (Linux /proc)."""
-    with open(f"/proc/{pid}/stat", encoding="ascii") as f:
-        fields = f.read().rsplit(")", 1)[1].split()
+    fields = _stat(pid)
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
