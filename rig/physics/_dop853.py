@@ -111,6 +111,16 @@ _MIN_FACTOR = 0.2
 _MAX_FACTOR = 10.0
 _EXPONENT = -1.0 / 8.0
 
+# The body of a contact in Taylor series steps (`solve_one(..., series=order)`): see `_series_contact`.
+SERIES_START = 0.2  # series take over after this many time scales (length / v0) of DOP853 steps
+_SERIES_SAFETY = 0.96  # exp(-0.7 / (order - 1)) for order 20 (Jorba and Zou 2005, Sect. 3.2)
+_G_ROW = model._G  # the rows of g and d in the series' aux
+_D_ROW = model._D
+_SERIES_APPROACH = 0.1  # DOP853's first step after a hand-back: this share of the time to d = 0
+_SERIES_SHRINK = 0.25  # a step this much shorter than the longest: a branch point ahead, DOP853 goes on
+SERIES_SEPARATED = 0
+SERIES_HANDBACK = 1
+
 # The model (right-hand sides, g and its rate, the damping rate, the re-contact bounds): one
 # definition in _kernel_model, compiled here inline into the loops (no call overhead); in the
 # interpreted kernel `_inline` gives each function back unchanged.
@@ -122,11 +132,12 @@ _gdot = _inline(model.gdot)
 _damping_rate = _inline(model.damping_rate)
 g_cannot_rise = _inline(model.g_cannot_rise)
 _force_escape_time = _inline(model.force_escape_time)
+_series = _inline(model.series)
 
 # numba's cache of this module's functions is keyed on this file's text alone, not on the
 # _kernel_model they inline: that file's text is pinned here, so an edit there must change this
 # line too, which renews the cache (the kernel refuses to load until then).
-MODEL_DIGEST = "44101a39d134ba822e13765589e4555516f85d49a8fe59a2e13d405b91492faf"
+MODEL_DIGEST = "f6b7c0b5742f811ad8e733113baade98f2ce0ca075e24797295c99bdee86ffde"
 check_digest(model, MODEL_DIGEST, Path(__file__).name)
 
 
@@ -157,19 +168,40 @@ def _dense(
             F[3 + r, i] = h * acc
 
 
-@nb.njit(cache=True)
-def _minimum(y: np.ndarray, F: np.ndarray, p: np.ndarray, tmp: np.ndarray) -> tuple:
-    """Golden-section search for the minimum of g on the step's dense output: (x, g)."""
+@nb.njit(cache=True, inline="always")
+def _g_at(
+    x: float,
+    y: np.ndarray,
+    F: np.ndarray,
+    S: np.ndarray,
+    h: float,
+    order: int,
+    p: np.ndarray,
+    tmp: np.ndarray,
+) -> float:
+    """g at the fraction x of the step: on its 7th-order dense output (y, F; order 0) or on the
+    series' polynomials (S, of that order, over the step's length h); tmp receives the state."""
     n = _moving(p)
+    if order == 0:
+        _interpolate(y, F, x, tmp, n)
+    else:
+        for i in range(n):
+            tmp[i] = _horner(S, i, order, x * h)
+    return _gfun(tmp, p)
+
+
+@nb.njit(cache=True)
+def _minimum(
+    y: np.ndarray, F: np.ndarray, S: np.ndarray, h: float, order: int, p: np.ndarray, tmp: np.ndarray
+) -> tuple:
+    """Golden-section search for the minimum of g over the step (as `_g_at` reads it): (x, g)."""
     invphi = 0.6180339887498949
     a = 0.0
     b = 1.0
     c = b - invphi * (b - a)
     d = a + invphi * (b - a)
-    _interpolate(y, F, c, tmp, n)
-    gc = _gfun(tmp, p)
-    _interpolate(y, F, d, tmp, n)
-    gd = _gfun(tmp, p)
+    gc = _g_at(c, y, F, S, h, order, p, tmp)
+    gd = _g_at(d, y, F, S, h, order, p, tmp)
     for _ in range(60):
         if gc <= 0.0:
             return c, gc
@@ -180,20 +212,58 @@ def _minimum(y: np.ndarray, F: np.ndarray, p: np.ndarray, tmp: np.ndarray) -> tu
             d = c
             gd = gc
             c = b - invphi * (b - a)
-            _interpolate(y, F, c, tmp, n)
-            gc = _gfun(tmp, p)
+            gc = _g_at(c, y, F, S, h, order, p, tmp)
         else:
             a = c
             c = d
             gc = gd
             d = a + invphi * (b - a)
-            _interpolate(y, F, d, tmp, n)
-            gd = _gfun(tmp, p)
+            gd = _g_at(d, y, F, S, h, order, p, tmp)
         if b - a < 1e-12:
             break
     if gc < gd:
         return c, gc
     return d, gd
+
+
+@nb.njit(cache=True)
+def _crossing(
+    y: np.ndarray,
+    F: np.ndarray,
+    S: np.ndarray,
+    h: float,
+    order: int,
+    p: np.ndarray,
+    tmp: np.ndarray,
+    glo: float,
+    hi: float,
+    ghi: float,
+) -> float:
+    """Where g falls through zero in (0, hi] (fractions of the step; g(0) = glo > 0 >= g(hi) = ghi),
+    as `_g_at` reads it: Illinois."""
+    lo = 0.0
+    side = 0
+    x = hi
+    for _ in range(100):
+        x = (lo * ghi - hi * glo) / (ghi - glo)
+        if not (lo < x < hi):
+            x = 0.5 * (lo + hi)
+        gx = _g_at(x, y, F, S, h, order, p, tmp)
+        if gx > 0.0:
+            lo = x
+            glo = gx
+            if side == 1:
+                ghi *= 0.5
+            side = 1
+        else:
+            hi = x
+            ghi = gx
+            if side == -1:
+                glo *= 0.5
+            side = -1
+        if hi - lo <= 4e-16 * max(1.0, hi) or gx == 0.0:
+            break
+    return hi
 
 
 @nb.njit(cache=True, inline="always")
@@ -263,6 +333,154 @@ def _interpolate(y: np.ndarray, F: np.ndarray, x: float, out: np.ndarray, n: int
         out[i] = y[i] + acc
 
 
+@nb.njit(cache=True, inline="always")
+def _horner(M: np.ndarray, i: int, degree: int, x: float) -> float:
+    """sum over k <= degree of M[i, k] x^k (row i indexed, not sliced: a view costs two atomic
+    reference counts)."""
+    acc = M[i, degree]
+    for k in range(degree - 1, -1, -1):
+        acc = acc * x + M[i, k]
+    return acc
+
+
+@nb.njit(cache=True, inline="always")
+def _horner_rate(M: np.ndarray, i: int, degree: int, x: float) -> float:
+    """The derivative in x of sum over k <= degree of M[i, k] x^k."""
+    acc = degree * M[i, degree]
+    for k in range(degree - 1, 0, -1):
+        acc = acc * x + k * M[i, k]
+    return acc
+
+
+@nb.njit(cache=True)
+def _series_step(
+    S: np.ndarray,
+    aux: np.ndarray,
+    y: np.ndarray,
+    rtol: float,
+    atol: np.ndarray,
+    g_tol: float,
+    n: int,
+    order: int,
+) -> float:
+    """The step whose last two terms are each within the tolerance (Jorba and Zou's rule), for every
+    moving state and for g: h = safety * min over q = order - 1, order of (max_i |S[i, q]| / tol_i)^(-1/q).
+
+    g's last term counts too (its polynomial is of degree order - 1; tolerance g_tol): the contact's
+    end is found on its polynomial, and g (a power of d) can branch at d = 0 where the states do not
+    (a ball without damping, whose force is linear, leaves at d = 0): the step stays short of it."""
+    r1 = abs(aux[_G_ROW, order - 1]) / g_tol
+    r2 = 0.0
+    for i in range(n):
+        tol = atol[i] + rtol * abs(y[i])
+        r1 = max(r1, abs(S[i, order - 1]) / tol)
+        r2 = max(r2, abs(S[i, order]) / tol)
+    h = math.inf
+    if r1 > 0.0:
+        h = r1 ** (-1.0 / (order - 1))
+    if r2 > 0.0:
+        h = min(h, r2 ** (-1.0 / order))
+    return _SERIES_SAFETY * h
+
+
+@nb.njit(cache=True)
+def _series_contact(
+    y: np.ndarray,
+    t: float,
+    p: np.ndarray,
+    rtol: float,
+    atol: np.ndarray,
+    n: int,
+    order: int,
+    t_max: float,
+    steps_left: int,
+) -> tuple:
+    """The contact from y (at time t, g > 0) in Taylor series steps, to its end or to a point where
+    DOP853 must go on: (SERIES_SEPARATED or SERIES_HANDBACK, t, steps, the longest first step for
+    DOP853); y is left at the separation or where the series stopped (time limit and step budget:
+    the caller's checks see them).
+
+    Away from d = 0 the solution is analytic, and a series of `order` terms steps over several
+    barrel periods where DOP853 takes about five steps a period. Each step's series is its own dense
+    output: the contact ends where g of the states' polynomials falls through zero (also inside the
+    step, between two positive ends: a brief separation, looked for where g's own polynomial falls,
+    then rises). It hands back when d <= 0 is near (the steps shrink
+    towards the branch point: a ball without damping leaves at d = 0), where the ball's damping
+    outruns the contact's own oscillation (`_damping_rate`: an over-damped ball creeps off with g
+    hugging zero, and whether and where g crosses is decided at the tolerance's level: DOP853 keeps
+    its steps short there), or where a number is not finite.
+    """
+    S = np.empty((6, order + 1))
+    aux = np.empty((7, order + 1))
+    tmp = np.zeros(6)
+    steps = 0
+    h_most = 0.0  # the longest step so far
+    h_next = math.inf  # the first step DOP853 may take after a hand-back
+    # g's absolute tolerance: rtol times its scale, k1 length^(1+a-b) + c1 v0 (atol = rtol * scale)
+    g_atol = atol[0] * p[1] * (atol[0] / rtol) ** (p[3] - p[4]) + atol[1] * p[2]
+    while steps < steps_left and t < t_max:
+        if _damping_rate(y, p) > 0.0 or not _series(y, p, order, S, aux):
+            break
+        g_tol = g_atol + rtol * abs(aux[_G_ROW, 0])
+        h = min(_series_step(S, aux, y, rtol, atol, g_tol, n, order), t_max - t)
+        d0 = y[0] - y[2]
+        if not (h > _SERIES_SHRINK * h_most and math.isfinite(h)):
+            # DOP853 goes on no longer than the series would, nor than _SERIES_APPROACH of the time
+            # d takes to reach 0 at its rate: there the force's powers branch, and a step across
+            # that point, which DOP853's error estimate does not see, can end the contact with many
+            # times the tolerance's error; from there its own steps approach as it would have alone
+            rate = aux[_D_ROW, 1]
+            h_next = h if rate >= 0.0 else min(h, _SERIES_APPROACH * d0 / -rate)
+            break
+        g_end = _g_at(1.0, y, S, S, h, order, p, tmp)
+        d_end = tmp[0] - tmp[2]
+        if not math.isfinite(g_end):
+            break
+        if not d_end > 0.0:
+            # d reaches 0 within the step: the series holds only short of that branch point (the
+            # time to it from the step's ends, as above)
+            h_next = _SERIES_APPROACH * h * d0 / (d0 - d_end)
+            break
+        steps += 1
+        crossed = g_end <= 0.0
+        hi = 1.0
+        ghi = g_end
+        if not crossed and aux[_G_ROW, 1] < 0.0 and _horner_rate(aux, _G_ROW, order - 1, h) > 0.0:
+            # g falls, then rises within the step: it may dip below zero between two positive ends
+            hi, ghi = _minimum(y, S, S, h, order, p, tmp)
+            crossed = ghi <= 0.0
+        if crossed:
+            x = _crossing(y, S, S, h, order, p, tmp, _gfun(y, p), hi, ghi)
+            _g_at(x, y, S, S, h, order, p, y)
+            return SERIES_SEPARATED, t + x * h, steps, h
+        for i in range(n):
+            y[i] = _horner(S, i, order, h)
+        t += h
+        h_most = max(h_most, h)
+    return SERIES_HANDBACK, t, steps, h_next
+
+
+@nb.njit(cache=True)
+def _separated(
+    state: np.ndarray,
+    t: float,
+    t_end: float,
+    v0: float,
+    p: np.ndarray,
+    nfev: int,
+    steps: int,
+    out: np.ndarray,
+) -> tuple:
+    """solve_one's result at the first separation (state at time t_end; t where the last step began)."""
+    for i in range(6):
+        out[i] = state[i]
+        if not math.isfinite(state[i]):
+            return math.nan, t, nfev, steps, STATUS_NOT_FINITE
+    if may_meet_again(state, p):
+        return -state[1] / v0, t_end, nfev, steps, STATUS_FOLLOW
+    return -state[1] / v0, t_end, nfev, steps, STATUS_OK
+
+
 @nb.njit(cache=True)
 def solve_one(
     p: np.ndarray,
@@ -273,8 +491,13 @@ def solve_one(
     t_max: float,
     max_steps: int,
     out_state: np.ndarray,
+    series: int = 0,
 ) -> tuple:
-    """Integrate one collision; returns (cor, contact_time, nfev, steps, status)."""
+    """Integrate one collision; returns (cor, contact_time, nfev, steps, status).
+
+    series: 0, DOP853 steps throughout; else the contact's body, from SERIES_START time scales on,
+    in Taylor series steps of that order (`_series_contact`; steps counts theirs too), for a
+    damped ball (c1 > 0)."""
     y = np.zeros(6)
     y[1] = v0
     ynew = np.zeros(6)
@@ -296,6 +519,9 @@ def solve_one(
     gd_old = math.nan  # g's rate at y, carried from the step that ended there (nan: not known)
     rejected = False
     steps = 0
+    # series only where the contact can end at d > 0, inside the region where the solution is
+    # analytic: an undamped ball (c1 = 0) leaves at d = 0, the force's branch point
+    t_series = SERIES_START * length / v0 if series > 0 and p[2] > 0.0 else math.inf
     while True:
         if steps >= max_steps:
             return math.nan, t, nfev, steps, STATUS_MAX_STEPS
@@ -353,7 +579,7 @@ def solve_one(
             # step's ends (a brief separation). Look inside on the dense output.
             _dense(y, ynew, f, fnew, h, p, K, tmp, F)
             nfev += _NX - _NS - 1
-            x_min, g_min = _minimum(y, F, p, tmp)
+            x_min, g_min = _minimum(y, F, F, h, 0, p, tmp)
             if g_min <= 0.0:
                 crossed = True
                 g_new = g_min
@@ -365,41 +591,9 @@ def solve_one(
             nfev += _NX - _NS - 1
             hi_start = 1.0
         if crossed:
-            lo = 0.0
-            hi = hi_start
-            glo = g_old
-            ghi = g_new
-            side = 0
-            x = hi
-            for _ in range(100):
-                x = (lo * ghi - hi * glo) / (ghi - glo)
-                if not (lo < x < hi):
-                    x = 0.5 * (lo + hi)
-                _interpolate(y, F, x, tmp, n)
-                gx = _gfun(tmp, p)
-                if gx > 0.0:
-                    lo = x
-                    glo = gx
-                    if side == 1:
-                        ghi *= 0.5
-                    side = 1
-                else:
-                    hi = x
-                    ghi = gx
-                    if side == -1:
-                        glo *= 0.5
-                    side = -1
-                if hi - lo <= 4e-16 * max(1.0, hi) or gx == 0.0:
-                    break
-            x = hi
+            x = _crossing(y, F, F, h, 0, p, tmp, g_old, hi_start, g_new)
             _interpolate(y, F, x, tmp, n)
-            for i in range(6):
-                out_state[i] = tmp[i]
-                if not math.isfinite(tmp[i]):
-                    return math.nan, t, nfev, steps, STATUS_NOT_FINITE
-            if may_meet_again(tmp, p):
-                return -tmp[1] / v0, t + x * h, nfev, steps, STATUS_FOLLOW
-            return -tmp[1] / v0, t + x * h, nfev, steps, STATUS_OK
+            return _separated(tmp, t, t + x * h, v0, p, nfev, steps, out_state)
         factor = _MAX_FACTOR if err == 0.0 else min(_MAX_FACTOR, _SAFETY * err**_EXPONENT)
         if rejected:
             factor = min(1.0, factor)
@@ -411,6 +605,20 @@ def solve_one(
         for i in range(n):
             y[i] = ynew[i]
             f[i] = fnew[i]
+        if t >= t_series:
+            t_series = math.inf  # once a solve: after a hand-back, DOP853 goes on to the end
+            code, t, used, h_next = _series_contact(y, t, p, rtol, atol, n, series, t_max, max_steps - steps)
+            steps += used
+            h = min(h, h_next)
+            if code == SERIES_SEPARATED:
+                for i in range(6):
+                    tmp[i] = y[i]
+                return _separated(tmp, t, t, v0, p, nfev, steps, out_state)
+            if used > 0:
+                _rhs(y, p, f)
+                nfev += 1
+                g_old = _gfun(y, p)
+                gd_old = math.nan
 
 
 @nb.njit(cache=True)
@@ -566,11 +774,14 @@ def _solve_lanes(
     states: np.ndarray,
     first: int,
     stride: int,
+    series: int = 0,
 ) -> None:
     """Lanes first, first + stride, ... one after another (compiled on its own, as solve_one is:
     inside the parallel loop's body the same calls ran about half again as long)."""
     for k in range(first, P.shape[0], stride):
-        c, t, n, _, s = solve_one(P[k], v0[k], length[k], rtol, n_active[k], t_max[k], max_steps, states[k])
+        c, t, n, _, s = solve_one(
+            P[k], v0[k], length[k], rtol, n_active[k], t_max[k], max_steps, states[k], series
+        )
         cor[k] = c
         tc[k] = t
         nfev[k] = n
@@ -591,11 +802,13 @@ def solve_many(
     nfev: np.ndarray,
     status: np.ndarray,
     states: np.ndarray,
+    series: int = 0,
 ) -> None:
     """Solve n collisions in parallel lanes, each with its own steps and event (in LANE_GROUPS
-    interleaved groups: neighbouring lanes, which cost alike, go to different threads)."""
+    interleaved groups: neighbouring lanes, which cost alike, go to different threads); `series` as
+    solve_one's."""
     groups = min(P.shape[0], LANE_GROUPS)
     for g in nb.prange(groups):
         _solve_lanes(
-            P, v0, length, rtol, n_active, t_max, max_steps, cor, tc, nfev, status, states, g, groups
+            P, v0, length, rtol, n_active, t_max, max_steps, cor, tc, nfev, status, states, g, groups, series
         )

@@ -3,10 +3,11 @@
 Plain functions of floats and float64 arrays over the kernel's fixed state y = (x1, v1, x2, v2, x3, v3)
 (ball, barrel, body; for a rigid barrel x2, v2 is the base) and its parameter vector P (m1, k1, c1,
 a, b, m2, k2, c2, inv_body, inv_base, rigid; `fast.kernel_params` builds it): the right-hand side in
-and out of contact, the separation function g and its rate, the damping rate that bounds the step
-holding the contact's end, and the closed-form re-contact bounds. `_dop853` compiles them with
-numba, inline into its loops; loaded as the interpreted kernel it runs these same function objects.
-Nothing here imports numba or builds a Python object in the arithmetic.
+and out of contact, the Taylor series of the solution in contact, the separation function g and its
+rate, the damping rate that bounds the step holding the contact's end, and the closed-form re-contact
+bounds. `_dop853` compiles them with numba, inline into its loops; loaded as the interpreted
+kernel it runs these same function objects. Nothing here imports numba or builds a Python object
+in the arithmetic.
 
 `equations` states the model a second time, on purpose: in the scipy style (named constants,
 reduced states, energy terms) for the reference solves, the yardstick the kernel is tested against;
@@ -23,6 +24,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+_D, _E, _W, _Z, _G, _F, _JL = range(7)  # the rows of `series`' aux: d, d', d^b, d^(1+a-b), g, F, j L_j
+MAX_ORDER = 64  # the longest series `series` makes
+RECIPROCALS = np.array([0.0] + [1.0 / k for k in range(1, MAX_ORDER + 2)])  # 1/k, read, not divided
 
 
 def rhs(y: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
@@ -44,6 +49,99 @@ def rhs(y: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
         out[3] = (f - fs) / p[5]
         out[4] = y[5]
         out[5] = fs * p[8]
+
+
+def series(y: np.ndarray, p: np.ndarray, order: int, S: np.ndarray, aux: np.ndarray) -> bool:
+    """In contact: the Taylor coefficients of the solution through y, to `order` (S[i, k] of state i,
+    times t^k); False, with nothing made, where d <= 0 (the force's powers of d branch there).
+
+    From the right-hand side, term by term (automatic differentiation). With d = x1 - x2 > 0 the
+    force is F = W G, W = d^b and G = k1 Z + c1 d', Z = d^(1+a-b) (G is the separation function g).
+    The powers come from L = log d: d L' = d' gives k L_k = (k d_k - sum_j j L_j d_(k-j)) / d_0, and
+    u = exp(q L) gives k u_k = q sum_j j L_j u_(k-j), j = 1..k. aux holds the coefficients of d, d',
+    W, Z, G and F in its rows 0-5 and j L_j in row 6 (G to order - 1: the contact's end is found on
+    its polynomial). Per order k: four sums of k - 1 terms, run side by side.
+    """
+    d0 = y[0] - y[2]
+    if not d0 > 0.0:
+        return False
+    k1 = p[1]
+    c1 = p[2]
+    b = p[4]
+    gam = 1.0 + p[3] - b
+    inv_m1 = 1.0 / p[0]
+    inv_m2 = 1.0 / p[5]
+    k2 = p[6]
+    c2 = p[7]
+    inv_body = p[8]
+    inv_base = p[9]
+    rigid = p[10] != 0.0
+    for i in range(6):
+        S[i, 0] = y[i]
+    aux[_D, 0] = d0
+    aux[_E, 0] = y[1] - y[3]
+    w0 = d0**b
+    z0 = d0**gam
+    g0 = k1 * z0 + c1 * aux[_E, 0]
+    aux[_W, 0] = w0
+    aux[_Z, 0] = z0
+    aux[_G, 0] = g0
+    aux[_F, 0] = w0 * g0
+    aux[_JL, 0] = 0.0
+    inv_d0 = 1.0 / d0
+    for k in range(order):
+        if k > 0:
+            s_l = s_w = s_z = s_f = 0.0  # the odd j
+            t_l = t_w = t_z = t_f = 0.0  # the even j: two chains a sum, half the wait
+            for j in range(1, k - 1, 2):
+                c = aux[_JL, j]
+                s_l += c * aux[_D, k - j]
+                s_w += c * aux[_W, k - j]
+                s_z += c * aux[_Z, k - j]
+                s_f += aux[_W, j] * aux[_G, k - j]
+                c = aux[_JL, j + 1]
+                t_l += c * aux[_D, k - j - 1]
+                t_w += c * aux[_W, k - j - 1]
+                t_z += c * aux[_Z, k - j - 1]
+                t_f += aux[_W, j + 1] * aux[_G, k - j - 1]
+            if k % 2 == 0:  # j = k - 1, odd, left over
+                c = aux[_JL, k - 1]
+                s_l += c * aux[_D, 1]
+                s_w += c * aux[_W, 1]
+                s_z += c * aux[_Z, 1]
+                s_f += aux[_W, k - 1] * aux[_G, 1]
+            s_l += t_l
+            s_w += t_w
+            s_z += t_z
+            s_f += t_f
+            rk = RECIPROCALS[k]
+            jl = (k * aux[_D, k] - s_l) * inv_d0
+            aux[_JL, k] = jl
+            wk = b * (s_w + jl * w0) * rk
+            zk = gam * (s_z + jl * z0) * rk
+            gk = k1 * zk + c1 * aux[_E, k]
+            aux[_W, k] = wk
+            aux[_Z, k] = zk
+            aux[_G, k] = gk
+            aux[_F, k] = s_f + w0 * gk + wk * g0
+        r = RECIPROCALS[k + 1]
+        f = aux[_F, k] * r
+        S[0, k + 1] = S[1, k] * r
+        S[1, k + 1] = -f * inv_m1
+        S[2, k + 1] = S[3, k] * r
+        if rigid:
+            acc = f * inv_base
+            S[3, k + 1] = acc
+            S[4, k + 1] = S[5, k] * r
+            S[5, k + 1] = acc
+        else:
+            fs = (k2 * (S[2, k] - S[4, k]) + c2 * (S[3, k] - S[5, k])) * r
+            S[3, k + 1] = (f - fs) * inv_m2
+            S[4, k + 1] = S[5, k] * r
+            S[5, k + 1] = fs * inv_body
+        aux[_D, k + 1] = S[0, k + 1] - S[2, k + 1]
+        aux[_E, k + 1] = S[1, k + 1] - S[3, k + 1]
+    return True
 
 
 def rhs_free(y: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:

@@ -41,10 +41,12 @@ def cor_grid(
     rtol: float = fast.DEFAULT_RTOL,
     contacts: np.ndarray | None = None,
     evaluations: np.ndarray | None = None,
+    series: int = fast.SERIES_ORDER,
 ) -> tuple[np.ndarray, np.ndarray]:
     """COR and contact time (to the last separation) of a clamped barrel at each hoop frequency,
     in parallel lanes; `contacts` and `evaluations`, if given, receive the number of contacts and of
-    right-hand side evaluations at each."""
+    right-hand side evaluations at each. `series`: the contact's body in Taylor series steps of that
+    order (`fast.solve_series`; 0: DOP853 steps throughout, `fast.solve`'s numbers to the last bit)."""
     speed = check_speed(speed)
     rtol = check_tolerance(rtol)
     hoops = np.asarray(hoops, dtype=float)
@@ -60,7 +62,9 @@ def cor_grid(
     n_active = np.full(n, 4, dtype=np.int64)
     t_max = contact_time_limit(params, speed, hoops)
     impacts = _LazyImpacts(params, speed, hoops)
-    return fast._run_batch(P, v0, length, rtol, n_active, t_max, impacts, contacts, evaluations=evaluations)
+    return fast._run_batch(
+        P, v0, length, rtol, n_active, t_max, impacts, contacts, evaluations=evaluations, series=series
+    )
 
 
 class _LazyImpacts:

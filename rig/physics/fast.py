@@ -19,6 +19,7 @@ compiled kernel's numbers to the last bit), unless the compiled kernel is loaded
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 from collections.abc import Sequence
@@ -41,6 +42,8 @@ INTERPRETED_SOLVES = 45  # ~0.55 s of interpreted solves (~12 ms each): what loa
 # solves stay interpreted (its `rig certify` took 1.0-1.1 s, against 1.5-2.3 s with 20)
 INTERPRETED_MAX_STEPS = 2_000  # ~1 s interpreted: a longer solve goes to the compiled kernel (a stiff
 # one of 2e6 steps took 4 minutes interpreted, seconds compiled)
+SERIES_ORDER = 16  # the contact's body in Taylor series steps of this order, where asked (bench_curve:
+# 16 and 20 cost alike, 12 and 24 more)
 NUMPY_LANES = 5000  # a batch this small may run in numpy lanes: ~0.4 s, below numba's load (~1 s)
 _COMPILED = "rig.physics._dop853"
 _interpreted_left = INTERPRETED_SOLVES
@@ -159,23 +162,34 @@ def _interpreted_solve(imp: Impact, rtol: float, module: ModuleType) -> Collisio
 
 
 def _solve_one(
-    imp: Impact, rtol: float, module: ModuleType, max_steps: int
+    imp: Impact, rtol: float, module: ModuleType, max_steps: int, series: int = 0
 ) -> tuple[float, float, int, int, np.ndarray]:
     """`module`'s solve_one with the parameter vector and limits made in Python: (cor, contact
     time, nfev, status, the state at the separation)."""
     state = np.zeros(6)
     scale = imp.params.compression_scale(imp.speed)
+    limit = _time_limit(imp, scale)
     cor, tc, nfev, _, status = module.solve_one(
-        kernel_params(imp), imp.speed, scale, rtol, imp.n_states, _time_limit(imp, scale), max_steps, state
+        kernel_params(imp), imp.speed, scale, rtol, imp.n_states, limit, max_steps, state, series
     )
     return cor, tc, nfev, status, state
 
 
-def solve_general(imp: Impact, rtol: float, module: ModuleType) -> CollisionResult:
+def solve_general(imp: Impact, rtol: float, module: ModuleType, series: int = 0) -> CollisionResult:
     """`solve` through `module`'s solve_one (the interpreted or the compiled kernel), with the
-    parameter vector and limits made in Python: the path `solve`'s lean compiled entry must equal."""
+    parameter vector and limits made in Python: the path `solve`'s lean compiled entry must equal.
+    `series` as solve_one's: the contact's body in Taylor series steps of that order (0: none)."""
     rtol = check_tolerance(rtol)
-    return _finish(imp, rtol, *_solve_one(imp, rtol, module, MAX_STEPS))
+    result = _finish(imp, rtol, *_solve_one(imp, rtol, module, MAX_STEPS, series))
+    if series:
+        return dataclasses.replace(result, method=result.method.replace("rig-DOP853", "rig-DOP853+series"))
+    return result
+
+
+def solve_series(imp: Impact, rtol: float = DEFAULT_RTOL, order: int = SERIES_ORDER) -> CollisionResult:
+    """One collision by the compiled kernel with the contact's body in Taylor series steps, as the
+    efficiency curve solves it (`curve.cor_grid`)."""
+    return solve_general(imp, rtol, compiled(), order)
 
 
 def _finish(
@@ -252,11 +266,13 @@ def _run_batch(
     contacts: np.ndarray | None = None,
     numpy_lanes: bool = False,
     evaluations: np.ndarray | None = None,
+    series: int = 0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Run the lanes; lanes whose ball may meet the barrel again are followed by the reference.
 
     `contacts`, if given, receives each lane's number of contacts, `evaluations` its right-hand side
-    evaluations; `numpy_lanes` as solve_batch's.
+    evaluations; `numpy_lanes` as solve_batch's; `series` as the kernel's solve_one's (the compiled
+    kernel only: the numpy lanes take DOP853 steps throughout).
     """
     n = P.shape[0]
     cor = np.empty(n)
@@ -264,9 +280,14 @@ def _run_batch(
     nfev = np.empty(n, dtype=np.int64)
     status = np.empty(n, dtype=np.int64)
     states = np.zeros((n, 6))
-    _batch_kernel(n, numpy_lanes)(
-        P, v0, length, rtol, n_active, t_max, MAX_STEPS, cor, tc, nfev, status, states
-    )
+    if series:
+        compiled().solve_many(
+            P, v0, length, rtol, n_active, t_max, MAX_STEPS, cor, tc, nfev, status, states, series
+        )
+    else:
+        _batch_kernel(n, numpy_lanes)(
+            P, v0, length, rtol, n_active, t_max, MAX_STEPS, cor, tc, nfev, status, states
+        )
     if contacts is not None:
         contacts[:] = 1
     if evaluations is not None:

@@ -1,4 +1,5 @@
-"""Both solvers against solutions derived by hand, and against the published rigid-barrel anchors.
+"""The solvers (the DOP853 kernel, its series path, the scipy reference) against solutions derived by
+hand, and against the published rigid-barrel anchors.
 
 The closed forms are derived here from the equations of motion, never taken from the code:
 1. a linear Kelvin-Voigt ball (a = b = 0) on a rigid wall, a damped oscillator whose contact ends
@@ -27,6 +28,7 @@ Solver = Callable[[Impact, float], CollisionResult]
 
 SOLVERS: dict[str, Solver] = {
     "fast": lambda imp, rtol: fast.solve(imp, rtol),
+    "series": lambda imp, rtol: fast.solve_series(imp, rtol),  # the curve's path: Taylor series steps
     "reference": lambda imp, rtol: solve_reference(imp, "DOP853", rtol),
 }
 TIGHT = 1e-12  # solver tolerance for the closed-form comparisons

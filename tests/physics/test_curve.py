@@ -74,9 +74,10 @@ def test_grid_is_evenly_spaced_and_consistent(curve_60: curve.EfficiencyCurve) -
 
 
 def test_cor_grid_matches_single_and_batch_solves(paper_params: CollisionParams) -> None:
-    """The parallel lanes give the single-solve answers (same kernel, same steps)."""
+    """The parallel lanes give the single-solve answers (same kernel, same steps): DOP853 throughout
+    as fast.solve and solve_batch, and with the series steps as fast.solve_series (the default)."""
     hoops = np.array([150.0, 800.0, 1250.0, 4000.0, 2e4, 3e5])
-    cor, tc = curve.cor_grid(paper_params, 26.8, hoops)
+    cor, tc = curve.cor_grid(paper_params, 26.8, hoops, series=0)
     impacts = [Impact(paper_params, 26.8, float(f)) for f in hoops]
     single = [fast.solve(imp) for imp in impacts]
     np.testing.assert_allclose(cor, [r.cor for r in single], rtol=0, atol=1e-14)
@@ -84,6 +85,11 @@ def test_cor_grid_matches_single_and_batch_solves(paper_params: CollisionParams)
     batch_cor, batch_tc = fast.solve_batch(impacts)
     np.testing.assert_allclose(batch_cor, cor, rtol=0, atol=1e-14)
     np.testing.assert_allclose(batch_tc, tc, rtol=1e-14)
+    series_cor, series_tc = curve.cor_grid(paper_params, 26.8, hoops)
+    by_series = [fast.solve_series(imp) for imp in impacts]
+    np.testing.assert_allclose(series_cor, [r.cor for r in by_series], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(series_tc, [r.contact_time_s for r in by_series], rtol=1e-14)
+    np.testing.assert_allclose(series_cor, cor, rtol=0, atol=1e-9)  # both to fast.DEFAULT_RTOL
 
 
 def test_cor_grid_counts_each_points_evaluations(paper_params: CollisionParams) -> None:
@@ -92,7 +98,7 @@ def test_cor_grid_counts_each_points_evaluations(paper_params: CollisionParams) 
     hoops = np.array([150.0, 1250.0, 2e4])
     counts = np.zeros(hoops.size, dtype=np.int64)
     contacts = np.zeros(hoops.size, dtype=np.int64)
-    curve.cor_grid(paper_params, 60.8, hoops, contacts=contacts, evaluations=counts)
+    curve.cor_grid(paper_params, 60.8, hoops, contacts=contacts, evaluations=counts, series=0)
     single = [fast.solve(Impact(paper_params, 60.8, float(f))) for f in hoops]
     assert contacts[0] > 1
     assert counts.tolist() == [r.nfev for r in single]

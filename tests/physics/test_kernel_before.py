@@ -1,8 +1,9 @@
 """The kernel's stage sums were rewritten for speed (issue 26: the tables' nonzero terms only, the
 moving states only, each state's sum in its own chain): it must give the numbers of the kernel it
 replaced. That kernel's text is kept as it was (data/dop853_before_issue26.py.txt) and run by the
-interpreter, on the same model (`_kernel_model`, whose pinned digest it checks), against the
-compiled kernel of today, over random impacts, tolerances and models."""
+interpreter, on the same model (`_kernel_model`, whose pinned digest it checks: its MODEL_DIGEST
+line follows the model's text, to which only functions it does not call were added since, the
+Taylor series), against the compiled kernel of today, over random impacts, tolerances and models."""
 
 from __future__ import annotations
 

@@ -28,6 +28,7 @@ SHARED = {
     "_damping_rate": "damping_rate",
     "g_cannot_rise": "g_cannot_rise",
     "_force_escape_time": "force_escape_time",
+    "_series": "series",
 }
 
 
