@@ -307,3 +307,71 @@ def damping_rate(imp: Impact, y: np.ndarray) -> float:
     if lam * lam <= 4.0 * p.k1 * (1.0 + p.a) * abs(d) ** p.a * inv:
         return 0.0
     return lam
+
+
+def creep_rates(imp: Impact) -> tuple[float, float] | None:
+    """Clamped flexible barrel with c2^2 > 4 k2 m2 (over-damped): the decay rates (slow, fast) of its
+    free motion, 1/s, the roots of m2 s^2 - c2 s + k2 = 0; None for any other barrel."""
+    if imp.rigid or imp.body_mass is not None:
+        return None
+    p, k2 = imp.params, imp.k2
+    disc = p.c2 * p.c2 - 4.0 * k2 * p.m2
+    if not disc > 0.0:
+        return None
+    root = p.c2 + math.sqrt(disc)
+    return 2.0 * k2 / root, root / (2.0 * p.m2)  # the slow one without cancellation
+
+
+CREEP_INTERVALS = 64  # first partition of the window in `cannot_touch`
+CREEP_SPLIT = 8  # parts an undecided interval is cut into
+CREEP_MAX_OPEN = 4096  # undecided intervals beyond which `cannot_touch` gives up (False)
+
+
+def cannot_touch(imp: Impact, y: np.ndarray, window: float, rel: float, abs_x: float, abs_v: float) -> bool:
+    """Free flight from state y of a clamped over-damped barrel (`creep_rates`): True when the ball
+    provably cannot press on the barrel within `window` s, even were the barrel's position and speed
+    off the exact ones by up to rel * (their largest size) + abs_x and + abs_v (a solver's error).
+
+    Out of contact the motion is known in closed form: the ball moves at its constant v1, and the
+    barrel x2(t) = A exp(-s t) + B exp(-f t) with its rates s < f (A + B = x2, -s A - f B = v2). On an
+    interval [t_a, t_b] every one of these terms is monotone, so its largest and least values are
+    at the ends: upper bounds on d = x1 - x2 and d' = v1 - v2 over the interval follow from the two
+    end values of each term. Contact (the indicator > 0) needs d > 0 and g = k1 d|d|^(a-b) + c1 d' > 0,
+    and g never falls as d or d' grow (1 + a - b >= 0, c1 >= 0); so an interval where the raised
+    bounds give d < 0 or g < 0 holds no contact. Undecided intervals are split into CREEP_SPLIT parts
+    until all are decided (True) or more than CREEP_MAX_OPEN remain open (False: no proof).
+    """
+    rates = creep_rates(imp)
+    p = imp.params
+    expo = 1.0 + p.a - p.b
+    if rates is None or not (window > 0.0 and math.isfinite(window)) or expo < 0.0 or p.c1 < 0.0:
+        return False
+    slow, fast = rates
+    x1, v1, x2, v2 = (float(v) for v in y[:4])
+    a_slow = (fast * x2 + v2) / (fast - slow)
+    b_fast = x2 - a_slow
+    err_x = rel * (abs(a_slow) + abs(b_fast)) + abs_x
+    err_v = rel * (slow * abs(a_slow) + fast * abs(b_fast)) + abs_v
+    lo = np.linspace(0.0, window, CREEP_INTERVALS + 1)
+    hi = lo[1:]
+    lo = lo[:-1]
+    while lo.size:
+        es_lo, es_hi = a_slow * np.exp(-slow * lo), a_slow * np.exp(-slow * hi)
+        ef_lo, ef_hi = b_fast * np.exp(-fast * lo), b_fast * np.exp(-fast * hi)
+        x2_least = np.minimum(es_lo, es_hi) + np.minimum(ef_lo, ef_hi) - err_x
+        d_most = x1 + np.maximum(v1 * lo, v1 * hi) - x2_least
+        v2_least = -slow * np.maximum(es_lo, es_hi) - fast * np.maximum(ef_lo, ef_hi) - err_v
+        dd_most = v1 - v2_least
+        d_pos = np.maximum(d_most, 0.0)
+        g_most = p.k1 * d_pos**expo + p.c1 * dd_most
+        open_ = ~((d_most < 0.0) | (g_most < 0.0))
+        if not open_.any():
+            return True
+        if np.count_nonzero(open_) * CREEP_SPLIT > CREEP_MAX_OPEN:
+            return False
+        lo, hi = lo[open_], hi[open_]
+        cuts = lo[:, None] + (hi - lo)[:, None] * np.linspace(0.0, 1.0, CREEP_SPLIT + 1)
+        lo, hi = cuts[:, :-1].ravel(), cuts[:, 1:].ravel()
+        if np.any(hi <= lo):
+            return False  # split down to the floats' resolution without a decision
+    return True

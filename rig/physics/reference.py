@@ -16,7 +16,9 @@ from numpy.typing import ArrayLike
 from rig.core.errors import ParameterError, SolverError
 from rig.physics.equations import (
     Impact,
+    cannot_touch,
     contact_indicator,
+    creep_rates,
     damping_rate,
     escape_time,
     initial_state,
@@ -81,6 +83,13 @@ def _first_step(imp: Impact, first_step: float | str) -> dict[str, float]:
 
 MAX_CONTACTS = 1000
 MAX_FLIGHT_STEPS = 40_000  # free-flight steps allowed in all (~1 s) before refusing
+# An explicit method's stability interval on the negative real axis: |h lambda| up to which a decaying
+# mode stays damped (the roots of |R(z)| = 1 of the methods' tableaus: DOP853 6.3936, RK45 3.3106).
+STABILITY_INTERVAL = {"DOP853": 6.39, "RK45": 3.31}
+STEP_ALLOWANCE = 4.0  # what `_Phases.free` allows a step over that limit (measured: 1.000 on average)
+FORESEE_AT = (256, 1024, 4096, 16384)  # steps into a free flight at which it looks ahead
+FORESEE_SLACK = 1000.0  # solver error `cannot_touch` allows for, in tolerances (rtol, atol)
+TINY_AMPLITUDE = 1e-250  # m: a barrel's slow mode above it keeps its fast mode alive (`_foresee`)
 
 
 def solve_reference(
@@ -140,14 +149,22 @@ def bounded_cor(cor: float) -> float:
 
 
 def continue_contacts(
-    imp: Impact, t: float, state: ArrayLike, rtol: float, method: str = "DOP853"
+    imp: Impact,
+    t: float,
+    state: ArrayLike,
+    rtol: float,
+    method: str = "DOP853",
+    budget: int = MAX_FLIGHT_STEPS,
+    foresee: bool = True,
 ) -> tuple[float, np.ndarray, int, int]:
     """From the end of a first contact (time t, mechanical state), follow every later contact.
 
     Returns (time of the last separation, state there, number of contacts, nfev spent here).
+    `budget`: free-flight steps allowed in all; `foresee`: refuse as soon as a flight is proved
+    to need more (`_Phases.free`), rather than after stepping through the budget (same refusals).
     """
     rtol = check_tolerance(rtol)
-    solver = _Phases(imp, method, rtol, False, _first_step(imp, "auto"))
+    solver = _Phases(imp, method, rtol, False, _first_step(imp, "auto"), budget, foresee)
     y = np.asarray(state, dtype=float)[: imp.n_states].copy()
     t_end, y_end, contacts = solver.follow(float(t), y)
     return t_end, y_end, contacts, solver.nfev
@@ -158,10 +175,23 @@ class _Phases:
     force, end where a new contact begins or when the ball is out of reach for good)."""
 
     def __init__(
-        self, imp: Impact, method: str, rtol: float, energy: bool, options: dict[str, float]
+        self,
+        imp: Impact,
+        method: str,
+        rtol: float,
+        energy: bool,
+        options: dict[str, float],
+        budget: int = MAX_FLIGHT_STEPS,
+        foresee: bool = True,
     ) -> None:
         p = imp.params
         self.imp, self.method, self.rtol, self.options = imp, method, rtol, options
+        self.budget, self.foresee = budget, foresee
+        rates = creep_rates(imp) if foresee and method in STABILITY_INTERVAL else None
+        # the longest average step of a flight (`free`), s: inf where no bound on it is known
+        self.stiff_step = math.inf
+        if rates is not None:
+            self.stiff_step = STEP_ALLOWANCE * STABILITY_INTERVAL[method] / rates[1]
         self.fun = make_rhs(imp, energy=energy)
         self.free_fun = make_rhs(imp, energy=energy, free=True)
         atol = rtol * imp.scales()
@@ -256,11 +286,27 @@ class _Phases:
         return t_end, y_end
 
     def free(self, t0: float, y0: np.ndarray, horizon: float) -> tuple[bool, float, np.ndarray]:
-        """Free flight from a separation for at most `horizon` s: (met again?, t, state)."""
+        """Free flight from a separation for at most `horizon` s: (met again?, t, state).
+
+        A flight that would spend the step budget is refused ("creeps off"), either when the budget
+        is spent (`_spend`) or as soon as it is foreseen (`_foresee`), at FORESEE_AT steps into it.
+        """
         imp = self.imp
+        # short steps so that a brief new contact cannot hide inside one step
+        period = math.inf if imp.hoop_hz is None else 1.0 / imp.hoop_hz
+        # (capped at 20000 steps a flight: a creeping ball on a stiff ringing barrel can take
+        # ~1e5 barrel periods to get out of reach; there a contact shorter than a step may be missed)
+        max_step = max(min(period / 32.0, 50.0 * imp.time_scale()), horizon / 20000.0)
+        longest = min(max_step, self.stiff_step)  # average step, s
+        seen = [-math.inf, 0]  # the last step's end, steps so far
 
         def met(t: float, y: np.ndarray) -> float:
             self._spend()
+            if self.foresee and t > seen[0]:  # a step's end (a root search looks inside the last step)
+                seen[0] = t
+                seen[1] += 1
+                if seen[1] in FORESEE_AT:
+                    self._foresee(t, y, t0 + horizon, longest)
             # the flight starts at g = 0 (to within the event's tolerance): counting its start as
             # out of contact lets a gap so brief that it closes inside the first step be seen
             c = contact_indicator(imp, y)
@@ -268,11 +314,6 @@ class _Phases:
 
         met.terminal = True  # type: ignore[attr-defined]
         met.direction = 1  # type: ignore[attr-defined]
-        # short steps so that a brief new contact cannot hide inside one step
-        period = math.inf if imp.hoop_hz is None else 1.0 / imp.hoop_hz
-        # (capped at 20000 steps a flight: a creeping ball on a stiff ringing barrel can take
-        # ~1e5 barrel periods to get out of reach; there a contact shorter than a step may be missed)
-        max_step = max(min(period / 32.0, 50.0 * imp.time_scale()), horizon / 20000.0)
 
         def peak(t: float, y: np.ndarray) -> float:
             return relative_motion(imp, y)[1]  # d' falling through 0: a maximum of the overlap d
@@ -317,10 +358,49 @@ class _Phases:
     def _spend(self) -> None:
         """Count a step of a free flight; refuse once the budget is spent."""
         self.flight_steps += 1
-        if self.flight_steps > MAX_FLIGHT_STEPS:
+        if self.flight_steps > self.budget:
             raise SolverError(
-                f"the ball creeps off for more than {MAX_FLIGHT_STEPS} steps of free flight (a very slow"
+                f"the ball creeps off for more than {self.budget} steps of free flight (a very slow"
                 f" rebound from a stiff or over-damped barrel) at {self.where}"
+            )
+
+    def _foresee(self, t: float, y: np.ndarray, t_end: float, longest: float) -> None:
+        """Refuse now, at a step's end (t, y) of a flight that ends at t_end at the latest, if it is
+        certain to spend the rest of the step budget before a new contact or its end.
+
+        Every step is at most `longest`: the flight's max_step, or STEP_ALLOWANCE times an explicit
+        method's stability limit beta / f on an over-damped barrel (f its fast decay rate). That limit
+        holds on average, not for each step: a longer step multiplies the barrel's fast mode by
+        |R(-f h)| > 1, and the error control rejects steps until the mode has decayed again. Measured
+        on such flights (the 0.1 g barrel at 100 Hz, f = 1e6 /s; DOP853 and RK45, rtol 1e-2 to 1e-13,
+        the barrel's amplitude 1e-300 m to 0.1 m): the average over any 500 steps is beta / f to 4
+        digits, though single steps reach ~20 times it (DOP853; RK45 up to its max_step). Only a barrel
+        exactly at rest (no fast mode at all) steps further; its amplitude would have to underflow
+        within the window, ruled out below. Where max_step is the shorter, the bound holds for every
+        step and any method.
+
+        So the rest of the budget, n steps, covers at most (n + 1) longest s. If the flight cannot end
+        sooner (t_end beyond that) and `equations.cannot_touch` proves that no contact can begin in
+        that window (allowing for FORESEE_SLACK times the solver's tolerances), the flight would
+        spend the budget: refused as `_spend` would refuse it, without stepping there.
+        """
+        left = self.budget - self.flight_steps
+        window = (left + 1) * longest
+        if t + window >= t_end:
+            return
+        rates = creep_rates(self.imp)
+        if rates is None:
+            return
+        slow, fast = rates
+        slow_mode = (fast * float(y[2]) + float(y[3])) / (fast - slow)  # the barrel's A exp(-slow t)
+        if longest >= self.stiff_step and not abs(slow_mode) * math.exp(-slow * window) > TINY_AMPLITUDE:
+            return
+        rel = FORESEE_SLACK * self.rtol
+        if cannot_touch(self.imp, y, window, rel, FORESEE_SLACK * self.atol[2], FORESEE_SLACK * self.atol[3]):
+            raise SolverError(
+                f"the ball creeps off for more than {self.budget} steps of free flight (a very slow"
+                f" rebound from a stiff or over-damped barrel; foreseen after {self.flight_steps} steps:"
+                f" its steps average {longest:.3g} s at most) at {self.where}"
             )
 
     def _stored(self, y: np.ndarray) -> float:
