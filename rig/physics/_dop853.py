@@ -116,7 +116,9 @@ SERIES_START = 0.2  # series take over after this many time scales (length / v0)
 _SERIES_SAFETY = 0.96  # exp(-0.7 / (order - 1)) for order 20 (Jorba and Zou 2005, Sect. 3.2)
 _G_ROW = model._G  # the rows of g and d in the series' aux
 _D_ROW = model._D
+SERIES_SAMPLES = 64  # points at which a step's g polynomial is read for a dip below zero
 _SERIES_APPROACH = 0.1  # DOP853's first step after a hand-back: this share of the time to d = 0
+SERIES_END_CLEARANCE = 0.05  # series only where the contact ends this many scales clear of d = 0
 _SERIES_SHRINK = 0.25  # a step this much shorter than the longest: a branch point ahead, DOP853 goes on
 SERIES_SEPARATED = 0
 SERIES_HANDBACK = 1
@@ -191,17 +193,18 @@ def _g_at(
 
 
 @nb.njit(cache=True)
-def _minimum(
-    y: np.ndarray, F: np.ndarray, S: np.ndarray, h: float, order: int, p: np.ndarray, tmp: np.ndarray
-) -> tuple:
-    """Golden-section search for the minimum of g over the step (as `_g_at` reads it): (x, g)."""
+def _minimum(y: np.ndarray, F: np.ndarray, p: np.ndarray, tmp: np.ndarray) -> tuple:
+    """Golden-section search for the minimum of g on the step's dense output: (x, g)."""
+    n = _moving(p)
     invphi = 0.6180339887498949
     a = 0.0
     b = 1.0
     c = b - invphi * (b - a)
     d = a + invphi * (b - a)
-    gc = _g_at(c, y, F, S, h, order, p, tmp)
-    gd = _g_at(d, y, F, S, h, order, p, tmp)
+    _interpolate(y, F, c, tmp, n)
+    gc = _gfun(tmp, p)
+    _interpolate(y, F, d, tmp, n)
+    gd = _gfun(tmp, p)
     for _ in range(60):
         if gc <= 0.0:
             return c, gc
@@ -212,18 +215,35 @@ def _minimum(
             d = c
             gd = gc
             c = b - invphi * (b - a)
-            gc = _g_at(c, y, F, S, h, order, p, tmp)
+            _interpolate(y, F, c, tmp, n)
+            gc = _gfun(tmp, p)
         else:
             a = c
             c = d
             gc = gd
             d = a + invphi * (b - a)
-            gd = _g_at(d, y, F, S, h, order, p, tmp)
+            _interpolate(y, F, d, tmp, n)
+            gd = _gfun(tmp, p)
         if b - a < 1e-12:
             break
     if gc < gd:
         return c, gc
     return d, gd
+
+
+@nb.njit(cache=True)
+def _series_lowest(aux: np.ndarray, degree: int, h: float) -> float:
+    """The fraction of the step where g's own polynomial is least, of SERIES_SAMPLES + 1 evenly
+    spaced (the polynomial of degree `degree` < SERIES_SAMPLES / 4 has no feature narrower)."""
+    best = 0.0
+    g_best = aux[_G_ROW, 0]
+    for k in range(1, SERIES_SAMPLES + 1):
+        x = k / SERIES_SAMPLES
+        g = _horner(aux, _G_ROW, degree, x * h)
+        if g < g_best:
+            best = x
+            g_best = g
+    return best
 
 
 @nb.njit(cache=True)
@@ -447,7 +467,8 @@ def _series_contact(
         ghi = g_end
         if not crossed and aux[_G_ROW, 1] < 0.0 and _horner_rate(aux, _G_ROW, order - 1, h) > 0.0:
             # g falls, then rises within the step: it may dip below zero between two positive ends
-            hi, ghi = _minimum(y, S, S, h, order, p, tmp)
+            hi = _series_lowest(aux, order - 1, h)
+            ghi = _g_at(hi, y, S, S, h, order, p, tmp)
             crossed = ghi <= 0.0
         if crossed:
             x = _crossing(y, S, S, h, order, p, tmp, _gfun(y, p), hi, ghi)
@@ -458,6 +479,20 @@ def _series_contact(
         t += h
         h_most = max(h_most, h)
     return SERIES_HANDBACK, t, steps, h_next
+
+
+@nb.njit(cache=True, inline="always")
+def _series_ends_clear(p: np.ndarray, v0: float, length: float) -> bool:
+    """True where the contact ends clear of d = 0, the force's branch point, which no series steps
+    up to: g = k1 d^(1+a-b) + c1 d' falls to zero at d ~ (c1 v0 / k1)^(1 / (1+a-b)), here at least
+    SERIES_END_CLEARANCE compression scales. Not so for an undamped ball (c1 = 0: it leaves at
+    d = 0), nor where the damping is a tiny part of g's scale k1 length^(1+a-b) (there DOP853
+    steps across d = 0 to the end; the series path would hand back just short of it and DOP853,
+    starting there, lands on the end with several times its own error)."""
+    gam = 1.0 + p[3] - p[4]
+    if p[2] <= 0.0 or gam <= 0.0:
+        return False
+    return (p[2] * v0 / (p[1] * length**gam)) ** (1.0 / gam) >= SERIES_END_CLEARANCE
 
 
 @nb.njit(cache=True)
@@ -491,13 +526,13 @@ def solve_one(
     t_max: float,
     max_steps: int,
     out_state: np.ndarray,
-    series: int = 0,
+    series: int,
 ) -> tuple:
     """Integrate one collision; returns (cor, contact_time, nfev, steps, status).
 
     series: 0, DOP853 steps throughout; else the contact's body, from SERIES_START time scales on,
-    in Taylor series steps of that order (`_series_contact`; steps counts theirs too), for a
-    damped ball (c1 > 0)."""
+    in Taylor series steps of that order (`_series_contact`; steps counts theirs too), where the
+    contact ends clear of d = 0 (`_series_ends_clear`)."""
     y = np.zeros(6)
     y[1] = v0
     ynew = np.zeros(6)
@@ -519,9 +554,7 @@ def solve_one(
     gd_old = math.nan  # g's rate at y, carried from the step that ended there (nan: not known)
     rejected = False
     steps = 0
-    # series only where the contact can end at d > 0, inside the region where the solution is
-    # analytic: an undamped ball (c1 = 0) leaves at d = 0, the force's branch point
-    t_series = SERIES_START * length / v0 if series > 0 and p[2] > 0.0 else math.inf
+    t_series = SERIES_START * length / v0 if series > 0 and _series_ends_clear(p, v0, length) else math.inf
     while True:
         if steps >= max_steps:
             return math.nan, t, nfev, steps, STATUS_MAX_STEPS
@@ -579,7 +612,7 @@ def solve_one(
             # step's ends (a brief separation). Look inside on the dense output.
             _dense(y, ynew, f, fnew, h, p, K, tmp, F)
             nfev += _NX - _NS - 1
-            x_min, g_min = _minimum(y, F, F, h, 0, p, tmp)
+            x_min, g_min = _minimum(y, F, p, tmp)
             if g_min <= 0.0:
                 crossed = True
                 g_new = g_min
@@ -664,7 +697,7 @@ def solve_impact(
         t_max = t_max + 20.0 / hoop * max(1.0, math.sqrt(m1 / m2))
     n_active = 2 + (0 if rigid else 2) + (0 if clamped else 2)
     s = np.zeros(6)
-    cor, tc, nfev, _, status = solve_one(p, speed, scale, rtol, n_active, t_max, max_steps, s)
+    cor, tc, nfev, _, status = solve_one(p, speed, scale, rtol, n_active, t_max, max_steps, s, 0)
     return cor, tc, nfev, status, s[0], s[1], s[2], s[3], s[4], s[5]
 
 
@@ -774,7 +807,7 @@ def _solve_lanes(
     states: np.ndarray,
     first: int,
     stride: int,
-    series: int = 0,
+    series: int,
 ) -> None:
     """Lanes first, first + stride, ... one after another (compiled on its own, as solve_one is:
     inside the parallel loop's body the same calls ran about half again as long)."""
@@ -802,7 +835,7 @@ def solve_many(
     nfev: np.ndarray,
     status: np.ndarray,
     states: np.ndarray,
-    series: int = 0,
+    series: int,
 ) -> None:
     """Solve n collisions in parallel lanes, each with its own steps and event (in LANE_GROUPS
     interleaved groups: neighbouring lanes, which cost alike, go to different threads); `series` as

@@ -446,11 +446,25 @@ def _step(lanes: _Lanes, rtol: float, kappa: float, ends: _Ends) -> np.ndarray:
 
 
 def solve_many(
-    P: _Arr, v0: _Arr, length: _Arr, rtol: float, n_active: _Arr, t_max: _Arr, max_steps: int, *results: _Arr
+    P: _Arr,
+    v0: _Arr,
+    length: _Arr,
+    rtol: float,
+    n_active: _Arr,
+    t_max: _Arr,
+    max_steps: int,
+    cor: _Arr,
+    tc: _Arr,
+    nfev: _Arr,
+    status: _Arr,
+    states: _Arr,
+    series: int,
 ) -> None:
-    """`_dop853.solve_many`'s call, every lane stepped side by side in numpy; `results` are its arrays
-    cor, tc, nfev, status and states, filled in."""
-    out = _Out(*results)
+    """`_dop853.solve_many`'s call, every lane stepped side by side in numpy, DOP853 throughout
+    (`series` must be 0); cor, tc, nfev, status and states are filled in."""
+    if series:
+        raise ValueError("the numpy lanes take DOP853 steps throughout (series 0)")
+    out = _Out(cor, tc, nfev, status, states)
     kappa = min(1.0, (40320.0 * rtol) ** 0.125)
     ends = _Ends()
     with np.errstate(all="ignore"):

@@ -218,11 +218,12 @@ def _finish(
 
 
 def solve_batch(
-    impacts: Sequence[Impact], rtol: float = DEFAULT_RTOL, numpy_lanes: bool = False
+    impacts: Sequence[Impact], rtol: float = DEFAULT_RTOL, numpy_lanes: bool = False, series: int = 0
 ) -> tuple[np.ndarray, np.ndarray]:
     """Solve many collisions in parallel; returns arrays (cor, contact_time_s).
 
     numpy_lanes: a batch of at most NUMPY_LANES runs in numpy unless the compiled kernel is loaded.
+    series: the contact's body in Taylor series steps of that order, as `curve.cor_grid` (0: none).
     """
     rtol = check_tolerance(rtol)
     n = len(impacts)
@@ -237,7 +238,7 @@ def solve_batch(
         length[k] = imp.params.compression_scale(imp.speed)
         n_active[k] = imp.n_states
         t_max[k] = _time_limit(imp)
-    return _run_batch(P, v0, length, rtol, n_active, t_max, impacts, numpy_lanes=numpy_lanes)
+    return _run_batch(P, v0, length, rtol, n_active, t_max, impacts, numpy_lanes=numpy_lanes, series=series)
 
 
 def _batch_kernel(n: int, numpy_lanes: bool) -> Any:
@@ -280,14 +281,9 @@ def _run_batch(
     nfev = np.empty(n, dtype=np.int64)
     status = np.empty(n, dtype=np.int64)
     states = np.zeros((n, 6))
-    if series:
-        compiled().solve_many(
-            P, v0, length, rtol, n_active, t_max, MAX_STEPS, cor, tc, nfev, status, states, series
-        )
-    else:
-        _batch_kernel(n, numpy_lanes)(
-            P, v0, length, rtol, n_active, t_max, MAX_STEPS, cor, tc, nfev, status, states
-        )
+    _batch_kernel(n, numpy_lanes and not series)(
+        P, v0, length, rtol, n_active, t_max, MAX_STEPS, cor, tc, nfev, status, states, series
+    )
     if contacts is not None:
         contacts[:] = 1
     if evaluations is not None:
@@ -317,6 +313,7 @@ def warm_up() -> None:
     from rig.physics.params import DEFAULT_PARAMS
 
     compiled()
-
-    solve(Impact(DEFAULT_PARAMS, 60.8, 1250.0), rtol=1e-6)
-    solve_batch([Impact(DEFAULT_PARAMS, 60.8, 1250.0)], rtol=1e-6)
+    imp = Impact(DEFAULT_PARAMS, 60.8, 1250.0)
+    for series in (0, SERIES_ORDER):  # DOP853 throughout, and the curve's series path
+        solve_general(imp, 1e-6, compiled(), series) if series else solve(imp, rtol=1e-6)
+        solve_batch([imp], rtol=1e-6, series=series)

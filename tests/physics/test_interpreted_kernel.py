@@ -31,8 +31,8 @@ def test_interpreted_kernel_gives_the_compiled_kernels_numbers(
     args = (fast.kernel_params(imp), imp.speed, imp.params.compression_scale(imp.speed), 1e-10, imp.n_states)
     limits = (fast._time_limit(imp), fast.MAX_STEPS)
     s1, s2 = np.zeros(6), np.zeros(6)
-    one = _interpreted.load().solve_one(*args, *limits, s1)
-    two = _dop853.solve_one(*args, *limits, s2)
+    one = _interpreted.load().solve_one(*args, *limits, s1, 0)
+    two = _dop853.solve_one(*args, *limits, s2, 0)
     assert [float(x) for x in one] == [float(x) for x in two]  # cor, contact time, nfev, steps, status
     assert s1.tolist() == s2.tolist()
 

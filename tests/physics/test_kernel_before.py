@@ -54,7 +54,7 @@ def test_the_kernel_gives_the_numbers_of_the_kernel_it_replaced(imp: Impact, rto
     args = (fast.kernel_params(imp), imp.speed, scale, rtol, imp.n_states, *limits)
     s_old, s_new = np.zeros(6), np.zeros(6)
     old = before().solve_one(*args, s_old)
-    new = _dop853.solve_one(*args, s_new)
+    new = _dop853.solve_one(*args, s_new, 0)
     assert new[4] == old[4]  # status: the same ending (ok, re-contact possible, or the same failure)
     assert new[2:4] == old[2:4]  # the same evaluations and steps: the same steps were taken
     assert close(new[0], old[0]) and close(new[1], old[1])  # COR and contact time

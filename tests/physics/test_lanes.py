@@ -43,7 +43,7 @@ def run(
         "states": np.zeros((n, 6)),
     }
     assert callable(solve_many)
-    solve_many(P, v0, length, rtol, n_active, t_max, max_steps, *(out[k] for k in STATUS))
+    solve_many(P, v0, length, rtol, n_active, t_max, max_steps, *(out[k] for k in STATUS), 0)
     return out
 
 

@@ -142,22 +142,23 @@ def test_a_linear_ball_on_a_wall_is_its_closed_form() -> None:
     assert at(S, h)[1] == pytest.approx(closed(t0 + h, 1), abs=10 * rtol * v0)
 
 
-def test_the_minimum_search_finds_a_dip_between_two_positive_ends() -> None:
+def test_a_dip_between_two_positive_ends_is_found() -> None:
     """g = d on a clamped wall whose ball moves as d = (x - 0.3)^2 - 0.01 over the step's fractions x
-    (k1 = 1, c1 = 0, a = b): positive at both ends, below zero between 0.2 and 0.4."""
+    (k1 = 1, c1 = 0, a = b): positive at both ends, below zero between 0.2 and 0.4. The step's g
+    polynomial is read for its least value, and g of the states falls through zero at 0.2."""
     p = fast.kernel_params(Impact(CollisionParams.build(k1=1.0, c1=0.0, a=0.5, b=0.5), 1.0))
+    h = 2.0  # the step: the searches run over its fractions x = t / h
     S = np.zeros((6, 3))
-    tmp = np.zeros(6)
-    y, unused = np.zeros(6), np.zeros((7, 6))  # the dense output's arguments: not read on a series
-    h = 2.0  # the step: the searches run over its fractions
-    S[0] = [0.08, -0.6 / h, 1.0 / h**2]  # the same polynomial in the fraction x = t / h
-    x, g = _dop853._minimum(y, unused, S, h, 2, p, tmp)
-    assert g <= 0.0 and 0.2 <= x <= 0.4
+    S[0] = [0.08, -0.6 / h, 1.0 / h**2]
+    aux = np.zeros((7, 3))
+    aux[_kernel_model._G] = S[0]  # g = d here
+    y, unused, tmp = np.zeros(6), np.zeros((7, 6)), np.zeros(6)
+    x = _dop853._series_lowest(aux, 2, h)
+    assert abs(x - 0.3) <= 1.0 / _dop853.SERIES_SAMPLES
+    g = _dop853._g_at(x, y, unused, S, h, 2, p, tmp)
+    assert g <= 0.0
     root = _dop853._crossing(y, unused, S, h, 2, p, tmp, 0.08, x, g)
     assert root == pytest.approx(0.2, rel=1e-12)
-    S[0, 0] = 0.1  # minimum 0.01 > 0: no dip
-    x, g = _dop853._minimum(y, unused, S, h, 2, p, tmp)
-    assert g == pytest.approx(0.01, rel=1e-6) and x == pytest.approx(0.3, rel=1e-4)
 
 
 @settings(max_examples=60, deadline=None)
@@ -233,3 +234,16 @@ def test_the_curve_takes_the_series_path_and_dop853_on_request() -> None:
     assert with_series.tolist() == single
     assert without.tolist() == [fast.solve(Impact(DEFAULT_PARAMS, 60.8, float(f)), 1e-10).cor for f in hoops]
     assert np.max(np.abs(with_series - without)) < 1e-8
+
+
+def test_the_series_are_used_only_where_the_contact_ends_clear_of_d_0() -> None:
+    """g falls to zero at d ~ (c1 v0 / k1)^(1 / (1+a-b)): the paper's ball ends 0.67 compression
+    scales clear of d = 0, an undamped ball at d = 0 and a nearly undamped one ~1e-5 scales away;
+    those two take DOP853 steps throughout, to the last bit."""
+    scale = DEFAULT_PARAMS.compression_scale(60.8)
+    assert _dop853._series_ends_clear(fast.kernel_params(Impact(DEFAULT_PARAMS, 60.8, 1250.0)), 60.8, scale)
+    for c1 in (0.0, 0.05):
+        imp = Impact(CollisionParams.build(c1=c1), 60.8, 1250.0)
+        assert not _dop853._series_ends_clear(fast.kernel_params(imp), 60.8, scale)
+        series, dop = fast.solve_series(imp, 1e-10), fast.solve(imp, 1e-10)
+        assert (series.cor, series.contact_time_s, series.nfev) == (dop.cor, dop.contact_time_s, dop.nfev)
