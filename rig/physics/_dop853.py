@@ -129,6 +129,8 @@ SERIES_HANDBACK = 1
 _inline = nb.njit(cache=True, inline="always")
 _rhs = _inline(model.rhs)
 _rhs_free = _inline(model.rhs_free)
+_rhs_g = _inline(model.rhs_g)
+_gdot_at = _inline(model.gdot_at)
 _gfun = _inline(model.gfun)
 _gdot = _inline(model.gdot)
 _damping_rate = _inline(model.damping_rate)
@@ -139,7 +141,7 @@ _series = _inline(model.series)
 # numba's cache of this module's functions is keyed on this file's text alone, not on the
 # _kernel_model they inline: that file's text is pinned here, so an edit there must change this
 # line too, which renews the cache (the kernel refuses to load until then).
-MODEL_DIGEST = "f6b7c0b5742f811ad8e733113baade98f2ce0ca075e24797295c99bdee86ffde"
+MODEL_DIGEST = "a8b42a924208bb3488b305c1fe1df4453d52b520638f27d23c2c6b06b9592dc2"
 check_digest(model, MODEL_DIGEST, Path(__file__).name)
 
 
@@ -566,7 +568,7 @@ def solve_one(
             K[0, i] = f[i]
         _stages(y, h, p, K, tmp, 1, _NS, n)
         _advance(y, h, _combine(K, _B_COL, _B_VAL, 0, _B_COL.size, n), ynew)
-        _rhs(ynew, p, fnew)
+        g_new, ratio_new = _rhs_g(ynew, p, fnew)  # g at the step's end, if it is taken
         for i in range(n):
             K[_NS, i] = fnew[i]
         nfev += _NS
@@ -591,7 +593,6 @@ def solve_one(
             continue
         # accepted step
         steps += 1
-        g_new = _gfun(ynew, p)
         crossed = g_old > 0.0 and g_new <= 0.0
         dip = False
         gd_new = math.nan
@@ -599,7 +600,7 @@ def solve_one(
             if math.isnan(gd_old):
                 gd_old = _gdot(y, f, p)
             if gd_old < 0.0:
-                gd_new = _gdot(ynew, fnew, p)
+                gd_new = _gdot_at(ynew, fnew, p, ratio_new)
                 dip = gd_new > 0.0
         if (crossed or dip) and h * _damping_rate(y, p) > kappa:
             # contact may end inside this step, whose dense output would not resolve the decay
@@ -697,7 +698,10 @@ def solve_impact(
         t_max = t_max + 20.0 / hoop * max(1.0, math.sqrt(m1 / m2))
     n_active = 2 + (0 if rigid else 2) + (0 if clamped else 2)
     s = np.zeros(6)
-    cor, tc, nfev, _, status = solve_one(p, speed, scale, rtol, n_active, t_max, max_steps, s, 0)
+    # no series: a zero typed int64, as the callers' from Python (a literal 0 would be typed apart
+    # and compile the kernel a second time)
+    no_series = max_steps - max_steps
+    cor, tc, nfev, _, status = solve_one(p, speed, scale, rtol, n_active, t_max, max_steps, s, no_series)
     return cor, tc, nfev, status, s[0], s[1], s[2], s[3], s[4], s[5]
 
 
