@@ -75,7 +75,7 @@ def _gdot(y: np.ndarray, f: np.ndarray, p: np.ndarray) -> np.ndarray:
 
 
 def _g_end(y: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """`_kernel_model.rhs_g`'s g and |d|^(a-b) over lanes (a quotient of the right-hand side's powers)."""
+    """`_kernel_model.rhs`'s g and |d|^(a-b) over lanes (a quotient of the right-hand side's powers)."""
     d = y[0] - y[2]
     ad = np.abs(d)
     pa = _pow(ad, p[3])
