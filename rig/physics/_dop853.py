@@ -129,7 +129,6 @@ SERIES_HANDBACK = 1
 _inline = nb.njit(cache=True, inline="always")
 _rhs = _inline(model.rhs)
 _rhs_free = _inline(model.rhs_free)
-_gdot_at = _inline(model.gdot_at)
 _gfun = _inline(model.gfun)
 _gdot = _inline(model.gdot)
 _damping_rate = _inline(model.damping_rate)
@@ -140,7 +139,7 @@ _series = _inline(model.series)
 # numba's cache of this module's functions is keyed on this file's text alone, not on the
 # _kernel_model they inline: that file's text is pinned here, so an edit there must change this
 # line too, which renews the cache (the kernel refuses to load until then).
-MODEL_DIGEST = "a67ff7670c363d30c9bb15df12456e65014f2fa6fd5adca7875761f59d504e7e"
+MODEL_DIGEST = "f6b7c0b5742f811ad8e733113baade98f2ce0ca075e24797295c99bdee86ffde"
 check_digest(model, MODEL_DIGEST, Path(__file__).name)
 
 
@@ -567,7 +566,7 @@ def solve_one(
             K[0, i] = f[i]
         _stages(y, h, p, K, tmp, 1, _NS, n)
         _advance(y, h, _combine(K, _B_COL, _B_VAL, 0, _B_COL.size, n), ynew)
-        g_new, ratio_new = _rhs(ynew, p, fnew)  # g at the step's end, if it is taken
+        _rhs(ynew, p, fnew)
         for i in range(n):
             K[_NS, i] = fnew[i]
         nfev += _NS
@@ -592,6 +591,7 @@ def solve_one(
             continue
         # accepted step
         steps += 1
+        g_new = _gfun(ynew, p)
         crossed = g_old > 0.0 and g_new <= 0.0
         dip = False
         gd_new = math.nan
@@ -599,7 +599,7 @@ def solve_one(
             if math.isnan(gd_old):
                 gd_old = _gdot(y, f, p)
             if gd_old < 0.0:
-                gd_new = _gdot_at(ynew, fnew, p, ratio_new)
+                gd_new = _gdot(ynew, fnew, p)
                 dip = gd_new > 0.0
         if (crossed or dip) and h * _damping_rate(y, p) > kappa:
             # contact may end inside this step, whose dense output would not resolve the decay

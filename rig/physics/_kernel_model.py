@@ -30,17 +30,12 @@ MAX_ORDER = 64  # the longest series `series` makes
 RECIPROCALS = np.array([0.0] + [1.0 / k for k in range(1, MAX_ORDER + 2)])  # 1/k, read, not divided
 
 
-def rhs(y: np.ndarray, p: np.ndarray, out: np.ndarray) -> tuple[float, float]:
-    """In contact: out = dy/dt under the contact force F = k1 d|d|^a + c1 d'|d|^b (Eqs. 1-2); returns
-    g and |d|^(a-b) at y from the same two powers of |d| (a step's end needs g and its rate there,
-    `gfun` and `gdot_at`, without a power of their own; where the result is not read, the compiler
-    drops its arithmetic)."""
+def rhs(y: np.ndarray, p: np.ndarray, out: np.ndarray) -> None:
+    """In contact: out = dy/dt under the contact force F = k1 d|d|^a + c1 d'|d|^b (Eqs. 1-2)."""
     d = y[0] - y[2]
     dd = y[1] - y[3]
     ad = abs(d)
-    pa = ad ** p[3]
-    pb = ad ** p[4]
-    f = p[1] * d * pa + p[2] * dd * pb
+    f = p[1] * d * ad ** p[3] + p[2] * dd * ad ** p[4]
     out[0] = y[1]
     out[1] = -f / p[0]
     out[2] = y[3]
@@ -54,13 +49,6 @@ def rhs(y: np.ndarray, p: np.ndarray, out: np.ndarray) -> tuple[float, float]:
         out[3] = (f - fs) / p[5]
         out[4] = y[5]
         out[5] = fs * p[8]
-    ratio = pa / pb if pb > 0.0 else 0.0
-    return p[1] * d * ratio + p[2] * dd, ratio
-
-
-def gdot_at(y: np.ndarray, f: np.ndarray, p: np.ndarray, ratio: float) -> float:
-    """`gdot` with |d|^(a-b) given (`rhs` returns it)."""
-    return p[1] * (1.0 + p[3] - p[4]) * ratio * (y[1] - y[3]) + p[2] * (f[1] - f[3])
 
 
 def series(y: np.ndarray, p: np.ndarray, order: int, S: np.ndarray, aux: np.ndarray) -> bool:

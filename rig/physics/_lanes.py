@@ -74,21 +74,6 @@ def _gdot(y: np.ndarray, f: np.ndarray, p: np.ndarray) -> np.ndarray:
     return spring + p[2] * (f[1] - f[3])
 
 
-def _g_end(y: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """`_kernel_model.rhs`'s g and |d|^(a-b) over lanes (a quotient of the right-hand side's powers)."""
-    d = y[0] - y[2]
-    ad = np.abs(d)
-    pa = _pow(ad, p[3])
-    pb = _pow(ad, p[4])
-    ratio = np.where(pb > 0.0, pa / np.where(pb > 0.0, pb, 1.0), 0.0)
-    return p[1] * d * ratio + p[2] * (y[1] - y[3]), ratio
-
-
-def _gdot_at(y: np.ndarray, f: np.ndarray, p: np.ndarray, ratio: np.ndarray) -> np.ndarray:
-    """`_kernel_model.gdot_at` over lanes."""
-    return p[1] * (1.0 + p[3] - p[4]) * ratio * (y[1] - y[3]) + p[2] * (f[1] - f[3])
-
-
 def _damping_rate(y: np.ndarray, p: np.ndarray) -> np.ndarray:
     """`_kernel_model.damping_rate` over lanes."""
     inv = 1.0 / p[0] + np.where(p[10] != 0.0, p[9], 1.0 / p[5])
@@ -401,12 +386,12 @@ def _step(lanes: _Lanes, rtol: float, kappa: float, ends: _Ends) -> np.ndarray:
     shrink = np.where(np.isfinite(err), np.maximum(_MIN_FACTOR, _SAFETY * _pow(err, _EXPONENT)), _MIN_FACTOR)
     lanes.h = np.where(accepted, h, h * shrink)
     lanes.rejected |= ~accepted
-    g_new, ratio_new = _g_end(ynew, model.p)
+    g_new = _gfun(ynew, model.p)
     crossed = accepted & (lanes.g_old > 0.0) & (g_new <= 0.0)
     look = accepted & ~crossed & (lanes.g_old > 0.0)
     lanes.gd_old = np.where(look & np.isnan(lanes.gd_old), _gdot(y, f, model.p), lanes.gd_old)
     falling = look & (lanes.gd_old < 0.0)
-    gd_new = np.where(falling, _gdot_at(ynew, fnew, model.p, ratio_new), math.nan)
+    gd_new = np.where(falling, _gdot(ynew, fnew, model.p), math.nan)
     dip = falling & (gd_new > 0.0)
     ending = crossed | dip
     if ending.any():

@@ -29,7 +29,6 @@ SHARED = {
     "g_cannot_rise": "g_cannot_rise",
     "_force_escape_time": "force_escape_time",
     "_series": "series",
-    "_gdot_at": "gdot_at",
 }
 
 
@@ -131,24 +130,6 @@ def test_g_its_rate_and_the_damping_rate_are_the_references(imp: Impact, unit: l
         ) / (2.0 * h)
         size = equations.contact_scale(imp) / imp.time_scale() + abs(diff)
         assert _kernel_model.gdot(full, f, p) == pytest.approx(diff, abs=1e-6 * size)
-
-
-@given(imp=impacts, unit=units)
-def test_the_step_ends_g_comes_from_the_right_hand_sides_own_powers(imp: Impact, unit: list[float]) -> None:
-    """rhs returns g and its rate's |d|^(a-b) as gfun and gdot give them (to rounding: |d|^(a-b) is a
-    quotient of the right-hand side's two powers, a power of its own in gfun)."""
-    _, full = states(imp, unit)
-    p = fast.kernel_params(imp)
-    out = np.zeros(6)
-    g, ratio = _kernel_model.rhs(full, p, out)
-    d = abs(full[0] - full[2])
-    if d > 0.0:
-        assert ratio == pytest.approx(d ** (imp.params.a - imp.params.b), rel=1e-13)
-    spring = imp.params.k1 * d * ratio
-    assert g == pytest.approx(_kernel_model.gfun(full, p), rel=1e-13, abs=1e-13 * spring)
-    rate = _kernel_model.gdot_at(full, out, p, ratio)
-    size = abs(imp.params.k1 * (1.0 + imp.params.a - imp.params.b) * ratio * (full[1] - full[3]))
-    assert rate == pytest.approx(_kernel_model.gdot(full, out, p), rel=1e-13, abs=1e-13 * size)
 
 
 def agree_across_switches(
