@@ -117,6 +117,7 @@ _SERIES_SAFETY = 0.96  # exp(-0.7 / (order - 1)) for order 20 (Jorba and Zou 200
 _G_ROW = model._G  # the rows of g and d in the series' aux
 _D_ROW = model._D
 SERIES_SAMPLES = 64  # points at which a step's g polynomial is read for a dip below zero
+SERIES_MAX_ORDER = 17  # g's polynomial (degree order - 1) stays below SERIES_SAMPLES / 4
 _SERIES_APPROACH = 0.1  # DOP853's first step after a hand-back: this share of the time to d = 0
 SERIES_END_CLEARANCE = 0.05  # series only where the contact ends this many scales clear of d = 0
 _SERIES_SHRINK = 0.25  # a step this much shorter than the longest: a branch point ahead, DOP853 goes on
@@ -231,19 +232,26 @@ def _minimum(y: np.ndarray, F: np.ndarray, p: np.ndarray, tmp: np.ndarray) -> tu
     return d, gd
 
 
+@nb.njit(cache=True, inline="always")
+def _g_swing(aux: np.ndarray, degree: int, h: float) -> float:
+    """sum over 1 <= k <= degree of |G_k| h^k: g's polynomial stays above zero over the step while
+    this is below g's value at its start."""
+    acc = 0.0
+    for k in range(degree, 0, -1):
+        acc = (acc + abs(aux[_G_ROW, k])) * h
+    return acc
+
+
 @nb.njit(cache=True)
-def _series_lowest(aux: np.ndarray, degree: int, h: float) -> float:
-    """The fraction of the step where g's own polynomial is least, of SERIES_SAMPLES + 1 evenly
-    spaced (the polynomial of degree `degree` < SERIES_SAMPLES / 4 has no feature narrower)."""
-    best = 0.0
-    g_best = aux[_G_ROW, 0]
+def _series_first_down(aux: np.ndarray, degree: int, h: float) -> float:
+    """The first of SERIES_SAMPLES evenly spaced fractions of the step where g's own polynomial is at
+    or below zero (2.0 if none): a polynomial of degree `degree` < SERIES_SAMPLES / 4 has no dip
+    narrower than the spacing."""
     for k in range(1, SERIES_SAMPLES + 1):
         x = k / SERIES_SAMPLES
-        g = _horner(aux, _G_ROW, degree, x * h)
-        if g < g_best:
-            best = x
-            g_best = g
-    return best
+        if _horner(aux, _G_ROW, degree, x * h) <= 0.0:
+            return x
+    return 2.0
 
 
 @nb.njit(cache=True)
@@ -363,15 +371,6 @@ def _horner(M: np.ndarray, i: int, degree: int, x: float) -> float:
     return acc
 
 
-@nb.njit(cache=True, inline="always")
-def _horner_rate(M: np.ndarray, i: int, degree: int, x: float) -> float:
-    """The derivative in x of sum over k <= degree of M[i, k] x^k."""
-    acc = degree * M[i, degree]
-    for k in range(degree - 1, 0, -1):
-        acc = acc * x + k * M[i, k]
-    return acc
-
-
 @nb.njit(cache=True)
 def _series_step(
     S: np.ndarray,
@@ -465,11 +464,16 @@ def _series_contact(
         crossed = g_end <= 0.0
         hi = 1.0
         ghi = g_end
-        if not crossed and aux[_G_ROW, 1] < 0.0 and _horner_rate(aux, _G_ROW, order - 1, h) > 0.0:
-            # g falls, then rises within the step: it may dip below zero between two positive ends
-            hi = _series_lowest(aux, order - 1, h)
-            ghi = _g_at(hi, y, S, S, h, order, p, tmp)
-            crossed = ghi <= 0.0
+        if _g_swing(aux, order - 1, h) >= aux[_G_ROW, 0]:
+            # g's polynomial may reach zero inside the step (a dip between two positive ends, or a
+            # first crossing before a later one): its first sample at or below zero bounds the end
+            x = _series_first_down(aux, order - 1, h)
+            if x < 1.0:
+                gx = _g_at(x, y, S, S, h, order, p, tmp)
+                if gx <= 0.0:
+                    crossed = True
+                    hi = x
+                    ghi = gx
         if crossed:
             x = _crossing(y, S, S, h, order, p, tmp, _gfun(y, p), hi, ghi)
             _g_at(x, y, S, S, h, order, p, y)
@@ -555,6 +559,7 @@ def solve_one(
     rejected = False
     steps = 0
     t_series = SERIES_START * length / v0 if series > 0 and _series_ends_clear(p, v0, length) else math.inf
+    approach = False  # after a hand-back: every step short of d = 0 (_SERIES_APPROACH of the way)
     while True:
         if steps >= max_steps:
             return math.nan, t, nfev, steps, STATUS_MAX_STEPS
@@ -562,6 +567,8 @@ def solve_one(
             return math.nan, t, nfev, steps, STATUS_TIME_LIMIT
         if h < 1e-14 * max(t, length / v0):
             return math.nan, t, nfev, steps, STATUS_STEP_UNDERFLOW
+        if approach and f[0] < f[2]:
+            h = min(h, _SERIES_APPROACH * (y[0] - y[2]) / (f[2] - f[0]))
         for i in range(n):
             K[0, i] = f[i]
         _stages(y, h, p, K, tmp, 1, _NS, n)
@@ -647,6 +654,7 @@ def solve_one(
                 for i in range(6):
                     tmp[i] = y[i]
                 return _separated(tmp, t, t, v0, p, nfev, steps, out_state)
+            approach = True
             if used > 0:
                 _rhs(y, p, f)
                 nfev += 1

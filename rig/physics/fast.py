@@ -28,7 +28,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from rig.core.errors import SolverError
+from rig.core.errors import ParameterError, SolverError
 from rig.physics import _interpreted
 from rig.physics.equations import Impact
 from rig.physics.params import check_tolerance
@@ -175,11 +175,20 @@ def _solve_one(
     return cor, tc, nfev, status, state
 
 
+def check_series(series: int) -> int:
+    """The series order asked for: 0 (none) or 4 to the kernel's SERIES_MAX_ORDER terms."""
+    top = kernel.SERIES_MAX_ORDER
+    if not (isinstance(series, int | np.integer) and (series == 0 or 4 <= series <= top)):
+        raise ParameterError("series", series, f"must be 0 (DOP853 throughout) or 4 to {top} terms")
+    return int(series)
+
+
 def solve_general(imp: Impact, rtol: float, module: ModuleType, series: int = 0) -> CollisionResult:
     """`solve` through `module`'s solve_one (the interpreted or the compiled kernel), with the
     parameter vector and limits made in Python: the path `solve`'s lean compiled entry must equal.
     `series` as solve_one's: the contact's body in Taylor series steps of that order (0: none)."""
     rtol = check_tolerance(rtol)
+    series = check_series(series)
     result = _finish(imp, rtol, *_solve_one(imp, rtol, module, MAX_STEPS, series))
     if series:
         return dataclasses.replace(result, method=result.method.replace("rig-DOP853", "rig-DOP853+series"))
@@ -275,6 +284,7 @@ def _run_batch(
     evaluations; `numpy_lanes` as solve_batch's; `series` as the kernel's solve_one's (the compiled
     kernel only: the numpy lanes take DOP853 steps throughout).
     """
+    series = check_series(series)
     n = P.shape[0]
     cor = np.empty(n)
     tc = np.empty(n)

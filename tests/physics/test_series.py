@@ -9,10 +9,11 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, note, settings
+from hypothesis import assume, example, given, note, settings
 from hypothesis import strategies as st
 from scipy.integrate import solve_ivp
 
+from rig.core.errors import ParameterError
 from rig.physics import _dop853, _interpreted, _kernel_model, curve, equations, fast
 from rig.physics.equations import Impact
 from rig.physics.params import DEFAULT_PARAMS, CollisionParams
@@ -145,7 +146,8 @@ def test_a_linear_ball_on_a_wall_is_its_closed_form() -> None:
 def test_a_dip_between_two_positive_ends_is_found() -> None:
     """g = d on a clamped wall whose ball moves as d = (x - 0.3)^2 - 0.01 over the step's fractions x
     (k1 = 1, c1 = 0, a = b): positive at both ends, below zero between 0.2 and 0.4. The step's g
-    polynomial is read for its least value, and g of the states falls through zero at 0.2."""
+    polynomial swings further than its start, so it is read at SERIES_SAMPLES points: the first at or
+    below zero bounds the end, and g of the states falls through zero at 0.2."""
     p = fast.kernel_params(Impact(CollisionParams.build(k1=1.0, c1=0.0, a=0.5, b=0.5), 1.0))
     h = 2.0  # the step: the searches run over its fractions x = t / h
     S = np.zeros((6, 3))
@@ -153,16 +155,39 @@ def test_a_dip_between_two_positive_ends_is_found() -> None:
     aux = np.zeros((7, 3))
     aux[_kernel_model._G] = S[0]  # g = d here
     y, unused, tmp = np.zeros(6), np.zeros((7, 6)), np.zeros(6)
-    x = _dop853._series_lowest(aux, 2, h)
-    assert abs(x - 0.3) <= 1.0 / _dop853.SERIES_SAMPLES
+    assert _dop853._g_swing(aux, 2, h) >= aux[_kernel_model._G, 0]
+    x = _dop853._series_first_down(aux, 2, h)
+    assert 0.2 <= x <= 0.2 + 1.0 / _dop853.SERIES_SAMPLES
     g = _dop853._g_at(x, y, unused, S, h, 2, p, tmp)
     assert g <= 0.0
     root = _dop853._crossing(y, unused, S, h, 2, p, tmp, 0.08, x, g)
     assert root == pytest.approx(0.2, rel=1e-12)
+    aux[_kernel_model._G, 0] = 0.1  # the least value 0.01 > 0: no sample at or below zero
+    assert _dop853._series_first_down(aux, 2, h) == 2.0
+    aux[_kernel_model._G] = [1.0, -0.3 / h, 0.2 / h**2]  # swings 0.5 from 1: cannot reach zero
+    assert _dop853._g_swing(aux, 2, h) < aux[_kernel_model._G, 0]
 
 
 @settings(max_examples=60, deadline=None)
 @given(imp=impacts, rtol=st.sampled_from([1e-8, 1e-10]))
+# an outside review's case: DOP853, resuming after a hand-back, stepped across d = 0 on its second
+# step (the cap then held only for its first) and ended the contact 400 tolerances off
+@example(
+    imp=Impact(
+        CollisionParams(
+            m1=0.474624445538412,
+            k1=1058802904.6148578,
+            c1=10107.543210291089,
+            a=0.10830078222623374,
+            b=0.23294144337478917,
+            m2=0.3872628452086158,
+            c2=0.0,
+        ),
+        31.954592283398664,
+        None,
+    ),
+    rtol=1e-8,
+)
 def test_series_solves_are_as_accurate_as_dop853_over_random_impacts(imp: Impact, rtol: float) -> None:
     """Over random constants, speeds, barrels and bases, the first contact (the kernel's part) ends
     where the DOP853 kernel at rtol 1e-13 says, no further off than DOP853 at the same tolerance
@@ -247,3 +272,14 @@ def test_the_series_are_used_only_where_the_contact_ends_clear_of_d_0() -> None:
         assert not _dop853._series_ends_clear(fast.kernel_params(imp), 60.8, scale)
         series, dop = fast.solve_series(imp, 1e-10), fast.solve(imp, 1e-10)
         assert (series.cor, series.contact_time_s, series.nfev) == (dop.cor, dop.contact_time_s, dop.nfev)
+
+
+@pytest.mark.parametrize("order", [1, 2, 3, 18, 66, -1, 16.0])
+def test_a_series_order_outside_4_to_17_is_refused(order: object) -> None:
+    """Fewer terms step no further than DOP853 (order 1 would divide by zero), more outgrow the
+    dip search's samples and the reciprocals' table: one clear line, naming the parameter."""
+    imp = Impact(DEFAULT_PARAMS, 60.8, 1250.0)
+    with pytest.raises(ParameterError, match="series"):
+        fast.solve_series(imp, 1e-8, order)  # type: ignore[arg-type]
+    with pytest.raises(ParameterError, match="series"):
+        curve.cor_grid(DEFAULT_PARAMS, 60.8, np.array([1250.0]), series=order)  # type: ignore[arg-type]
