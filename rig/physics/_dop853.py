@@ -136,11 +136,12 @@ _damping_rate = _inline(model.damping_rate)
 g_cannot_rise = _inline(model.g_cannot_rise)
 _force_escape_time = _inline(model.force_escape_time)
 _series = _inline(model.series)
+_series_damped = _inline(model.series_damped)
 
 # numba's cache of this module's functions is keyed on this file's text alone, not on the
 # _kernel_model they inline: that file's text is pinned here, so an edit there must change this
 # line too, which renews the cache (the kernel refuses to load until then).
-MODEL_DIGEST = "f6b7c0b5742f811ad8e733113baade98f2ce0ca075e24797295c99bdee86ffde"
+MODEL_DIGEST = "e64b0fd525d4b01ec0926a2d6170594b6bd50902e6d8070ce74808ba3e6d1cf7"
 check_digest(model, MODEL_DIGEST, Path(__file__).name)
 
 
@@ -234,12 +235,39 @@ def _minimum(y: np.ndarray, F: np.ndarray, p: np.ndarray, tmp: np.ndarray) -> tu
 
 @nb.njit(cache=True, inline="always")
 def _g_swing(aux: np.ndarray, degree: int, h: float) -> float:
-    """sum over 1 <= k <= degree of |G_k| h^k: g's polynomial stays above zero over the step while
-    this is below g's value at its start."""
+    """sum over 1 <= k <= degree of |G_k| h^k: g's polynomial stays above zero over the step where
+    this is below its value at the start (the cheapest test, tried first)."""
     acc = 0.0
     for k in range(degree, 0, -1):
         acc = (acc + abs(aux[_G_ROW, k])) * h
     return acc
+
+
+def _bernstein_weights(top: int) -> np.ndarray:
+    """W[m, i, k] = C(i, k) / C(m, k): a polynomial sum_k a_k x^k of degree m has the Bernstein
+    coefficients b_i = sum_(k <= i) W[m, i, k] a_k on [0, 1]."""
+    w = np.zeros((top + 1, top + 1, top + 1))
+    for m in range(top + 1):
+        for i in range(m + 1):
+            for k in range(i + 1):
+                w[m, i, k] = math.comb(i, k) / math.comb(m, k)
+    return w
+
+
+@nb.njit(cache=True)
+def _g_stays_up(aux: np.ndarray, degree: int, h: float) -> bool:
+    """True when g's polynomial of `degree` is above zero over the whole step of length h: every
+    coefficient of it in the Bernstein basis on the step is (the polynomial lies in their convex
+    hull). False says only that it might not be."""
+    for i in range(degree + 1):
+        b = 0.0
+        hk = 1.0
+        for k in range(i + 1):
+            b += _BERNSTEIN[degree, i, k] * aux[_G_ROW, k] * hk
+            hk *= h
+        if b <= 0.0:
+            return False
+    return True
 
 
 @nb.njit(cache=True)
@@ -402,6 +430,9 @@ def _series_step(
     return _SERIES_SAFETY * h
 
 
+_BERNSTEIN = _bernstein_weights(SERIES_MAX_ORDER)
+
+
 @nb.njit(cache=True)
 def _series_contact(
     y: np.ndarray,
@@ -438,7 +469,7 @@ def _series_contact(
     # g's absolute tolerance: rtol times its scale, k1 length^(1+a-b) + c1 v0 (atol = rtol * scale)
     g_atol = atol[0] * p[1] * (atol[0] / rtol) ** (p[3] - p[4]) + atol[1] * p[2]
     while steps < steps_left and t < t_max:
-        if _damping_rate(y, p) > 0.0 or not _series(y, p, order, S, aux):
+        if not _series(y, p, order, S, aux) or _series_damped(aux, p):
             break
         g_tol = g_atol + rtol * abs(aux[_G_ROW, 0])
         h = min(_series_step(S, aux, y, rtol, atol, g_tol, n, order), t_max - t)
@@ -464,7 +495,7 @@ def _series_contact(
         crossed = g_end <= 0.0
         hi = 1.0
         ghi = g_end
-        if _g_swing(aux, order - 1, h) >= aux[_G_ROW, 0]:
+        if _g_swing(aux, order - 1, h) >= aux[_G_ROW, 0] and not _g_stays_up(aux, order - 1, h):
             # g's polynomial may reach zero inside the step (a dip between two positive ends, or a
             # first crossing before a later one): its first sample at or below zero bounds the end
             x = _series_first_down(aux, order - 1, h)

@@ -196,6 +196,14 @@ def damping_rate(y: np.ndarray, p: np.ndarray) -> float:
     return lam
 
 
+def series_damped(aux: np.ndarray, p: np.ndarray) -> bool:
+    """`damping_rate` > 0 at the state `series` expanded, from its powers W = |d|^b and
+    Z = |d|^(1+a-b) (|d|^a = Z W / |d|): the series step need not take two powers of its own."""
+    inv = 1.0 / p[0] + (p[9] if p[10] != 0.0 else 1.0 / p[5])
+    lam = p[2] * aux[_W, 0] * inv
+    return lam * lam > 4.0 * p[1] * (1.0 + p[3]) * (aux[_Z, 0] * aux[_W, 0] / aux[_D, 0]) * inv
+
+
 def g_cannot_rise(d0: float, recede: float, amplitude: float, share: float, mu: float, p: np.ndarray) -> bool:
     """True when, out of contact, g = k1 d|d|^(a-b) + c1 d' can never rise above zero while d > 0.
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import assume, given
 from hypothesis import strategies as st
 
 from rig.physics import _dop853, _interpreted, _jit, _kernel_model, equations, fast
@@ -29,6 +29,7 @@ SHARED = {
     "g_cannot_rise": "g_cannot_rise",
     "_force_escape_time": "force_escape_time",
     "_series": "series",
+    "_series_damped": "series_damped",
 }
 
 
@@ -130,6 +131,24 @@ def test_g_its_rate_and_the_damping_rate_are_the_references(imp: Impact, unit: l
         ) / (2.0 * h)
         size = equations.contact_scale(imp) / imp.time_scale() + abs(diff)
         assert _kernel_model.gdot(full, f, p) == pytest.approx(diff, abs=1e-6 * size)
+
+
+@given(imp=impacts, unit=units)
+def test_the_series_damping_test_is_the_damping_rates(imp: Impact, unit: list[float]) -> None:
+    """series_damped (from the series' powers of |d|) says what damping_rate > 0 says, in contact,
+    but where the two sides of its comparison tie to rounding."""
+    _, full = states(imp, unit)
+    p = fast.kernel_params(imp)
+    length = imp.params.compression_scale(imp.speed)
+    full[0] = full[2] + max(abs(full[0] - full[2]), 1e-3 * length)  # in contact: d > 0
+    S, aux = np.zeros((6, 3)), np.zeros((7, 3))
+    assert _kernel_model.series(full, p, 2, S, aux)
+    inv = 1.0 / p[0] + (p[9] if p[10] != 0.0 else 1.0 / p[5])
+    d = full[0] - full[2]
+    lam = p[2] * d ** p[4] * inv
+    edge = 4.0 * p[1] * (1.0 + p[3]) * d ** p[3] * inv
+    assume(abs(lam * lam - edge) > 1e-9 * max(lam * lam, edge))
+    assert _kernel_model.series_damped(aux, p) == (_kernel_model.damping_rate(full, p) > 0.0)
 
 
 def agree_across_switches(

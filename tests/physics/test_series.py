@@ -146,8 +146,8 @@ def test_a_linear_ball_on_a_wall_is_its_closed_form() -> None:
 def test_a_dip_between_two_positive_ends_is_found() -> None:
     """g = d on a clamped wall whose ball moves as d = (x - 0.3)^2 - 0.01 over the step's fractions x
     (k1 = 1, c1 = 0, a = b): positive at both ends, below zero between 0.2 and 0.4. The step's g
-    polynomial swings further than its start, so it is read at SERIES_SAMPLES points: the first at or
-    below zero bounds the end, and g of the states falls through zero at 0.2."""
+    polynomial is not proved positive (its Bernstein coefficients), so it is read at SERIES_SAMPLES
+    points: the first at or below zero bounds the end, and g of the states falls through zero at 0.2."""
     p = fast.kernel_params(Impact(CollisionParams.build(k1=1.0, c1=0.0, a=0.5, b=0.5), 1.0))
     h = 2.0  # the step: the searches run over its fractions x = t / h
     S = np.zeros((6, 3))
@@ -155,7 +155,7 @@ def test_a_dip_between_two_positive_ends_is_found() -> None:
     aux = np.zeros((7, 3))
     aux[_kernel_model._G] = S[0]  # g = d here
     y, unused, tmp = np.zeros(6), np.zeros((7, 6)), np.zeros(6)
-    assert _dop853._g_swing(aux, 2, h) >= aux[_kernel_model._G, 0]
+    assert not _dop853._g_stays_up(aux, 2, h)
     x = _dop853._series_first_down(aux, 2, h)
     assert 0.2 <= x <= 0.2 + 1.0 / _dop853.SERIES_SAMPLES
     g = _dop853._g_at(x, y, unused, S, h, 2, p, tmp)
@@ -164,8 +164,9 @@ def test_a_dip_between_two_positive_ends_is_found() -> None:
     assert root == pytest.approx(0.2, rel=1e-12)
     aux[_kernel_model._G, 0] = 0.1  # the least value 0.01 > 0: no sample at or below zero
     assert _dop853._series_first_down(aux, 2, h) == 2.0
-    aux[_kernel_model._G] = [1.0, -0.3 / h, 0.2 / h**2]  # swings 0.5 from 1: cannot reach zero
-    assert _dop853._g_swing(aux, 2, h) < aux[_kernel_model._G, 0]
+    assert not _dop853._g_stays_up(aux, 2, h)  # Bernstein coefficients 0.1, -0.2, 0.5: not proved
+    aux[_kernel_model._G] = [1.0, -0.3 / h, 0.2 / h**2]  # 1, 0.85, 0.9: above zero, proved
+    assert _dop853._g_stays_up(aux, 2, h)
 
 
 @settings(max_examples=60, deadline=None)
@@ -283,3 +284,16 @@ def test_a_series_order_outside_4_to_17_is_refused(order: object) -> None:
         fast.solve_series(imp, 1e-8, order)  # type: ignore[arg-type]
     with pytest.raises(ParameterError, match="series"):
         curve.cor_grid(DEFAULT_PARAMS, 60.8, np.array([1250.0]), series=order)  # type: ignore[arg-type]
+
+
+@settings(max_examples=200, deadline=None)
+@given(coefficients=st.lists(st.floats(-1.0, 1.0), min_size=2, max_size=17), h=st.floats(0.1, 3.0))
+def test_a_polynomial_proved_positive_is_positive(coefficients: list[float], h: float) -> None:
+    """Whatever the coefficients, where the Bernstein test says g's polynomial stays above zero over
+    the step, it does at 2001 points (the convex-hull property, checked by evaluation)."""
+    degree = len(coefficients) - 1
+    aux = np.zeros((7, degree + 1))
+    aux[_kernel_model._G] = coefficients
+    if _dop853._g_stays_up(aux, degree, h):
+        values = np.polynomial.polynomial.polyval(np.linspace(0.0, h, 2001), coefficients)
+        assert np.all(values > 0.0)
