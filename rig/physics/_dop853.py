@@ -113,12 +113,12 @@ _EXPONENT = -1.0 / 8.0
 
 # The body of a contact in Taylor series steps (`solve_one(..., series=order)`): see `_series_contact`.
 SERIES_START = 0.2  # series take over after this many time scales (length / v0) of DOP853 steps
-_SERIES_SAFETY = 0.96  # exp(-0.7 / (order - 1)) for order 20 (Jorba and Zou 2005, Sect. 3.2)
+_SERIES_SAFETY = 0.96  # about exp(-0.7 / (order - 1)) for 16-20 terms (Jorba and Zou 2005, Sect. 3.2)
 _G_ROW = model._G  # the rows of g and d in the series' aux
 _D_ROW = model._D
 SERIES_SAMPLES = 64  # points at which a step's g polynomial is read for a dip below zero
 SERIES_MAX_ORDER = 17  # g's polynomial (degree order - 1) stays below SERIES_SAMPLES / 4
-_SERIES_APPROACH = 0.1  # DOP853's first step after a hand-back: this share of the time to d = 0
+_SERIES_APPROACH = 0.1  # DOP853's steps after a hand-back: at most this share of the time to d = 0
 SERIES_END_CLEARANCE = 0.05  # series only where the contact ends this many scales clear of d = 0
 _SERIES_SHRINK = 0.25  # a step this much shorter than the longest: a branch point ahead, DOP853 goes on
 SERIES_SEPARATED = 0
@@ -141,7 +141,7 @@ _series_damped = _inline(model.series_damped)
 # numba's cache of this module's functions is keyed on this file's text alone, not on the
 # _kernel_model they inline: that file's text is pinned here, so an edit there must change this
 # line too, which renews the cache (the kernel refuses to load until then).
-MODEL_DIGEST = "e64b0fd525d4b01ec0926a2d6170594b6bd50902e6d8070ce74808ba3e6d1cf7"
+MODEL_DIGEST = "47c0dbaa8536210532e3331cc5e412fc00961da363034dd1a0dc00872f54c78a"
 check_digest(model, MODEL_DIGEST, Path(__file__).name)
 
 
@@ -452,13 +452,13 @@ def _series_contact(
 
     Away from d = 0 the solution is analytic, and a series of `order` terms steps over several
     barrel periods where DOP853 takes about five steps a period. Each step's series is its own dense
-    output: the contact ends where g of the states' polynomials falls through zero (also inside the
-    step, between two positive ends: a brief separation, looked for where g's own polynomial falls,
-    then rises). It hands back when d <= 0 is near (the steps shrink
-    towards the branch point: a ball without damping leaves at d = 0), where the ball's damping
-    outruns the contact's own oscillation (`_damping_rate`: an over-damped ball creeps off with g
-    hugging zero, and whether and where g crosses is decided at the tolerance's level: DOP853 keeps
-    its steps short there), or where a number is not finite.
+    output: the contact ends where g of the states' polynomials falls through zero, also inside the
+    step (a brief separation between two positive ends, or a first of two crossings), looked for
+    where g's own polynomial is not proved positive over the step (`_g_swing`, `_g_stays_up`). It
+    hands back when d <= 0 is near (d reaches 0 within a step, or the steps shrink towards that
+    branch point), where the ball's damping outruns the contact's own oscillation (`_series_damped`:
+    an over-damped ball creeps off with g hugging zero, and whether and where g crosses is decided at
+    the tolerance's level: DOP853 keeps its steps short there), or where a number is not finite.
     """
     S = np.empty((6, order + 1))
     aux = np.empty((7, order + 1))
@@ -682,9 +682,7 @@ def solve_one(
             steps += used
             h = min(h, h_next)
             if code == SERIES_SEPARATED:
-                for i in range(6):
-                    tmp[i] = y[i]
-                return _separated(tmp, t, t, v0, p, nfev, steps, out_state)
+                return _separated(y, t, t, v0, p, nfev, steps, out_state)
             approach = True
             if used > 0:
                 _rhs(y, p, f)

@@ -59,8 +59,8 @@ def series(y: np.ndarray, p: np.ndarray, order: int, S: np.ndarray, aux: np.ndar
     force is F = W G, W = d^b and G = k1 Z + c1 d', Z = d^(1+a-b) (G is the separation function g).
     The powers come from L = log d: d L' = d' gives k L_k = (k d_k - sum_j j L_j d_(k-j)) / d_0, and
     u = exp(q L) gives k u_k = q sum_j j L_j u_(k-j), j = 1..k. aux holds the coefficients of d, d',
-    W, Z, G and F in its rows 0-5 and j L_j in row 6 (G to order - 1: the contact's end is found on
-    its polynomial). Per order k: four sums of k - 1 terms, run side by side.
+    W, Z, G and F in its rows 0-5 and j L_j in row 6 (G to order - 1: its polynomial tells where the
+    contact may end within a step). Per order k: four sums of k - 1 terms, run side by side.
     """
     d0 = y[0] - y[2]
     if not d0 > 0.0:

@@ -324,6 +324,7 @@ def warm_up() -> None:
 
     compiled()
     imp = Impact(DEFAULT_PARAMS, 60.8, 1250.0)
-    for series in (0, SERIES_ORDER):  # DOP853 throughout, and the curve's series path
-        solve_general(imp, 1e-6, compiled(), series) if series else solve(imp, rtol=1e-6)
-        solve_batch([imp], rtol=1e-6, series=series)
+    solve(imp, rtol=1e-6)
+    solve_batch([imp], rtol=1e-6)
+    solve_series(imp, rtol=1e-6)  # the curve's series path
+    solve_batch([imp], rtol=1e-6, series=SERIES_ORDER)
