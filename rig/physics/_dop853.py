@@ -132,6 +132,7 @@ _rhs = _inline(model.rhs)
 _rhs_free = _inline(model.rhs_free)
 _gfun = _inline(model.gfun)
 _gdot = _inline(model.gdot)
+_g_and_rate = _inline(model.g_and_rate)
 _damping_rate = _inline(model.damping_rate)
 g_cannot_rise = _inline(model.g_cannot_rise)
 _force_escape_time = _inline(model.force_escape_time)
@@ -141,7 +142,7 @@ _series_damped = _inline(model.series_damped)
 # numba's cache of this module's functions is keyed on this file's text alone, not on the
 # _kernel_model they inline: that file's text is pinned here, so an edit there must change this
 # line too, which renews the cache (the kernel refuses to load until then).
-MODEL_DIGEST = "47c0dbaa8536210532e3331cc5e412fc00961da363034dd1a0dc00872f54c78a"
+MODEL_DIGEST = "6b5a578a9ef0ce7873653dd1413ea7be365d6a9a0edddae4770846df9b2d9875"
 check_digest(model, MODEL_DIGEST, Path(__file__).name)
 
 
@@ -195,8 +196,20 @@ def _g_at(
 
 
 @nb.njit(cache=True)
-def _minimum(y: np.ndarray, F: np.ndarray, p: np.ndarray, tmp: np.ndarray) -> tuple:
-    """Golden-section search for the minimum of g on the step's dense output: (x, g)."""
+def dip_width(rtol: float) -> float:
+    """The bracket (a fraction of the step) at which `_minimum` stops: sqrt(rtol), at most 1e-3.
+
+    Within a bracket w wide of the minimum, g exceeds its least value by at most g'' (w h)^2 / 2,
+    which is w^2 / 2 of g's swing over the step where g'' h^2 is that swing (g on the dense output of
+    one step): a dip the search stops short of is shallower than rtol / 2 of that swing, below what
+    the dense output holds g to. A point at or below zero ends the search at once, whatever w."""
+    return min(1e-3, math.sqrt(rtol))
+
+
+@nb.njit(cache=True)
+def _minimum(y: np.ndarray, F: np.ndarray, p: np.ndarray, tmp: np.ndarray, width: float) -> tuple:
+    """Golden-section search for the minimum of g on the step's dense output, to a bracket `width`
+    wide (`dip_width`), or to the first point where g <= 0: (x, g)."""
     n = _moving(p)
     invphi = 0.6180339887498949
     a = 0.0
@@ -226,7 +239,7 @@ def _minimum(y: np.ndarray, F: np.ndarray, p: np.ndarray, tmp: np.ndarray) -> tu
             d = a + invphi * (b - a)
             _interpolate(y, F, d, tmp, n)
             gd = _gfun(tmp, p)
-        if b - a < 1e-12:
+        if b - a < width:
             break
     if gc < gd:
         return c, gc
@@ -583,6 +596,7 @@ def solve_one(
     _rhs(y, p, f)
     nfev = 1
     kappa = min(1.0, (40320.0 * rtol) ** 0.125)
+    width = dip_width(rtol)
     t = 0.0
     h = 1e-4 * length / v0
     g_old = _gfun(y, p)
@@ -629,16 +643,13 @@ def solve_one(
             continue
         # accepted step
         steps += 1
-        g_new = _gfun(ynew, p)
+        g_new, gd_new = _g_and_rate(ynew, fnew, p)
         crossed = g_old > 0.0 and g_new <= 0.0
         dip = False
-        gd_new = math.nan
         if not crossed and g_old > 0.0:
             if math.isnan(gd_old):
                 gd_old = _gdot(y, f, p)
-            if gd_old < 0.0:
-                gd_new = _gdot(ynew, fnew, p)
-                dip = gd_new > 0.0
+            dip = gd_old < 0.0 and gd_new > 0.0
         if (crossed or dip) and h * _damping_rate(y, p) > kappa:
             # contact may end inside this step, whose dense output would not resolve the decay
             # of the relative motion (rate lam): retake it short enough that it does
@@ -650,7 +661,7 @@ def solve_one(
             # step's ends (a brief separation). Look inside on the dense output.
             _dense(y, ynew, f, fnew, h, p, K, tmp, F)
             nfev += _NX - _NS - 1
-            x_min, g_min = _minimum(y, F, p, tmp)
+            x_min, g_min = _minimum(y, F, p, tmp, width)
             if g_min <= 0.0:
                 crossed = True
                 g_new = g_min

@@ -176,6 +176,20 @@ def gdot(y: np.ndarray, f: np.ndarray, p: np.ndarray) -> float:
     return spring + p[2] * (f[1] - f[3])
 
 
+def g_and_rate(y: np.ndarray, f: np.ndarray, p: np.ndarray) -> tuple[float, float]:
+    """(gfun(y, p), gdot(y, f, p)), to the last bit, with the one power of |d| they share."""
+    d = y[0] - y[2]
+    ad = abs(d)
+    dd = y[1] - y[3]
+    spring = 0.0
+    rate = 0.0
+    if ad > 0.0:
+        q = ad ** (p[3] - p[4])
+        spring = p[1] * d * q
+        rate = p[1] * (1.0 + p[3] - p[4]) * q * dd
+    return spring + p[2] * (y[1] - y[3]), rate + p[2] * (f[1] - f[3])
+
+
 def damping_rate(y: np.ndarray, p: np.ndarray) -> float:
     """Decay rate of the relative motion under the ball's damping, c1 |d|^b / (reduced mass), where it
     exceeds twice the contact's own rate (0 elsewhere).

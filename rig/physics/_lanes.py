@@ -310,10 +310,10 @@ def _error(lanes: _Lanes, K: np.ndarray, ynew: np.ndarray, rtol: float) -> np.nd
 _INVPHI = 0.6180339887498949
 
 
-def _minima(y: np.ndarray, F: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _minima(y: np.ndarray, F: np.ndarray, p: np.ndarray, width: float) -> tuple[np.ndarray, np.ndarray]:
     """Where g is least on each lane's dense output, and g there: the kernel's golden-section
     `_minimum`, each lane stopping where the kernel's would (at a point where g <= 0, or when its
-    bracket is below 1e-12)."""
+    bracket is below `width`, the kernel's `dip_width`)."""
     m = y.shape[1]
     lo, hi = np.zeros(m), np.ones(m)
     c = hi - _INVPHI * (hi - lo)
@@ -338,7 +338,7 @@ def _minima(y: np.ndarray, F: np.ndarray, p: np.ndarray) -> tuple[np.ndarray, np
         x = np.where(left, c[L], d[L])
         g = _gfun(_interpolate(y[:, L], F[:, :, L], x), p[:, L])
         gc[a], gd[b] = g[left], g[~left]
-        closed = hi[L] - lo[L] < 1e-12
+        closed = hi[L] - lo[L] < width
         settled.append(L[closed])
         live = L[~closed]
         if not live.size:
@@ -412,7 +412,7 @@ def _step(lanes: _Lanes, rtol: float, kappa: float, ends: _Ends) -> np.ndarray:
             in_dip = np.flatnonzero(dip[rows])
             if in_dip.size:  # g has a minimum inside the step: contact ends there if it reaches 0
                 r = rows[in_dip]
-                x_min, g_min = _minima(y[:, r], F[:, :, in_dip], model.p[:, r])
+                x_min, g_min = _minima(y[:, r], F[:, :, in_dip], model.p[:, r], _k.dip_width(rtol))
                 low = g_min <= 0.0
                 crossed[rows[in_dip[low]]] = True
                 g_new[rows[in_dip[low]]] = g_min[low]

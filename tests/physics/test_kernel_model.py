@@ -25,6 +25,7 @@ SHARED = {
     "_rhs_free": "rhs_free",
     "_gfun": "gfun",
     "_gdot": "gdot",
+    "_g_and_rate": "g_and_rate",
     "_damping_rate": "damping_rate",
     "g_cannot_rise": "g_cannot_rise",
     "_force_escape_time": "force_escape_time",
@@ -131,6 +132,22 @@ def test_g_its_rate_and_the_damping_rate_are_the_references(imp: Impact, unit: l
         ) / (2.0 * h)
         size = equations.contact_scale(imp) / imp.time_scale() + abs(diff)
         assert _kernel_model.gdot(full, f, p) == pytest.approx(diff, abs=1e-6 * size)
+
+
+@given(imp=impacts, unit=units, near=st.booleans())
+def test_g_and_its_rate_together_are_gfun_and_gdot_to_the_last_bit(
+    imp: Impact, unit: list[float], near: bool
+) -> None:
+    """The kernel's step takes g and g' at its end from `g_and_rate` (one power of |d| for both):
+    the very numbers of gfun and gdot, on either side of d = 0, at it, and just off it."""
+    _, full = states(imp, unit)
+    if near:
+        full[0] = full[2] + math.ldexp(unit[0], -1060)  # |d| subnormal, or 0
+    p = fast.kernel_params(imp)
+    f = np.zeros(6)
+    _kernel_model.rhs(full, p, f)
+    g, rate = _kernel_model.g_and_rate(full, f, p)
+    assert repr((g, rate)) == repr((_kernel_model.gfun(full, p), _kernel_model.gdot(full, f, p)))
 
 
 @given(imp=impacts, unit=units)

@@ -18,7 +18,7 @@ from rig.core.errors import SolverError
 from rig.physics import fast
 from rig.physics.equations import Impact
 from rig.physics.params import DEFAULT_PARAMS, CollisionParams
-from rig.physics.reference import CollisionResult
+from rig.physics.reference import CollisionResult, bounded_cor
 
 
 def log_uniform(lo: float, hi: float) -> st.SearchStrategy[float]:
@@ -102,13 +102,15 @@ def test_a_failure_reads_the_same_on_both_paths(monkeypatch: pytest.MonkeyPatch)
 def test_the_lean_result_is_the_dataclass_built_by_its_own_init() -> None:
     """`fast.solve`'s result is built without CollisionResult.__init__ (for speed): it must be the
     object that __init__ builds, field for field and in order, still frozen, with its own energy dict."""
-    args = (0.5, 1e-3, -30.4, (1.0, -30.4, 2.0, 3.0, 0.0, 0.0), 295, 3e-8)
-    built = fast._single_contact(*args)
-    cor, tc, v, state, nfev, rtol = args
-    init = CollisionResult(cor, tc, v, state, nfev, "rig-DOP853", rtol, {}, 1)
-    assert type(built) is CollisionResult
-    assert list(vars(built).items()) == list(vars(init).items()) and built == init
+    state = (1.0, -30.4, 2.0, 3.0, 0.0, 0.0)
+    for cor in (0.5, -0.25, 1.0 + 1e-15, -1.0 - 1e-15, math.inf, -math.inf, math.nan, -0.0):
+        out = (cor, 1e-3, 295, fast.kernel.STATUS_OK, *state)
+        built = fast._single_contact(out, 3e-8)
+        init = CollisionResult(bounded_cor(cor), 1e-3, -30.4, state, 295, "rig-DOP853", 3e-8, {}, 1)
+        assert type(built) is CollisionResult
+        assert list(vars(built).items()) == list(vars(init).items()), cor
+        assert repr(built.cor) == repr(init.cor), cor  # the clip as bounded_cor's: -0.0 kept, NaN to -1
     with pytest.raises(dataclasses.FrozenInstanceError):
         built.cor = 0.4  # type: ignore[misc]
     assert dataclasses.replace(built, cor=0.4).cor == 0.4
-    assert built.energy is not fast._single_contact(*args).energy
+    assert built.energy is not fast._single_contact(out, 3e-8).energy

@@ -1,0 +1,83 @@
+"""The kernel's search for a dip of g inside a step (`_dop853._minimum`) stops once its bracket is
+`dip_width(rtol)` wide (sqrt(rtol), at most 1e-3 of the step), no longer at 1e-12. Its promise: a dip
+deeper than max|g''| w^2 / 2 below zero (x in step fractions) is still found, and what the search
+finds is what the search to 1e-12 finds. Checked against that search, on dense outputs of random
+shape whose g has a minimum inside the step (g falling at its start and rising at its end), as in
+the steps the kernel searches, with the largest |g''| measured on a fine grid."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import example, given, settings
+from hypothesis import strategies as st
+
+from rig.physics import _interpreted
+
+K = _interpreted.load()  # the kernel's source, run by the interpreter (the compiled one is the same)
+C1 = 5000.0
+GRID = np.linspace(0.0, 1.0, 4001)
+
+
+def step_with(coefficients: list[float], start: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(y, F, p) of a step whose g is c1 v1(x): no spring (k1 = 0), a clamped flexible barrel at
+    rest, the ball's speed on the dense output's 7 coefficients."""
+    p = np.array([0.145, 0.0, C1, 0.65, 0.52, 0.09, 5.6e3, 0.0, 0.0, 0.0, 0.0])
+    y = np.zeros(6)
+    y[1] = start
+    F = np.zeros((7, 6))
+    F[:, 1] = coefficients
+    return y, F, p
+
+
+def g_on(y: np.ndarray, F: np.ndarray, p: np.ndarray, x: np.ndarray) -> np.ndarray:
+    out = np.zeros(6)
+    values = []
+    for xi in x:
+        K._interpolate(y, F, float(xi), out, 4)
+        values.append(K._gfun(out, p))
+    return np.array(values)
+
+
+def test_the_width_is_the_square_root_of_the_tolerance_at_most_a_thousandth() -> None:
+    assert K.dip_width(1e-10) == pytest.approx(1e-5)
+    assert K.dip_width(3e-8) == pytest.approx(math.sqrt(3e-8))
+    assert K.dip_width(1e-2) == 1e-3
+
+
+@settings(max_examples=150, deadline=None)
+@given(
+    coefficients=st.lists(st.floats(-1.0, 1.0), min_size=7, max_size=7),
+    depth=st.floats(-3.0, 3.0),
+    rtol=st.sampled_from([1e-6, 3e-8, 1e-10, 1e-13]),
+)
+@example(coefficients=[0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0], depth=-1.0, rtol=1e-6)
+@example(coefficients=[0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0], depth=1.0, rtol=1e-6)
+def test_a_dip_deeper_than_the_widths_bound_is_found(
+    coefficients: list[float], depth: float, rtol: float
+) -> None:
+    width = K.dip_width(rtol)
+    # the dense output's form: x (F0 + (1 - x) (F1 + x (F2 + ...))); F0 = 0, F1 < 0 and F1 + F2 < 0:
+    # g falls at the step's start and rises at its end, a minimum inside (the kernel's dips)
+    c = [0.0, -0.05 - abs(coefficients[1]), -abs(coefficients[2]), *coefficients[3:]]
+    y, F, p = step_with(c, 0.0)
+    g = g_on(y, F, p, GRID)
+    x = GRID[1] - GRID[0]
+    assert g[1] < g[0] and g[-1] > g[-2]
+    curvature = float(np.max(np.abs(np.diff(g, 2)))) / x**2
+    bound = 0.5 * curvature * width**2
+    # shift the speed so that g's least value on the grid sits `depth` bounds from zero
+    y[1] = -(float(np.min(g)) + depth * max(bound, 1e-300)) / C1
+    tmp = np.zeros(6)
+    x_fine, g_fine = K._minimum(y, F, p, tmp, 1e-12)
+    x_coarse, g_coarse = K._minimum(y, F, p, tmp, width)
+    assert g_coarse >= g_fine or g_coarse <= 0.0  # the fine search goes on from where the coarse stopped
+    if g_coarse <= 0.0:
+        assert g_fine <= 0.0  # a point at or below zero: the fine search finds one too
+    if g_fine < -1.5 * bound:
+        assert g_coarse <= 0.0, (g_fine, g_coarse, bound)  # a dip deeper than the bound: found
+    if g_coarse > 0.0:  # stopped short: within the bound of where the fine search ends
+        assert g_coarse - g_fine <= 1.5 * bound + 1e-12 * float(np.ptp(g)), (g_coarse, g_fine, bound)
+    assert 0.0 <= x_coarse <= 1.0 and 0.0 <= x_fine <= 1.0
