@@ -133,6 +133,7 @@ _rhs_free = _inline(model.rhs_free)
 _gfun = _inline(model.gfun)
 _gdot = _inline(model.gdot)
 _g_and_rate = _inline(model.g_and_rate)
+_g_clear = _inline(model.g_clear)
 _damping_rate = _inline(model.damping_rate)
 g_cannot_rise = _inline(model.g_cannot_rise)
 _force_escape_time = _inline(model.force_escape_time)
@@ -142,7 +143,7 @@ _series_damped = _inline(model.series_damped)
 # numba's cache of this module's functions is keyed on this file's text alone, not on the
 # _kernel_model they inline: that file's text is pinned here, so an edit there must change this
 # line too, which renews the cache (the kernel refuses to load until then).
-MODEL_DIGEST = "6b5a578a9ef0ce7873653dd1413ea7be365d6a9a0edddae4770846df9b2d9875"
+MODEL_DIGEST = "bc0556bc6ef62ae56baf5baf55d78ef98993a41e2d8e593726d4e6403b963676"
 check_digest(model, MODEL_DIGEST, Path(__file__).name)
 
 
@@ -166,11 +167,10 @@ def _dense(
         F[0, i] = dy
         F[1, i] = h * f[i] - dy
         F[2, i] = 2.0 * dy - h * (fnew[i] + f[i])
-        for r in range(4):
-            acc = 0.0
-            for q in range(_D_START[r], _D_START[r + 1]):
-                acc += _D_VAL[q] * K[_D_COL[q], i]
-            F[3 + r, i] = h * acc
+    for r in range(4):
+        sums = _combine(K, _D_COL, _D_VAL, _D_START[r], _D_START[r + 1], n)
+        for i in range(n):
+            F[3 + r, i] = h * sums[i]
 
 
 @nb.njit(cache=True, inline="always")
@@ -193,6 +193,33 @@ def _g_at(
         for i in range(n):
             tmp[i] = _horner(S, i, order, x * h)
     return _gfun(tmp, p)
+
+
+@nb.njit(cache=True, inline="always")
+def _difference_range(y: np.ndarray, F: np.ndarray, i: int, j: int) -> tuple:
+    """(least, greatest, size) of state i - state j over the step's dense output, bounded through
+    its nested form y + x (F0 + (1 - x) (F1 + x (F2 + ...))): each factor x or 1 - x lies in
+    [0, 1]; size: the sum of the magnitudes the difference is computed from."""
+    lo = 0.0
+    hi = 0.0
+    size = abs(y[i]) + abs(y[j])
+    for k in range(6, -1, -1):
+        c = F[k, i] - F[k, j]
+        lo = min(0.0, lo + c)
+        hi = max(0.0, hi + c)
+        size += abs(F[k, i]) + abs(F[k, j])
+    base = y[i] - y[j]
+    return base + lo, base + hi, size
+
+
+@nb.njit(cache=True)
+def _dense_clear(y: np.ndarray, F: np.ndarray, p: np.ndarray) -> bool:
+    """True when g > 0 all over the step's dense output, shown from the ranges of d and d' on it
+    (`_difference_range`, `_kernel_model.g_clear`): no dip of the step can reach zero, and the
+    search for one (`_minimum`), which would find g > 0, is not needed."""
+    d_lo, _, d_size = _difference_range(y, F, 0, 2)
+    v_lo, _, v_size = _difference_range(y, F, 1, 3)
+    return _g_clear(d_lo, d_size, v_lo, v_size, p)
 
 
 @nb.njit(cache=True)
@@ -365,6 +392,120 @@ def _combine(K: np.ndarray, cols: np.ndarray, vals: np.ndarray, lo: int, hi: int
                 s4 += c * K[j, 4]
                 s5 += c * K[j, 5]
     return s0, s1, s2, s3, s4, s5
+
+
+@nb.njit(cache=True, inline="always")
+def _step_sums(K: np.ndarray, n: int) -> tuple:
+    """The step's three sums over its stages: the solution's (B) and the two error estimates' (E5,
+    E3), each as `_combine`'s."""
+    return (
+        _combine(K, _B_COL, _B_VAL, 0, _B_COL.size, n),
+        _combine(K, _E_COL, _E5_VAL, 0, _E_COL.size, n),
+        _combine(K, _E_COL, _E3_VAL, 0, _E_COL.size, n),
+    )
+
+
+if hasattr(nb, "__version__"):  # numba: the compiled kernel's sums, in vectors
+    from llvmlite import ir  # type: ignore[import-untyped]
+    from numba import types
+    from numba.core import cgutils
+    from numba.extending import intrinsic
+
+    if not (np.array_equal(_B_COL, _E_COL) and _NS not in _E_COL):
+        raise ImportError(
+            "DOP853's tables: B and E no longer share their stages; _vector_sums3 needs them to"
+        )
+
+    def _sums_codegen(m: int):
+        """LLVM IR of `m` of `_combine`'s sums over one table's columns (m tables of values): each
+        term's first four states as one vector of four, the last two (n > 4) as one of two, the
+        same products added in the same order lane by lane, so the same numbers to the last bit.
+        The last term, the stage written last, is read and added in scalars: a vector load of
+        what scalar stores have just written waits until they reach the cache. The first four
+        states are summed for every n: a state that does not move has K = +-0 there, and
+        y + h * (+-0) leaves its 0 as it was. Needs hi > lo."""
+
+        def codegen(context, builder, signature, args):
+            k_arg, cols_arg, *val_args, lo_arg, hi_arg, n_arg = args
+            k_ty, cols_ty, *val_tys, lo_ty, hi_ty, n_ty = signature.args
+            karr = context.make_array(k_ty)(context, builder, k_arg)
+            carr = context.make_array(cols_ty)(context, builder, cols_arg)
+            varrs = [
+                context.make_array(t)(context, builder, v) for t, v in zip(val_tys, val_args, strict=True)
+            ]
+            start = context.cast(builder, lo_arg, lo_ty, types.intp)
+            last = builder.sub(context.cast(builder, hi_arg, hi_ty, types.intp), start.type(1))
+            wide = builder.icmp_signed(">", context.cast(builder, n_arg, n_ty, types.intp), start.type(4))
+            f64, i32 = ir.DoubleType(), ir.IntType(32)
+            v4, v2 = ir.VectorType(f64, 4), ir.VectorType(f64, 2)
+            acc4 = [cgutils.alloca_once_value(builder, ir.Constant(v4, [0.0] * 4)) for _ in range(m)]
+            acc2 = [cgutils.alloca_once_value(builder, ir.Constant(v2, [0.0] * 2)) for _ in range(m)]
+            shape = cgutils.unpack_tuple(builder, karr.shape)
+            strides = cgutils.unpack_tuple(builder, karr.strides)
+
+            def row(q):
+                j = builder.load(cgutils.gep(builder, carr.data, q))
+                return cgutils.get_item_pointer2(
+                    context, builder, karr.data, shape, strides, "C", [j, start.type(0)]
+                )
+
+            def splat(c, vector):
+                out = ir.Constant(vector, ir.Undefined)
+                for lane in range(vector.count):
+                    out = builder.insert_element(out, c, i32(lane))
+                return out
+
+            with cgutils.for_range_slice(builder, start, last, start.type(1)) as (q, _):
+                at = row(q)
+                coefficients = [builder.load(cgutils.gep(builder, v.data, q)) for v in varrs]
+                four = builder.load(builder.bitcast(at, v4.as_pointer()), align=8)
+                for c, acc in zip(coefficients, acc4, strict=True):
+                    builder.store(builder.fadd(builder.load(acc), builder.fmul(splat(c, v4), four)), acc)
+                with builder.if_then(wide):
+                    two = builder.load(builder.bitcast(cgutils.gep(builder, at, 4), v2.as_pointer()), align=8)
+                    for c, acc in zip(coefficients, acc2, strict=True):
+                        builder.store(builder.fadd(builder.load(acc), builder.fmul(splat(c, v2), two)), acc)
+            at = row(last)
+            terms = [builder.load(cgutils.gep(builder, at, i)) for i in range(6)]
+            sums = []
+            for v, a4, a2 in zip(varrs, acc4, acc2, strict=True):
+                c = builder.load(cgutils.gep(builder, v.data, last))
+                four, two = builder.load(a4), builder.load(a2)
+                lanes = [builder.extract_element(four, i32(i)) for i in range(4)]
+                lanes += [builder.extract_element(two, i32(i)) for i in range(2)]
+                for i in range(6):
+                    total = builder.fadd(lanes[i], builder.fmul(c, terms[i]))
+                    sums.append(total if i < 4 else builder.select(wide, total, lanes[i]))
+            return context.make_tuple(builder, signature.return_type, sums)
+
+        return codegen
+
+    @intrinsic
+    def _vector_sums(typingctx, K, cols, vals, lo, hi, n):
+        """`_combine`'s sums (`_sums_codegen`, one table of values)."""
+        return types.UniTuple(types.float64, 6)(K, cols, vals, lo, hi, n), _sums_codegen(1)
+
+    @intrinsic
+    def _vector_sums3(typingctx, K, cols, v1, v2, v3, lo, hi, n):
+        """Three of `_combine`'s sums over the same columns, in one pass (`_sums_codegen`)."""
+        return types.UniTuple(types.float64, 18)(K, cols, v1, v2, v3, lo, hi, n), _sums_codegen(3)
+
+    @nb.njit(cache=True, inline="always")
+    def _combine(K: np.ndarray, cols: np.ndarray, vals: np.ndarray, lo: int, hi: int, n: int) -> tuple:
+        """`_combine` above, compiled: the same sums, in vectors (`_vector_sums`)."""
+        if hi <= lo:
+            return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        return _vector_sums(K, cols, vals, lo, hi, n)  # type: ignore[call-arg]
+
+    @nb.njit(cache=True, inline="always")
+    def _step_sums(K: np.ndarray, n: int) -> tuple:
+        """`_step_sums` above, compiled: the three sums in one pass over the stages (`_vector_sums3`)."""
+        r: tuple[float, ...] = _vector_sums3(K, _B_COL, _B_VAL, _E5_VAL, _E3_VAL, 0, _B_COL.size, n)  # type: ignore[call-arg]
+        return (
+            (r[0], r[1], r[2], r[3], r[4], r[5]),
+            (r[6], r[7], r[8], r[9], r[10], r[11]),
+            (r[12], r[13], r[14], r[15], r[16], r[17]),
+        )
 
 
 @nb.njit(cache=True, inline="always")
@@ -597,6 +738,7 @@ def solve_one(
     nfev = 1
     kappa = min(1.0, (40320.0 * rtol) ** 0.125)
     width = dip_width(rtol)
+    t_unit = length / v0
     t = 0.0
     h = 1e-4 * length / v0
     g_old = _gfun(y, p)
@@ -610,20 +752,19 @@ def solve_one(
             return math.nan, t, nfev, steps, STATUS_MAX_STEPS
         if t >= t_max:
             return math.nan, t, nfev, steps, STATUS_TIME_LIMIT
-        if h < 1e-14 * max(t, length / v0):
+        if h < 1e-14 * max(t, t_unit):
             return math.nan, t, nfev, steps, STATUS_STEP_UNDERFLOW
         if approach and f[0] < f[2]:
             h = min(h, _SERIES_APPROACH * (y[0] - y[2]) / (f[2] - f[0]))
         for i in range(n):
             K[0, i] = f[i]
         _stages(y, h, p, K, tmp, 1, _NS, n)
-        _advance(y, h, _combine(K, _B_COL, _B_VAL, 0, _B_COL.size, n), ynew)
+        sums, a5, a3 = _step_sums(K, n)
+        _advance(y, h, sums, ynew)
         _rhs(ynew, p, fnew)
         for i in range(n):
             K[_NS, i] = fnew[i]
         nfev += _NS
-        a5 = _combine(K, _E_COL, _E5_VAL, 0, _E_COL.size, n)
-        a3 = _combine(K, _E_COL, _E3_VAL, 0, _E_COL.size, n)
         e5 = 0.0
         e3 = 0.0
         for i in range(n):
@@ -661,7 +802,9 @@ def solve_one(
             # step's ends (a brief separation). Look inside on the dense output.
             _dense(y, ynew, f, fnew, h, p, K, tmp, F)
             nfev += _NX - _NS - 1
-            x_min, g_min = _minimum(y, F, p, tmp, width)
+            x_min, g_min = 1.0, math.inf  # where g > 0 is shown over the whole step, no search
+            if not _dense_clear(y, F, p):
+                x_min, g_min = _minimum(y, F, p, tmp, width)
             if g_min <= 0.0:
                 crossed = True
                 g_new = g_min

@@ -190,6 +190,18 @@ def g_and_rate(y: np.ndarray, f: np.ndarray, p: np.ndarray) -> tuple[float, floa
     return spring + p[2] * (y[1] - y[3]), rate + p[2] * (f[1] - f[3])
 
 
+def g_clear(d_lo: float, d_size: float, v_lo: float, v_size: float, p: np.ndarray) -> bool:
+    """True when g > 0, by a margin far above rounding, at every state with d >= d_lo and d' >= v_lo:
+    g = k1 d^(1+a-b) + c1 d' rises with both where 1 + a - b >= 0 (k1, c1 >= 0). d_size and v_size:
+    the sizes of the numbers d and d' are computed from, whose rounding (~1e-15 of them) the
+    margins (a millionth) leave far behind."""
+    expo = 1.0 + p[3] - p[4]
+    if not (expo >= 0.0 and p[1] >= 0.0 and p[2] >= 0.0 and d_lo > 1e-6 * d_size):
+        return False
+    spring = p[1] * d_lo**expo
+    return spring + p[2] * v_lo > 1e-6 * (spring + p[2] * v_size)
+
+
 def damping_rate(y: np.ndarray, p: np.ndarray) -> float:
     """Decay rate of the relative motion under the ball's damping, c1 |d|^b / (reduced mass), where it
     exceeds twice the contact's own rate (0 elsewhere).

@@ -81,3 +81,72 @@ def test_a_dip_deeper_than_the_widths_bound_is_found(
     if g_coarse > 0.0:  # stopped short: within the bound of where the fine search ends
         assert g_coarse - g_fine <= 1.5 * bound + 1e-12 * float(np.ptp(g)), (g_coarse, g_fine, bound)
     assert 0.0 <= x_coarse <= 1.0 and 0.0 <= x_fine <= 1.0
+
+
+@st.composite
+def dense_steps(draw: st.DrawFn) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A step's dense output in contact, scaled as the paper's ball at 60.8 m/s (d ~ 1e-2 m,
+    d' ~ 10 m/s), with random exponents and damping: from far above g = 0 to grazing it."""
+    a, b = draw(st.floats(0.0, 1.0)), draw(st.floats(0.0, 1.0))
+    c1 = draw(st.sampled_from([0.0, 5000.0]) | st.floats(1.0, 1e5))
+    p = np.array([0.145, 6e7, c1, a, b, 0.09, 5.6e3, 0.0, 0.0, 0.0, 0.0])
+    y = np.zeros(6)
+    y[0] = draw(st.floats(0.0, 0.05))
+    y[2] = y[0] - draw(st.floats(-1e-3, 1.4e-2))  # d at the start
+    y[1] = draw(st.floats(-60.0, 60.0))
+    y[3] = y[1] - draw(st.floats(-60.0, 60.0))  # d' at the start
+    scale = draw(st.sampled_from([1e-6, 1e-4, 1e-2, 1.0]))
+    F = np.zeros((7, 6))
+    for i, size in enumerate((1e-3, 10.0, 1e-3, 10.0)):
+        F[:, i] = [scale * size * draw(st.floats(-1.0, 1.0)) for _ in range(7)]
+    return y, F, p
+
+
+@settings(max_examples=400, deadline=None)
+@given(step=dense_steps())
+def test_a_step_shown_clear_has_g_above_zero_all_over_its_dense_output(
+    step: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> None:
+    """`_dense_clear` spares the dip search where g > 0 is shown over the whole step; it must
+    never say so of a step whose g reaches zero: not on a fine grid, not where the search goes."""
+    y, F, p = step
+    if not K._dense_clear(y, F, p):
+        return
+    g = g_on(y, F, p, GRID)
+    assert np.all(g > 0.0), float(np.min(g))
+    assert K._minimum(y, F, p, np.zeros(6), 1e-12)[1] > 0.0
+
+
+def test_the_paper_balls_dips_are_shown_clear_and_a_grazing_one_is_not() -> None:
+    """The shortcut must pay where it is meant to: the wiggles of g far above zero that the paper's
+    ball meets at 800-2000 Hz (read off the kernel's own dip steps) are shown clear; a step whose g
+    grazes zero is left to the search."""
+    from rig.physics import fast
+    from rig.physics.equations import Impact
+    from rig.physics.params import DEFAULT_PARAMS
+    from rig.physics.reference import _time_limit
+
+    seen: dict[float, list[bool]] = {}
+    clear = K._dense_clear
+
+    def watch(y: np.ndarray, F: np.ndarray, p: np.ndarray) -> bool:
+        shown = bool(clear(y, F, p))
+        seen.setdefault(hoop, []).append(shown)
+        return shown
+
+    K._dense_clear = watch
+    try:
+        for hoop in (800.0, 1250.0, 2000.0):
+            imp = Impact(DEFAULT_PARAMS, 60.8, hoop)
+            scale = DEFAULT_PARAMS.compression_scale(60.8)
+            args = (fast.kernel_params(imp), 60.8, scale, 1e-8, imp.n_states, _time_limit(imp), 20_000)
+            K.solve_one(*args, np.zeros(6), 0)
+    finally:
+        K._dense_clear = clear
+    assert sorted(seen) == [800.0, 1250.0, 2000.0] and all(all(s) for s in seen.values()), seen
+    # g = c1 v1 on the dense output v1 = y1 - x (1 - x), least at x = 1/2: grazing zero from above
+    # or below is left to the search; clear by far (the bound, y1 - 1, above zero) is shown
+    for least, shown in ((1e-9, False), (-1e-9, False), (1.25, True)):
+        y, F, p = step_with([0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0], 0.25 + least)
+        y[0] = 0.01  # d > 0
+        assert bool(K._dense_clear(y, F, p)) is shown, least
