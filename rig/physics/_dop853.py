@@ -2,7 +2,8 @@
 
 The same method as scipy's DOP853 (its coefficient tables are read from scipy, not copied; see
 `_scipy_tables`, which does so without loading the rest of scipy.integrate), written as
-scalar loops over a fixed 6-state system so that one solve costs tens of microseconds:
+scalar loops over a fixed 6-state system (the stage sums in vectors: `_vector_sums`) so that one
+solve costs tens of microseconds:
 - per-component absolute tolerance rtol * scale (compression scale for positions, v0 for speeds);
 - contact ends where g = F/|d|^b falls through zero, located on the 7th-order dense output;
 - status codes instead of exceptions (the Python wrapper turns them into SolverError).
@@ -11,7 +12,7 @@ The model it integrates (right-hand sides, g, the re-contact bounds, over the pa
 and the states x1, v1, x2, v2, x3, v3) is `_kernel_model`'s, compiled inline here; this module is
 the method. Loaded again as the interpreted kernel (`_interpreted`), it runs those same functions.
 
-Why one module of ~450 lines: it is one algorithm (step, dense output, end-of-contact location,
+Why one module of ~1000 lines: it is one algorithm (step, dense output, end-of-contact location,
 re-contact search, driver loop) sharing the coefficient tables, the state layout and the status
 codes; split, each part would need all of them and be read without the others.
 """
