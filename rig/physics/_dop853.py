@@ -144,7 +144,7 @@ _series_damped = _inline(model.series_damped)
 # numba's cache of this module's functions is keyed on this file's text alone, not on the
 # _kernel_model they inline: that file's text is pinned here, so an edit there must change this
 # line too, which renews the cache (the kernel refuses to load until then).
-MODEL_DIGEST = "bc0556bc6ef62ae56baf5baf55d78ef98993a41e2d8e593726d4e6403b963676"
+MODEL_DIGEST = "6831aa9e4053091286fed655f457a7818b4dd8e2da796770db696759c13dc721"
 check_digest(model, MODEL_DIGEST, Path(__file__).name)
 
 
@@ -215,9 +215,10 @@ def _difference_range(y: np.ndarray, F: np.ndarray, i: int, j: int) -> tuple:
 
 @nb.njit(cache=True)
 def _dense_clear(y: np.ndarray, F: np.ndarray, p: np.ndarray) -> bool:
-    """True when g > 0 all over the step's dense output, shown from the ranges of d and d' on it
-    (`_difference_range`, `_kernel_model.g_clear`): no dip of the step can reach zero, and the
-    search for one (`_minimum`), which would find g > 0, is not needed."""
+    """True when no point of the step's dense output has g <= 0, shown from the ranges of d and d'
+    on it (`_difference_range`, `_kernel_model.g_clear`): no dip of the step can reach zero, and
+    the search for one (`_minimum`), which would find none, is not needed (g can be NaN there,
+    0 * inf with k1 = 0 and a subnormal d, which is not <= 0 either)."""
     d_lo, _, d_size = _difference_range(y, F, 0, 2)
     v_lo, _, v_size = _difference_range(y, F, 1, 3)
     return _g_clear(d_lo, d_size, v_lo, v_size, p)
@@ -227,10 +228,14 @@ def _dense_clear(y: np.ndarray, F: np.ndarray, p: np.ndarray) -> bool:
 def dip_width(rtol: float) -> float:
     """The bracket (a fraction of the step) at which `_minimum` stops: sqrt(rtol), at most 1e-3.
 
-    Within a bracket w wide of the minimum, g exceeds its least value by at most g'' (w h)^2 / 2,
-    which is w^2 / 2 of g's swing over the step where g'' h^2 is that swing (g on the dense output of
-    one step): a dip the search stops short of is shallower than rtol / 2 of that swing, below what
-    the dense output holds g to. A point at or below zero ends the search at once, whatever w."""
+    Within a bracket w wide of the minimum, g exceeds its least value by at most max|g''| (w h)^2 / 2
+    (tests/physics/test_dip_width.py holds the search to that): a dip the search stops short of is
+    shallower than rtol / 2 of g's swing over the step where g'' h^2 is about that swing, below what
+    the dense output holds g to (a rule of thumb: on a 7th-degree dense output |g''| h^2 can be
+    hundreds of swings). A point at or below zero ends the search at once, whatever w. An outside
+    review found results parting from the 1e-12 search's only on knife edges (parameter bands of
+    1e-8 to 1e-13 relative, against the 1e-6 by which rtol alone moves them), where the 1e-12 search
+    had found a separation that tighter tolerances and scipy do not."""
     return min(1e-3, math.sqrt(rtol))
 
 
@@ -410,6 +415,7 @@ if hasattr(nb, "__version__"):  # numba: the compiled kernel's sums, in vectors
     from llvmlite import ir  # type: ignore[import-untyped]
     from numba import types
     from numba.core import cgutils
+    from numba.core.errors import TypingError
     from numba.extending import intrinsic
 
     if not (np.array_equal(_B_COL, _E_COL) and _NS not in _E_COL):
@@ -481,19 +487,38 @@ if hasattr(nb, "__version__"):  # numba: the compiled kernel's sums, in vectors
 
         return codegen
 
+    def _check_layout(K, cols, *vals):
+        """The codegen reads K as C-ordered rows of float64 and the table as C-ordered arrays: any
+        other layout is refused when the caller is compiled (its row count of 6 is checked at run
+        time, by `_combine` and `_step_sums`)."""
+
+        def c_array(t, dtype, ndim):
+            return isinstance(t, types.Array) and t.dtype == dtype and t.ndim == ndim and t.layout == "C"
+
+        if not (
+            c_array(K, types.float64, 2)
+            and c_array(cols, types.int64, 1)
+            and all(c_array(v, types.float64, 1) for v in vals)
+        ):
+            raise TypingError(f"_vector_sums needs C-ordered float64 K (2-d), int64 columns: got {K}, {cols}")
+
     @intrinsic
     def _vector_sums(typingctx, K, cols, vals, lo, hi, n):
         """`_combine`'s sums (`_sums_codegen`, one table of values)."""
+        _check_layout(K, cols, vals)
         return types.UniTuple(types.float64, 6)(K, cols, vals, lo, hi, n), _sums_codegen(1)
 
     @intrinsic
     def _vector_sums3(typingctx, K, cols, v1, v2, v3, lo, hi, n):
         """Three of `_combine`'s sums over the same columns, in one pass (`_sums_codegen`)."""
+        _check_layout(K, cols, v1, v2, v3)
         return types.UniTuple(types.float64, 18)(K, cols, v1, v2, v3, lo, hi, n), _sums_codegen(3)
 
     @nb.njit(cache=True, inline="always")
     def _combine(K: np.ndarray, cols: np.ndarray, vals: np.ndarray, lo: int, hi: int, n: int) -> tuple:
         """`_combine` above, compiled: the same sums, in vectors (`_vector_sums`)."""
+        if K.shape[1] != 6:
+            raise ValueError("_combine: K must have the kernel's 6 states a row")
         if hi <= lo:
             return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
         return _vector_sums(K, cols, vals, lo, hi, n)  # type: ignore[call-arg]
@@ -501,6 +526,8 @@ if hasattr(nb, "__version__"):  # numba: the compiled kernel's sums, in vectors
     @nb.njit(cache=True, inline="always")
     def _step_sums(K: np.ndarray, n: int) -> tuple:
         """`_step_sums` above, compiled: the three sums in one pass over the stages (`_vector_sums3`)."""
+        if K.shape[1] != 6:
+            raise ValueError("_step_sums: K must have the kernel's 6 states a row")
         r: tuple[float, ...] = _vector_sums3(K, _B_COL, _B_VAL, _E5_VAL, _E3_VAL, 0, _B_COL.size, n)  # type: ignore[call-arg]
         return (
             (r[0], r[1], r[2], r[3], r[4], r[5]),
@@ -770,8 +797,10 @@ def solve_one(
         e3 = 0.0
         for i in range(n):
             sc = atol[i] + rtol * max(abs(y[i]), abs(ynew[i]))
-            e5 += (a5[i] / sc) ** 2
-            e3 += (a3[i] / sc) ** 2
+            q5 = a5[i] / sc
+            q3 = a3[i] / sc
+            e5 += q5 * q5  # not q ** 2: the interpreter takes that as pow(q, 2), ~1 in 1,000 a last bit off
+            e3 += q3 * q3
         err = 0.0 if e5 == 0.0 and e3 == 0.0 else abs(h) * e5 / math.sqrt((e5 + 0.01 * e3) * n_active)
         if not math.isfinite(err):
             h *= _MIN_FACTOR
@@ -877,7 +906,8 @@ def solve_impact(
     p[3] = a
     p[4] = b
     p[5] = m2
-    p[6] = 0.0 if rigid else m2 * (2.0 * math.pi * hoop) ** 2
+    w = 2.0 * math.pi * hoop
+    p[6] = 0.0 if rigid else m2 * (w * w)  # as CollisionParams.k2 (a square as w * w, not pow(w, 2))
     p[7] = c2
     p[8] = 0.0 if clamped else 1.0 / body
     p[9] = 0.0 if clamped else 1.0 / (m2 + body)

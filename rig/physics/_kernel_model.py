@@ -191,7 +191,8 @@ def g_and_rate(y: np.ndarray, f: np.ndarray, p: np.ndarray) -> tuple[float, floa
 
 
 def g_clear(d_lo: float, d_size: float, v_lo: float, v_size: float, p: np.ndarray) -> bool:
-    """True when g > 0, by a margin far above rounding, at every state with d >= d_lo and d' >= v_lo:
+    """True when g > 0 (or NaN: 0 * inf, k1 = 0 at a subnormal d; never <= 0), by a margin far above
+    rounding, at every state with d >= d_lo and d' >= v_lo:
     g = k1 d^(1+a-b) + c1 d' rises with both where 1 + a - b >= 0 (k1, c1 >= 0). d_size and v_size:
     the sizes of the numbers d and d' are computed from, whose rounding (~1e-15 of them) the
     margins (a millionth) leave far behind."""

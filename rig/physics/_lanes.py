@@ -296,8 +296,10 @@ def _error(lanes: _Lanes, K: np.ndarray, ynew: np.ndarray, rtol: float) -> np.nd
     a5 = _combine(K, cols, e5v, 0, cols.size)
     a3 = _combine(K, cols, e3v, 0, cols.size)
     sc = lanes.atol + rtol * np.maximum(np.abs(lanes.y), np.abs(ynew))
-    q5 = (a5 / sc) ** 2
-    q3 = (a3 / sc) ** 2
+    q5 = a5 / sc
+    q3 = a3 / sc
+    q5 = q5 * q5  # as the kernel: a square as q * q
+    q3 = q3 * q3
     e5 = q5[0].copy()
     e3 = q3[0].copy()
     for i in range(1, 6):

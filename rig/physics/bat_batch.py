@@ -60,7 +60,8 @@ def _lanes_of(params: CollisionParams, speed: float, hoops: np.ndarray, eff: np.
             f"I/Q^2 = {eff[k]:.4g} kg must exceed the barrel mass m2 = {params.m2:g} kg",
         )
     P = np.tile(fast.kernel_params(Impact(params, speed, 1000.0, body_mass=1.0)), (hoops.size, 1))
-    P[:, 6] = params.m2 * (2.0 * math.pi * hoops) ** 2
+    w = 2.0 * math.pi * hoops
+    P[:, 6] = params.m2 * (w * w)  # as CollisionParams.k2
     P[:, 8] = 1.0 / body
     P[:, 9] = 1.0 / (params.m2 + body)
     return P

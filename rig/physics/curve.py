@@ -56,7 +56,8 @@ def cor_grid(
     base = fast.kernel_params(Impact(params, speed, 1.0))
     n = hoops.size
     P = np.tile(base, (n, 1))
-    P[:, 6] = params.m2 * (2.0 * math.pi * hoops) ** 2
+    w = 2.0 * math.pi * hoops
+    P[:, 6] = params.m2 * (w * w)  # as CollisionParams.k2
     v0 = np.full(n, speed)
     length = np.full(n, params.compression_scale(speed))
     n_active = np.full(n, 4, dtype=np.int64)

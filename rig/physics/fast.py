@@ -87,7 +87,8 @@ def kernel_params(imp: Impact) -> np.ndarray:
     inv_base = 0.0 if body is None else 1.0 / (p.m2 + body)
     hoop = imp.hoop_hz  # checked when the Impact was made
     rigid = hoop is None
-    k2 = 0.0 if hoop is None else p.m2 * (2.0 * math.pi * hoop) ** 2  # CollisionParams.k2, unchecked again
+    w = 0.0 if hoop is None else 2.0 * math.pi * hoop
+    k2 = 0.0 if hoop is None else p.m2 * (w * w)  # CollisionParams.k2, unchecked again
     return np.array(
         (p.m1, p.k1, p.c1, p.a, p.b, p.m2, k2, p.c2, inv_body, inv_base, 1.0 if rigid else 0.0),
         dtype=np.float64,

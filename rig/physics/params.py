@@ -41,8 +41,12 @@ class CollisionParams(BaseModel):
             raise ParameterError.from_validation(exc) from None
 
     def k2(self, hoop_hz: float) -> float:
-        """Barrel spring constant k2 = m2 (2 pi f)^2 for hoop frequency f (Hz)."""
-        return self.m2 * (2.0 * math.pi * check_hoop(hoop_hz)) ** 2
+        """Barrel spring constant k2 = m2 (2 pi f)^2 for hoop frequency f (Hz).
+
+        The square as w * w, as the compiled kernel and numpy's arrays take it: the C library's
+        pow(w, 2) differs from it in the last bit in about 1 case in 1,000."""
+        w = 2.0 * math.pi * check_hoop(hoop_hz)
+        return self.m2 * (w * w)
 
     def compression_scale(self, speed: float) -> float:
         """Peak compression of an undamped ball on a rigid wall: the model's length scale, m."""

@@ -9,8 +9,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from numba.core.errors import TypingError
 
 from rig.physics import _dop853, _interpreted
 
@@ -73,3 +75,21 @@ def test_the_steps_three_sums_in_one_pass_are_the_plain_loops(case: tuple[np.nda
         plain_sums = PLAIN._step_sums(K, n)
     for vector, plain in zip(_dop853._step_sums(K, n), plain_sums, strict=True):
         assert bits(vector, n) == bits(plain, n)
+
+
+def test_a_stage_table_not_laid_out_as_the_kernels_is_refused() -> None:
+    """The vector sums read K as C-ordered rows of 6 float64 (an outside review summed a
+    row-strided K to -12.79 where the plain loop gave 7.94): any other K is refused, not misread."""
+    cols, vals = _dop853._B_COL, _dop853._B_VAL
+    K = np.arange(_dop853._NX * 6, dtype=float).reshape(_dop853._NX, 6)
+    strided = np.repeat(K, 2, axis=0)[::2]
+    assert np.array_equal(strided, K) and not strided.flags.c_contiguous
+    with pytest.raises(TypingError, match="C-ordered"):
+        _dop853._combine(strided, cols, vals, 0, cols.size, 6)
+    with pytest.raises(ValueError, match="6 states"):
+        _dop853._combine(np.zeros((_dop853._NX, 4)), cols, vals, 0, cols.size, 4)
+    with pytest.raises(ValueError, match="6 states"):
+        _dop853._step_sums(np.zeros((_dop853._NX, 4)), 4)
+    assert bits(_dop853._combine(K, cols, vals, 0, cols.size, 6), 6) == bits(
+        PLAIN._combine(K, cols, vals, 0, cols.size, 6), 6
+    )
