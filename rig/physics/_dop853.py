@@ -907,7 +907,7 @@ def solve_impact(
     p[4] = b
     p[5] = m2
     w = 2.0 * math.pi * hoop
-    p[6] = 0.0 if rigid else m2 * (w * w)  # as CollisionParams.k2 (a square as w * w, not pow(w, 2))
+    p[6] = 0.0 if rigid else m2 * (w * w)  # params.barrel_spring, compiled (w * w, not pow(w, 2))
     p[7] = c2
     p[8] = 0.0 if clamped else 1.0 / body
     p[9] = 0.0 if clamped else 1.0 / (m2 + body)

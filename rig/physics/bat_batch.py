@@ -11,7 +11,6 @@ prediction and its parameter steps) go in one batch: each lane's numbers do not 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -19,7 +18,7 @@ import numpy as np
 from rig.core.errors import ParameterError
 from rig.physics import fast
 from rig.physics.equations import Impact
-from rig.physics.params import CollisionParams, check_speed, check_tolerance
+from rig.physics.params import CollisionParams, barrel_spring, check_speed, check_tolerance
 from rig.physics.reference import contact_time_limit
 
 
@@ -60,8 +59,7 @@ def _lanes_of(params: CollisionParams, speed: float, hoops: np.ndarray, eff: np.
             f"I/Q^2 = {eff[k]:.4g} kg must exceed the barrel mass m2 = {params.m2:g} kg",
         )
     P = np.tile(fast.kernel_params(Impact(params, speed, 1000.0, body_mass=1.0)), (hoops.size, 1))
-    w = 2.0 * math.pi * hoops
-    P[:, 6] = params.m2 * (w * w)  # as CollisionParams.k2
+    P[:, 6] = barrel_spring(params.m2, hoops)
     P[:, 8] = 1.0 / body
     P[:, 9] = 1.0 / (params.m2 + body)
     return P

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import operator
 from dataclasses import dataclass
 
@@ -11,7 +10,7 @@ import numpy as np
 from rig.core.errors import ParameterError
 from rig.physics import fast
 from rig.physics.equations import Impact
-from rig.physics.params import CollisionParams, check_hoop, check_speed, check_tolerance
+from rig.physics.params import CollisionParams, barrel_spring, check_hoop, check_speed, check_tolerance
 from rig.physics.reference import contact_time_limit
 
 REFINE_RTOL = 1e-12  # tighter than the grid so that solver noise cannot move the optimum
@@ -56,8 +55,7 @@ def cor_grid(
     base = fast.kernel_params(Impact(params, speed, 1.0))
     n = hoops.size
     P = np.tile(base, (n, 1))
-    w = 2.0 * math.pi * hoops
-    P[:, 6] = params.m2 * (w * w)  # as CollisionParams.k2
+    P[:, 6] = barrel_spring(params.m2, hoops)
     v0 = np.full(n, speed)
     length = np.full(n, params.compression_scale(speed))
     n_active = np.full(n, 4, dtype=np.int64)

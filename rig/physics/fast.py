@@ -20,7 +20,6 @@ compiled kernel's numbers to the last bit), unless the compiled kernel is loaded
 from __future__ import annotations
 
 import dataclasses
-import math
 import sys
 from collections.abc import Sequence
 from types import ModuleType
@@ -31,7 +30,7 @@ import numpy as np
 from rig.core.errors import ParameterError, SolverError
 from rig.physics import _interpreted
 from rig.physics.equations import Impact
-from rig.physics.params import check_tolerance
+from rig.physics.params import RTOL_MAX, RTOL_MIN, barrel_spring, check_tolerance
 from rig.physics.reference import CollisionResult, _time_limit, bounded_cor, continue_contacts
 
 DEFAULT_RTOL = 1e-10
@@ -87,8 +86,7 @@ def kernel_params(imp: Impact) -> np.ndarray:
     inv_base = 0.0 if body is None else 1.0 / (p.m2 + body)
     hoop = imp.hoop_hz  # checked when the Impact was made
     rigid = hoop is None
-    w = 0.0 if hoop is None else 2.0 * math.pi * hoop
-    k2 = 0.0 if hoop is None else p.m2 * (w * w)  # CollisionParams.k2, unchecked again
+    k2 = 0.0 if hoop is None else barrel_spring(p.m2, hoop)  # CollisionParams.k2, unchecked again
     return np.array(
         (p.m1, p.k1, p.c1, p.a, p.b, p.m2, k2, p.c2, inv_body, inv_base, 1.0 if rigid else 0.0),
         dtype=np.float64,
@@ -102,7 +100,7 @@ def _describe(imp: Impact, rtol: float) -> str:
 
 def solve(imp: Impact, rtol: float = DEFAULT_RTOL) -> CollisionResult:
     """Solve one collision with the DOP853 kernel (interpreted at first, then compiled: see above)."""
-    if not (type(rtol) is float and 1e-13 <= rtol <= 1e-2):  # the common case in three comparisons
+    if not (type(rtol) is float and RTOL_MIN <= rtol <= RTOL_MAX):  # the common case in three comparisons
         rtol = check_tolerance(rtol)
     if _solve_impact is None:
         module = _single()
@@ -134,6 +132,19 @@ def solve(imp: Impact, rtol: float = DEFAULT_RTOL) -> CollisionResult:
 _new_object = object.__new__
 
 
+_FIELDS = {  # CollisionResult's fields in their order, with a one-contact kernel solve's constants
+    "cor": 0.0,
+    "contact_time_s": 0.0,
+    "ball_exit_velocity": 0.0,
+    "final_state": (),
+    "nfev": 0,
+    "method": "rig-DOP853",
+    "rtol": 0.0,
+    "energy": None,
+    "contacts": 1,
+}
+
+
 def _single_contact(out: tuple[Any, ...], rtol: float) -> CollisionResult:
     """The CollisionResult of a one-contact kernel solve (`_dop853.solve_impact`'s tuple out: cor,
     contact time, nfev, status, state), equal to CollisionResult(bounded_cor(cor), contact time,
@@ -153,19 +164,6 @@ def _single_contact(out: tuple[Any, ...], rtol: float) -> CollisionResult:
     fields["rtol"] = rtol
     fields["energy"] = {}
     return result
-
-
-_FIELDS = {  # CollisionResult's fields in their order, with a one-contact kernel solve's constants
-    "cor": 0.0,
-    "contact_time_s": 0.0,
-    "ball_exit_velocity": 0.0,
-    "final_state": (),
-    "nfev": 0,
-    "method": "rig-DOP853",
-    "rtol": 0.0,
-    "energy": None,
-    "contacts": 1,
-}
 
 
 def _interpreted_solve(imp: Impact, rtol: float, module: ModuleType) -> CollisionResult | None:

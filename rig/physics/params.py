@@ -8,7 +8,7 @@ damping c2. All values are SI.
 from __future__ import annotations
 
 import math
-from typing import Annotated
+from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
@@ -41,12 +41,8 @@ class CollisionParams(BaseModel):
             raise ParameterError.from_validation(exc) from None
 
     def k2(self, hoop_hz: float) -> float:
-        """Barrel spring constant k2 = m2 (2 pi f)^2 for hoop frequency f (Hz).
-
-        The square as w * w, as the compiled kernel and numpy's arrays take it: the C library's
-        pow(w, 2) differs from it in the last bit in about 1 case in 1,000."""
-        w = 2.0 * math.pi * check_hoop(hoop_hz)
-        return self.m2 * (w * w)
+        """Barrel spring constant k2 = m2 (2 pi f)^2 for hoop frequency f (Hz)."""
+        return barrel_spring(self.m2, check_hoop(hoop_hz))
 
     def compression_scale(self, speed: float) -> float:
         """Peak compression of an undamped ball on a rigid wall: the model's length scale, m."""
@@ -102,6 +98,9 @@ def check_hoop(hoop_hz: float) -> float:
     return _check_finite_positive("hoop_hz", hoop_hz, "Hz")
 
 
+RTOL_MIN, RTOL_MAX = 1e-13, 1e-2  # the relative tolerances a solver accepts (check_tolerance)
+
+
 def check_tolerance(rtol: float) -> float:
     """Validate a relative tolerance: between 1e-13 and 1e-2.
 
@@ -109,6 +108,15 @@ def check_tolerance(rtol: float) -> float:
     100 eps), so it is refused rather than reported as met.
     """
     x = _check_finite_positive("rtol", rtol, "(relative)")
-    if not 1e-13 <= x <= 1e-2:
+    if not RTOL_MIN <= x <= RTOL_MAX:
         raise ParameterError("rtol", rtol, "must lie between 1e-13 and 1e-2")
     return x
+
+
+def barrel_spring(m2: Any, hoop_hz: Any) -> Any:
+    """k2 = m2 (2 pi f)^2, unchecked, for a hoop frequency or an array of them: the one formula
+    (CollisionParams.k2, the kernel's parameter vectors; `_dop853.solve_impact` repeats it compiled).
+    The square as w * w, as numba and numpy's arrays take it: the C library's pow(w, 2), which
+    Python's w ** 2 is, differs from it in the last bit in about 1 case in 1,000."""
+    w = 2.0 * math.pi * hoop_hz
+    return m2 * (w * w)
